@@ -1,0 +1,105 @@
+"""What the behaviours need from the outside world, as ports.
+
+The MAVLink driver in :mod:`autonomy` satisfies :class:`VehiclePort`; tests use fakes.
+All positions are local ENU metres (origin at home, z up), velocities ENU m/s, yaw radians
+(ENU, counter-clockwise from east), time in seconds of the injected :class:`Clock`.
+"""
+
+from __future__ import annotations
+
+import enum
+from dataclasses import dataclass
+from typing import Protocol, runtime_checkable
+
+
+class Clock(Protocol):
+    """Injected time source: simulated time in lockstep runs, monotonic wall time live."""
+
+    def now(self) -> float: ...
+
+
+class CommandStatus(enum.Enum):
+    """Life cycle of a vehicle command."""
+
+    PENDING = "pending"  # queued or sent, no answer yet
+    ACCEPTED = "accepted"  # the autopilot accepted it (COMMAND_ACK ACCEPTED, or confirmed)
+    IN_PROGRESS = "in_progress"  # the autopilot reported it is working on it
+    DENIED = "denied"  # refused; ``reason`` carries the autopilot's words
+    TIMED_OUT = "timed_out"  # no answer within the timeout (clock time)
+
+    @property
+    def done(self) -> bool:
+        return self in (CommandStatus.ACCEPTED, CommandStatus.DENIED, CommandStatus.TIMED_OUT)
+
+
+@runtime_checkable
+class CommandHandle(Protocol):
+    """A command's progress, polled by behaviours."""
+
+    @property
+    def name(self) -> str: ...
+
+    @property
+    def status(self) -> CommandStatus: ...
+
+    @property
+    def reason(self) -> str:
+        """Why it was denied or timed out (the autopilot's STATUSTEXT / ACK result); ''."""
+        ...
+
+
+class LandedState(enum.Enum):
+    UNDEFINED = "undefined"
+    ON_GROUND = "on_ground"
+    IN_AIR = "in_air"
+    TAKEOFF = "takeoff"
+    LANDING = "landing"
+
+
+@dataclass(frozen=True, slots=True)
+class VehicleState:
+    """Immutable snapshot of what the autopilot last reported."""
+
+    time: float = 0.0  # clock seconds when the snapshot was taken
+    position: tuple[float, float, float] | None = None  # ENU m; None until known
+    velocity: tuple[float, float, float] = (0.0, 0.0, 0.0)  # ENU m/s
+    yaw: float = 0.0  # rad, ENU
+    armed: bool = False
+    mode: str = ""  # flight mode by name, e.g. "GUIDED", "LAND", "OFFBOARD", "AUTO.LAND"
+    landed_state: LandedState = LandedState.UNDEFINED
+    battery_percent: float | None = None  # 0..100
+    gps_fix: int = 0  # GPS_FIX_TYPE (3 = 3D)
+    rangefinder_agl: float | None = None  # m above ground from the downward rangefinder
+    home: tuple[float, float, float] | None = None  # lat deg, lon deg, alt m AMSL
+    heartbeat_age: float = float("inf")  # s since the last autopilot HEARTBEAT
+    link_lost: bool = True
+    prearm_ok: bool = False
+    autopilot: str = "unknown"  # "ardupilot", "px4" or "unknown"
+    last_status_text: str = ""
+
+
+class VehiclePort(Protocol):
+    """Non-blocking vehicle commands; each returns a handle to poll."""
+
+    @property
+    def state(self) -> VehicleState: ...
+
+    def arm(self) -> CommandHandle: ...
+
+    def disarm(self) -> CommandHandle: ...
+
+    def set_mode(self, mode: str) -> CommandHandle: ...
+
+    def takeoff(self, altitude: float) -> CommandHandle:
+        """Climb to ``altitude`` metres above home (arms and switches mode as needed)."""
+        ...
+
+    def goto(self, x: float, y: float, z: float) -> CommandHandle:
+        """Fly to an ENU position (re-sent by the driver as the autopilot requires)."""
+        ...
+
+    def set_velocity(self, vx: float, vy: float, vz: float) -> CommandHandle: ...
+
+    def hold(self) -> CommandHandle: ...
+
+    def land(self) -> CommandHandle: ...
