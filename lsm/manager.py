@@ -1,0 +1,648 @@
+"""The Landing Site Manager (DESIGN.md section 4, thesis section 3.2.2).
+
+Detectors submit :class:`~lsm.records.SiteObservation` records from any thread. The manager
+keeps at most ``capacity`` :class:`~lsm.records.LandingSite` records, held in a max-heap on
+the loss of eq. 3.1 so that the worst site is swapped out in O(log n) when a better one
+arrives. Site properties live in a structure of arrays (one slot per site), so ranking and
+re-keying are vectorised over all sites.
+
+The loss depends on the drone position and on the largest retained size, so heap keys are
+recomputed (an O(n) re-heapify) when the drone has moved more than ``rekey_distance`` or the
+largest size changed. :meth:`LandingSiteManager.ranked` always computes exact losses at the
+given drone position.
+"""
+
+from __future__ import annotations
+
+import heapq
+import math
+import threading
+from collections import deque
+from collections.abc import Callable, Iterable, Iterator, Sequence
+from dataclasses import dataclass
+from operator import attrgetter
+from typing import overload
+
+import numpy as np
+
+from lsm.loss import site_loss, site_loss_scalar
+from lsm.records import LandingSite, SiteObservation
+from lsm.settings import LossWeights, LsmSettings
+
+# Why an observation was rejected; each has its own counter ``rejected_<reason>``.
+REJECT_REASONS = (
+    "malformed",  # not a SiteObservation, or fields that are not numbers
+    "non_finite",  # NaN or inf in any numeric field
+    "roughness_out_of_range",  # roughness outside [0, 1]
+    "uncertainty_out_of_range",  # uncertainty outside [0, 1]
+    "negative_size",
+    "negative_observation_altitude",
+    "banned_zone",  # inside the zone of a banned site
+    "beyond_max_distance",  # farther than max_distance from the drone
+    "worse_than_worst",  # manager full and the new site is not better than its worst
+)
+
+_OBS_FIELDS = attrgetter(
+    "x", "y", "z", "roughness", "uncertainty", "size", "obstacle_altitude",
+    "observation_altitude", "timestamp",
+)
+_BATCH = 512  # observations processed per lock acquisition by the worker
+
+
+@dataclass(frozen=True, slots=True)
+class Decision:
+    """One decision of the manager, for the flight's event log.
+
+    ``kind`` is one of inserted, merged, updated, replaced, rejected, dropped, banned;
+    ``reason`` says why for rejected/dropped/replaced records.
+    """
+
+    kind: str
+    site_id: int | None
+    reason: str
+    timestamp: float
+
+
+class RankedSites(Sequence[LandingSite]):
+    """Retained sites in ascending loss: a sorted copy taken under the manager's lock.
+
+    Indexing builds :class:`LandingSite` records on demand, so ranking 10,000 sites costs
+    array work only. ``ids`` and ``losses`` are the sorted arrays.
+    """
+
+    def __init__(self, columns: dict[str, np.ndarray], sources: list[str]) -> None:
+        self._c = columns
+        self._sources = sources
+        self.ids: np.ndarray = columns["id"]
+        self.losses: np.ndarray = columns["loss"]
+
+    def __len__(self) -> int:
+        return len(self.ids)
+
+    def _site(self, i: int) -> LandingSite:
+        c = self._c
+        p = c["position"][i]
+        return LandingSite(
+            id=int(c["id"][i]), x=float(p[0]), y=float(p[1]), z=float(p[2]),
+            roughness=float(c["roughness"][i]), uncertainty=float(c["uncertainty"][i]),
+            size=float(c["size"][i]), obstacle_altitude=float(c["obstacle_altitude"][i]),
+            verification_altitude=float(c["verification_altitude"][i]),
+            first_seen=float(c["first_seen"][i]), last_seen=float(c["last_seen"][i]),
+            detection_count=int(c["detection_count"][i]), source=self._sources[i],
+            loss=float(c["loss"][i]),
+        )
+
+    @overload
+    def __getitem__(self, index: int) -> LandingSite: ...
+
+    @overload
+    def __getitem__(self, index: slice) -> list[LandingSite]: ...
+
+    def __getitem__(self, index):
+        if isinstance(index, slice):
+            return [self._site(i) for i in range(len(self))[index]]
+        n = len(self)
+        if index < 0:
+            index += n
+        if not 0 <= index < n:
+            raise IndexError("ranked site index out of range")
+        return self._site(index)
+
+    def __iter__(self) -> Iterator[LandingSite]:
+        return (self._site(i) for i in range(len(self)))
+
+
+@dataclass(frozen=True)
+class LsmSnapshot:
+    """A consistent copy of the manager's state at one instant."""
+
+    sites: RankedSites
+    counters: dict[str, int]
+    ban_zones: list[tuple[float, float, float]]
+    drone_position: tuple[float, float, float] | None
+
+
+class LandingSiteManager:
+    """Bounded, ranked store of landing sites fed by detectors from any thread.
+
+    Args:
+        settings: capacity, match/ban radii, max distance, verification altitude.
+        weights: loss weights and the distance normaliser D.
+        on_decision: called (under the manager's lock) with every :class:`Decision`;
+            keep it cheap. None costs nothing.
+    """
+
+    def __init__(
+        self,
+        settings: LsmSettings | None = None,
+        weights: LossWeights | None = None,
+        on_decision: Callable[[Decision], None] | None = None,
+    ) -> None:
+        self.settings = settings or LsmSettings()
+        self.weights = weights or LossWeights()
+        self._on_decision = on_decision
+        cap = self.settings.capacity
+        self._pos = np.zeros((cap, 3))
+        self._rough = np.zeros(cap)
+        self._unc = np.zeros(cap)
+        self._size = np.zeros(cap)
+        self._obst = np.zeros(cap)
+        self._veralt = np.zeros(cap)
+        self._first = np.zeros(cap)
+        self._last = np.zeros(cap)
+        self._count = np.zeros(cap, dtype=np.int64)
+        self._ids = np.full(cap, -1, dtype=np.int64)
+        self._sources: list[str] = [""] * cap
+        self._xy: list[tuple[float, float]] = [(0.0, 0.0)] * cap  # fast scalar access
+        self._version: list[int] = [0] * cap  # heap entries of older versions are stale
+        self._free: list[int] = list(range(cap - 1, -1, -1))
+        self._slot_of: dict[int, int] = {}
+        self._cells: dict[tuple[int, int], list[int]] = {}  # spatial hash, cell = match radius
+        # Max-heap as a min-heap of (-loss, -id, version, slot): ties evict the newest site.
+        self._heap: list[tuple[float, int, int, int]] = []
+        self._next_id = 1
+        self._size_max = 0.0
+        self._drone: tuple[float, float, float] | None = None
+        self._keyed_at: tuple[float, float] | None = None  # drone xy when keys were computed
+        self._keyed_size_max = 0.0
+        self._bans = np.zeros((0, 3))  # rows of (x, y, radius)
+        self._queue: deque = deque()
+        self._wake = threading.Event()
+        self._lock = threading.Lock()
+        self._worker: threading.Thread | None = None
+        self._stopping = False
+        self._counts = dict.fromkeys(
+            ("received", "inserted", "merged", "updated", "replaced", "dropped", "banned",
+             "banned_rejected"), 0)
+        self._rejected = dict.fromkeys(REJECT_REASONS, 0)
+
+    # ------------------------------------------------------------------ producers
+    def submit(self, observation: SiteObservation) -> None:
+        """Queue one observation. Safe from any thread; never raises, never blocks long."""
+        self._queue.append(observation)
+        if not self._wake.is_set():
+            self._wake.set()
+
+    def submit_many(self, observations: Iterable[SiteObservation]) -> None:
+        """Queue several observations at once (one wake-up for the worker)."""
+        self._queue.extend(observations)
+        if not self._wake.is_set():
+            self._wake.set()
+
+    def process_pending(self) -> int:
+        """Drain the queue in the calling thread; returns how many observations were handled.
+
+        The lockstep runner calls this after each perception update, so the outcome of a
+        simulated flight does not depend on thread scheduling.
+        """
+        done = 0
+        while True:
+            batch = self._take_batch()
+            if not batch:
+                return done
+            with self._lock:
+                self._process_batch(batch)
+            done += len(batch)
+
+    @property
+    def queued(self) -> int:
+        """Observations submitted but not yet processed."""
+        return len(self._queue)
+
+    # ------------------------------------------------------------------ worker thread
+    def start(self) -> LandingSiteManager:
+        """Start the worker thread that drains the queue (live mode)."""
+        if self._worker is None or not self._worker.is_alive():
+            self._stopping = False
+            self._worker = threading.Thread(target=self._run, name="lsm-worker", daemon=True)
+            self._worker.start()
+        return self
+
+    def stop(self, drain: bool = True) -> None:
+        """Stop the worker; with ``drain`` the queue is processed first, so nothing is lost."""
+        self._stopping = True
+        self._wake.set()
+        if self._worker is not None:
+            self._worker.join()
+            self._worker = None
+        if drain:
+            self.process_pending()
+
+    def __enter__(self) -> LandingSiteManager:
+        return self.start()
+
+    def __exit__(self, *exc) -> None:
+        self.stop()
+
+    def _run(self) -> None:
+        while not self._stopping:
+            batch = self._take_batch()
+            if batch:
+                with self._lock:
+                    self._process_batch(batch)
+                continue
+            self._wake.clear()
+            if not self._queue:
+                # An event wait, not a clock: the worker sleeps until submit() wakes it.
+                self._wake.wait(0.05)
+
+    def _take_batch(self) -> list:
+        q = self._queue
+        n = min(len(q), _BATCH)
+        pop = q.popleft
+        return [pop() for _ in range(n)]
+
+    # ------------------------------------------------------------------ drone position
+    def set_drone_position(self, position: Sequence[float]) -> None:
+        """Tell the manager where the drone is (ENU m). Sites beyond max_distance fall off."""
+        p = (float(position[0]), float(position[1]), float(position[2]))
+        if not all(math.isfinite(v) for v in p):
+            return
+        with self._lock:
+            self._drone = p
+            self._maybe_rekey()
+
+    @property
+    def drone_position(self) -> tuple[float, float, float] | None:
+        return self._drone
+
+    # ------------------------------------------------------------------ reads
+    def __len__(self) -> int:
+        return len(self._slot_of)
+
+    def ranked(self, drone_position: Sequence[float] | None = None) -> RankedSites:
+        """All retained sites in ascending loss at ``drone_position`` (a sorted copy).
+
+        Given a position, it first becomes the drone position (sites beyond max_distance
+        fall off, as in :meth:`set_drone_position`).
+        """
+        if drone_position is not None:
+            self.set_drone_position(drone_position)
+        with self._lock:
+            return self._ranked_locked()
+
+    def best(self, drone_position: Sequence[float] | None = None) -> LandingSite | None:
+        """The lowest-loss site, or None when no site is retained."""
+        ranking = self.ranked(drone_position)
+        return ranking[0] if len(ranking) else None
+
+    def get(self, site_id: int) -> LandingSite | None:
+        """The retained site with this id (its loss at the current drone position), or None."""
+        with self._lock:
+            slot = self._slot_of.get(int(site_id))
+            if slot is None:
+                return None
+            idx = np.array([slot])
+            cols = self._columns(idx, self._losses(idx))
+            return RankedSites(cols, [self._sources[slot]])[0]
+
+    def is_verified(self, site: LandingSite) -> bool:
+        """True when the site was (re-)detected at or below the verification altitude
+        (plus the tolerance)."""
+        s = self.settings
+        return site.verification_altitude <= s.verification_altitude + s.verification_tolerance
+
+    def counters(self) -> dict[str, int]:
+        """Counts of what happened to observations and sites.
+
+        ``received == inserted + merged + rejected`` once the queue is drained;
+        ``rejected_<reason>`` break the rejections down (``banned_rejected`` equals
+        ``rejected_banned_zone``).
+        """
+        with self._lock:
+            return self._counters_locked()
+
+    def ban_zones(self) -> list[tuple[float, float, float]]:
+        """Ban zones as (x, y, radius) in ENU metres."""
+        with self._lock:
+            return [tuple(float(v) for v in row) for row in self._bans]
+
+    def snapshot(self) -> LsmSnapshot:
+        """Ranked sites, counters and ban zones taken together under one lock."""
+        with self._lock:
+            return LsmSnapshot(
+                sites=self._ranked_locked(),
+                counters=self._counters_locked(),
+                ban_zones=[tuple(float(v) for v in row) for row in self._bans],
+                drone_position=self._drone,
+            )
+
+    # ------------------------------------------------------------------ bans
+    def ban(self, site_id: int) -> bool:
+        """Remove a site and reject later observations within ``ban_radius`` of it.
+
+        Returns False when no site has this id.
+        """
+        with self._lock:
+            slot = self._slot_of.get(int(site_id))
+            if slot is None:
+                return False
+            x, y = self._xy[slot]
+            self._bans = np.vstack([self._bans, [x, y, self.settings.ban_radius]])
+            t = float(self._last[slot])
+            self._remove(slot)
+            self._counts["banned"] += 1
+            self._decide("banned", int(site_id), "verification failed or operator ban", t)
+            return True
+
+    # ------------------------------------------------------------------ internals
+    def _decide(self, kind: str, site_id: int | None, reason: str, t: float) -> None:
+        if self._on_decision is not None:
+            self._on_decision(Decision(kind, site_id, reason, t))
+
+    def _reject(self, reason: str, t: float) -> None:
+        self._rejected[reason] += 1
+        if reason == "banned_zone":
+            self._counts["banned_rejected"] += 1
+        self._decide("rejected", None, reason, t)
+
+    def _counters_locked(self) -> dict[str, int]:
+        out = dict(self._counts)
+        out["rejected"] = sum(self._rejected.values())
+        out.update({f"rejected_{k}": v for k, v in self._rejected.items()})
+        out["retained"] = len(self._slot_of)
+        out["queued"] = len(self._queue)
+        return out
+
+    def _active_slots(self) -> np.ndarray:
+        return np.fromiter(self._slot_of.values(), dtype=np.int64, count=len(self._slot_of))
+
+    def _losses(self, slots: np.ndarray) -> np.ndarray:
+        if self._drone is None:
+            dist = np.zeros(len(slots))
+        else:
+            d = self._pos[slots, :2] - np.asarray(self._drone[:2])
+            dist = np.hypot(d[:, 0], d[:, 1])
+        return site_loss(dist, self._rough[slots], self._unc[slots], self._size[slots],
+                         self._veralt[slots], self._size_max, self.weights)
+
+    def _columns(self, slots: np.ndarray, loss: np.ndarray) -> dict[str, np.ndarray]:
+        return {
+            "id": self._ids[slots], "position": self._pos[slots],
+            "roughness": self._rough[slots], "uncertainty": self._unc[slots],
+            "size": self._size[slots], "obstacle_altitude": self._obst[slots],
+            "verification_altitude": self._veralt[slots], "first_seen": self._first[slots],
+            "last_seen": self._last[slots], "detection_count": self._count[slots],
+            "loss": loss,
+        }
+
+    def _ranked_locked(self) -> RankedSites:
+        slots = self._active_slots()
+        loss = self._losses(slots)
+        # Ties broken by id so rankings are reproducible.
+        order = np.lexsort((self._ids[slots], loss))
+        slots = slots[order]
+        return RankedSites(self._columns(slots, loss[order]), [self._sources[s] for s in slots])
+
+    def _cell(self, x: float, y: float) -> tuple[int, int]:
+        r = self.settings.match_radius
+        return (math.floor(x / r), math.floor(y / r))
+
+    def _nearest_within_match(self, x: float, y: float) -> int | None:
+        cx, cy = self._cell(x, y)
+        r2 = self.settings.match_radius ** 2
+        best, best_d2 = None, r2
+        cells = self._cells
+        xy = self._xy
+        for ix in (cx - 1, cx, cx + 1):
+            for iy in (cy - 1, cy, cy + 1):
+                members = cells.get((ix, iy))
+                if not members:
+                    continue
+                for slot in members:
+                    sx, sy = xy[slot]
+                    d2 = (sx - x) ** 2 + (sy - y) ** 2
+                    if d2 <= best_d2:
+                        best, best_d2 = slot, d2
+        return best
+
+    def _hash_add(self, slot: int) -> None:
+        x, y = self._xy[slot]
+        self._cells.setdefault(self._cell(x, y), []).append(slot)
+
+    def _hash_remove(self, slot: int) -> None:
+        x, y = self._xy[slot]
+        key = self._cell(x, y)
+        members = self._cells[key]
+        members.remove(slot)
+        if not members:
+            del self._cells[key]
+
+    def _loss_of_slot(self, slot: int) -> float:
+        x, y = self._xy[slot]
+        d = 0.0 if self._drone is None else math.hypot(x - self._drone[0], y - self._drone[1])
+        return site_loss_scalar(d, float(self._rough[slot]), float(self._unc[slot]),
+                                float(self._size[slot]), float(self._veralt[slot]),
+                                self._size_max, self.weights)
+
+    def _push(self, slot: int) -> None:
+        self._version[slot] += 1
+        entry = (-self._loss_of_slot(slot), -int(self._ids[slot]), self._version[slot], slot)
+        heapq.heappush(self._heap, entry)
+        if len(self._heap) > 2 * len(self._slot_of) + 64:
+            self._rekey()  # too many stale entries: rebuild
+
+    def _worst_slot(self) -> tuple[int, float] | None:
+        """The valid heap top: (slot, loss). Stale entries are discarded on the way."""
+        heap, version = self._heap, self._version
+        while heap:
+            neg_loss, _, ver, slot = heap[0]
+            if version[slot] == ver and self._ids[slot] >= 0:
+                return slot, -neg_loss
+            heapq.heappop(heap)
+        return None
+
+    def _remove(self, slot: int) -> None:
+        site_id = int(self._ids[slot])
+        self._hash_remove(slot)
+        del self._slot_of[site_id]
+        self._ids[slot] = -1
+        self._version[slot] += 1
+        self._free.append(slot)
+        if self._size[slot] >= self._size_max:
+            self._refresh_size_max()
+
+    def _refresh_size_max(self) -> None:
+        slots = self._active_slots()
+        self._size_max = float(self._size[slots].max()) if len(slots) else 0.0
+
+    def _maybe_rekey(self) -> None:
+        moved = (
+            self._drone is not None
+            and (
+                self._keyed_at is None
+                or math.hypot(self._drone[0] - self._keyed_at[0],
+                              self._drone[1] - self._keyed_at[1]) > self.settings.rekey_distance
+            )
+        )
+        if moved or self._size_max != self._keyed_size_max:
+            self._rekey()
+
+    def _rekey(self) -> None:
+        """Drop sites beyond max_distance, recompute every key, re-heapify (O(n))."""
+        slots = self._active_slots()
+        if self._drone is not None and len(slots):
+            d = self._pos[slots, :2] - np.asarray(self._drone[:2])
+            far = slots[np.hypot(d[:, 0], d[:, 1]) > self.settings.max_distance]
+            for slot in far.tolist():
+                site_id = int(self._ids[slot])
+                t = float(self._last[slot])
+                self._remove(slot)
+                self._counts["dropped"] += 1
+                self._decide("dropped", site_id, "beyond max distance", t)
+            if len(far):
+                slots = self._active_slots()
+        loss = self._losses(slots)
+        version = self._version
+        ids = self._ids[slots].tolist()
+        self._heap = [(-lv, -i, version[s], s)
+                      for lv, i, s in zip(loss.tolist(), ids, slots.tolist(), strict=True)]
+        heapq.heapify(self._heap)
+        self._keyed_at = None if self._drone is None else self._drone[:2]
+        self._keyed_size_max = self._size_max
+
+    def _validate(self, batch: list) -> tuple[np.ndarray | None, list[str | None]]:
+        """Vectorised checks of a batch. Returns the (n, 9) value array (None if no row
+        could be read) and, per observation, the rejection reason or None."""
+        n = len(batch)
+        reasons: list[str | None] = [None] * n
+        rows = []
+        for i, obs in enumerate(batch):
+            try:
+                if not isinstance(obs, SiteObservation):
+                    raise TypeError
+                rows.append(_OBS_FIELDS(obs))
+            except Exception:
+                reasons[i] = "malformed"
+                rows.append((0.0,) * 9)
+        try:
+            vals = np.array(rows, dtype=np.float64).reshape(n, 9)
+        except (TypeError, ValueError):
+            # Some field is not a number: fall back to row by row.
+            vals = np.zeros((n, 9))
+            for i, row in enumerate(rows):
+                try:
+                    vals[i] = np.array(row, dtype=np.float64)
+                except (TypeError, ValueError):
+                    reasons[i] = "malformed"
+        finite = np.isfinite(vals).all(axis=1)
+        checks = (
+            ("non_finite", ~finite),
+            ("roughness_out_of_range", (vals[:, 3] < 0) | (vals[:, 3] > 1)),
+            ("uncertainty_out_of_range", (vals[:, 4] < 0) | (vals[:, 4] > 1)),
+            ("negative_size", vals[:, 5] < 0),
+            ("negative_observation_altitude", vals[:, 7] < 0),
+        )
+        bad = np.zeros(n, dtype=bool)
+        for reason, mask in checks:
+            hit = mask & ~bad
+            for i in np.flatnonzero(hit).tolist():
+                if reasons[i] is None:
+                    reasons[i] = reason
+            bad |= mask
+        if len(self._bans):
+            dx = vals[:, None, 0] - self._bans[None, :, 0]
+            dy = vals[:, None, 1] - self._bans[None, :, 1]
+            inside = ((dx * dx + dy * dy) <= self._bans[None, :, 2] ** 2).any(axis=1)
+            for i in np.flatnonzero(inside & ~bad).tolist():
+                if reasons[i] is None:
+                    reasons[i] = "banned_zone"
+            bad |= inside
+        if self._drone is not None:
+            far = np.hypot(vals[:, 0] - self._drone[0], vals[:, 1] - self._drone[1])
+            far = far > self.settings.max_distance
+            for i in np.flatnonzero(far & ~bad).tolist():
+                if reasons[i] is None:
+                    reasons[i] = "beyond_max_distance"
+        return vals, reasons
+
+    def _process_batch(self, batch: list) -> None:
+        vals, reasons = self._validate(batch)
+        self._counts["received"] += len(batch)
+        rows = vals.tolist()
+        for i, reason in enumerate(reasons):
+            row = rows[i]
+            if reason is not None:
+                self._reject(reason, row[8] if reason != "malformed" else 0.0)
+                continue
+            self._accept(row, batch[i].source)
+        self._maybe_rekey()
+
+    def _accept(self, row: list[float], source: str) -> None:
+        x, y, z, rough, unc, size, obst, obs_alt, t = row
+        slot = self._nearest_within_match(x, y)
+        if slot is not None:
+            self._merge(slot, row, source)
+            return
+        if not self._free:
+            # Full: the new site must beat the worst retained one to get in.
+            retained_size_max = self._size_max
+            if self._size_max != self._keyed_size_max or size > self._size_max:
+                # Compare under the size_max that would hold with the newcomer in: exact keys.
+                self._size_max = max(self._size_max, size)
+                self._rekey()
+            d = 0.0 if self._drone is None else math.hypot(x - self._drone[0],
+                                                            y - self._drone[1])
+            loss = site_loss_scalar(d, rough, unc, size, obs_alt, self._size_max, self.weights)
+            worst = self._worst_slot()
+            if worst is None or loss >= worst[1]:
+                if self._size_max != retained_size_max:
+                    self._size_max = retained_size_max
+                    self._rekey()
+                self._reject("worse_than_worst", t)
+                return
+            worst_slot = worst[0]
+            worst_id = int(self._ids[worst_slot])
+            heapq.heappop(self._heap)
+            self._remove(worst_slot)
+            self._counts["replaced"] += 1
+            self._decide("replaced", worst_id, "evicted as the worst site at capacity", t)
+        slot = self._free.pop()
+        site_id = self._next_id
+        self._next_id += 1
+        self._ids[slot] = site_id
+        self._slot_of[site_id] = slot
+        self._store(slot, row, source)
+        self._first[slot] = t
+        self._count[slot] = 1
+        self._hash_add(slot)
+        if size > self._size_max:
+            self._size_max = size
+        self._push(slot)
+        self._counts["inserted"] += 1
+        self._decide("inserted", site_id, "", t)
+
+    def _store(self, slot: int, row: list[float], source: str) -> None:
+        x, y, z, rough, unc, size, obst, obs_alt, t = row
+        self._pos[slot] = (x, y, z)
+        self._xy[slot] = (x, y)
+        self._rough[slot] = rough
+        self._unc[slot] = unc
+        self._size[slot] = size
+        self._obst[slot] = obst
+        self._veralt[slot] = obs_alt
+        self._last[slot] = t
+        self._sources[slot] = source
+
+    def _merge(self, slot: int, row: list[float], source: str) -> None:
+        t = row[8]
+        site_id = int(self._ids[slot])
+        self._counts["merged"] += 1
+        self._count[slot] += 1
+        if row[7] < self._veralt[slot]:
+            # Seen from lower down: trust the new properties (thesis 3.1.5).
+            old_size = float(self._size[slot])
+            self._hash_remove(slot)
+            self._store(slot, row, source)
+            self._hash_add(slot)
+            new_size = row[5]
+            if new_size > self._size_max:
+                self._size_max = new_size
+            elif old_size >= self._size_max and new_size < old_size:
+                self._refresh_size_max()
+            self._push(slot)
+            self._counts["updated"] += 1
+            self._decide("updated", site_id, "redetected lower", t)
+        else:
+            self._last[slot] = max(float(self._last[slot]), t)
+            self._decide("merged", site_id, "", t)
