@@ -1,0 +1,240 @@
+"""Validated settings of the terrain worlds (pydantic v2).
+
+:data:`TerrainSettings` is a discriminated union on ``kind``; parse a plain mapping (e.g.
+from mission YAML) with :func:`parse_terrain_settings`.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated, Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, field_validator, model_validator
+
+# Larger grids would not fit comfortably in a laptop's memory (float32 + work arrays).
+MAX_CELLS = 64_000_000
+
+Range = tuple[float, float]
+
+
+def _check_range(value: Range, name: str, low: float = 0.0) -> Range:
+    lo, hi = value
+    if not (low <= lo <= hi):
+        raise ValueError(f"{name}: need {low} <= min <= max, got {value}")
+    return value
+
+
+class _GridSettings(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+
+    cell_size: float = Field(0.2, gt=0, le=5.0, description="simulation grid spacing (m)")
+    home_clear_radius: float = Field(
+        8.0, ge=0, description="radius (m) around home flattened so that takeoff is safe"
+    )
+
+
+class _ProceduralSettings(_GridSettings):
+    size: tuple[float, float] = Field(
+        (400.0, 400.0), description="extent (m) along x (east) and y (north)"
+    )
+    center: tuple[float, float] = Field(
+        (0.0, 0.0), description="ENU (x, y) of the terrain centre; home (0, 0) must be inside"
+    )
+
+    @field_validator("size")
+    @classmethod
+    def _size_positive(cls, v: tuple[float, float]) -> tuple[float, float]:
+        if min(v) < 10.0:
+            raise ValueError(f"each side must be at least 10 m, got {v}")
+        return v
+
+    @model_validator(mode="after")
+    def _fits(self):
+        nx = self.size[0] / self.cell_size
+        ny = self.size[1] / self.cell_size
+        if nx * ny > MAX_CELLS:
+            raise ValueError(
+                f"cell_size: {self.size[0]} x {self.size[1]} m at {self.cell_size} m is "
+                f"{nx * ny:.3g} cells, more than {MAX_CELLS}"
+            )
+        half_x, half_y = self.size[0] / 2, self.size[1] / 2
+        # Home and its takeoff clearing must lie inside the world.
+        margin = self.home_clear_radius
+        if abs(self.center[0]) + margin > half_x or abs(self.center[1]) + margin > half_y:
+            raise ValueError(
+                f"center: home (0, 0) with its {margin} m clearing must be inside the "
+                f"terrain, centre {self.center} size {self.size}"
+            )
+        return self
+
+
+class FlatTerrainSettings(_ProceduralSettings):
+    """A level plane at z = 0."""
+
+    kind: Literal["flat"] = "flat"
+
+
+class MarsTerrainSettings(_ProceduralSettings):
+    """Mars-like relief: fractal terrain, craters with raised rims, rock fields, scarps."""
+
+    kind: Literal["mars"] = "mars"
+    relief_rms: float = Field(1.5, ge=0, description="RMS height (m) of the fractal relief")
+    relief_wavelength: float = Field(
+        150.0, gt=0, description="longest wavelength (m) of the fractal relief"
+    )
+    relief_beta: float = Field(
+        3.2, gt=1, le=5, description="power-spectrum exponent: P(k) ~ k^-beta (higher: smoother)"
+    )
+    crater_density: float = Field(
+        60.0, ge=0, description="craters per km^2 with diameter >= crater_diameter[0]"
+    )
+    crater_diameter: Range = Field((4.0, 60.0), description="crater diameter range (m)")
+    crater_sfd_exponent: float = Field(
+        2.0, gt=0, description="q of the cumulative crater size-frequency law N(>D) ~ D^-q"
+    )
+    rock_density: float = Field(
+        0.03, ge=0, description="rocks per m^2 with diameter >= rock_diameter[0], in rock fields"
+    )
+    rock_diameter: Range = Field((0.15, 2.5), description="rock diameter range (m)")
+    rock_sfd_exponent: float = Field(
+        2.5, gt=0, description="q of the cumulative rock size-frequency law N(>D) ~ D^-q"
+    )
+    rock_field_fraction: float = Field(
+        0.4, ge=0, le=1, description="fraction of the area covered by rock fields"
+    )
+    rock_height_ratio: float = Field(0.5, gt=0, le=1.5, description="rock height / diameter")
+    scarp_count: int = Field(3, ge=0, le=100, description="number of steep slopes (scarps)")
+    scarp_height: Range = Field((4.0, 12.0), description="scarp height range (m)")
+    scarp_slope_deg: Range = Field((25.0, 45.0), description="scarp face slope range (deg)")
+
+    @field_validator("crater_diameter", "rock_diameter", "scarp_height")
+    @classmethod
+    def _positive_range(cls, v: Range, info) -> Range:
+        if v[0] <= 0:
+            raise ValueError(f"need min > 0, got {v}")
+        return _check_range(v, info.field_name)
+
+    @field_validator("scarp_slope_deg")
+    @classmethod
+    def _slope_range(cls, v: Range) -> Range:
+        if not (0 < v[0] <= v[1] < 90):
+            raise ValueError(f"need 0 < min <= max < 90 deg, got {v}")
+        return v
+
+
+class UrbanTerrainSettings(_ProceduralSettings):
+    """A town: flat ground, a street grid, flat-roofed buildings, trees and parked cars."""
+
+    kind: Literal["urban"] = "urban"
+    block_size: float = Field(80.0, gt=10, description="street-grid spacing (m)")
+    road_width: float = Field(10.0, gt=0, description="road width (m)")
+    building_fraction: float = Field(
+        0.45, ge=0, le=0.9, description="fraction of each block's area built over"
+    )
+    building_size: Range = Field((8.0, 30.0), description="building footprint side range (m)")
+    building_height: Range = Field((3.0, 25.0), description="building height range (m)")
+    rooftop_clutter: float = Field(
+        0.5, ge=0, le=1, description="probability that a roof carries a rooftop unit"
+    )
+    tree_density: float = Field(
+        40.0, ge=0, description="trees per hectare of open (non-road, non-building) ground"
+    )
+    tree_height: Range = Field((4.0, 14.0), description="tree height range (m)")
+    car_density: float = Field(6.0, ge=0, description="parked cars per 100 m of road")
+
+    @field_validator("building_size", "building_height", "tree_height")
+    @classmethod
+    def _positive_range(cls, v: Range, info) -> Range:
+        if v[0] <= 0:
+            raise ValueError(f"need min > 0, got {v}")
+        return _check_range(v, info.field_name)
+
+    @model_validator(mode="after")
+    def _road_fits(self):
+        if self.road_width >= self.block_size:
+            raise ValueError(
+                f"road_width: {self.road_width} m must be less than block_size "
+                f"{self.block_size} m"
+            )
+        return self
+
+
+class RubbleTerrainSettings(_ProceduralSettings):
+    """A collapsed-structure field: debris piles and scattered blocks, a few flat slabs."""
+
+    kind: Literal["rubble"] = "rubble"
+    pile_density: float = Field(12.0, ge=0, description="debris piles per hectare")
+    pile_radius: Range = Field((3.0, 12.0), description="pile radius range (m)")
+    pile_height: Range = Field((0.8, 4.0), description="pile height range (m)")
+    block_density: float = Field(
+        0.05, ge=0, description="debris blocks per m^2 with size >= block_size[0]"
+    )
+    block_size: Range = Field((0.2, 2.0), description="debris block side range (m)")
+    block_sfd_exponent: float = Field(2.2, gt=0, description="q of N(>s) ~ s^-q for blocks")
+    slab_density: float = Field(3.0, ge=0, description="flat slabs per hectare")
+    slab_size: Range = Field((3.0, 8.0), description="slab side range (m)")
+    slab_tilt_deg: float = Field(6.0, ge=0, lt=90, description="largest slab tilt (deg)")
+
+    @field_validator("pile_radius", "pile_height", "block_size", "slab_size")
+    @classmethod
+    def _positive_range(cls, v: Range, info) -> Range:
+        if v[0] <= 0:
+            raise ValueError(f"need min > 0, got {v}")
+        return _check_range(v, info.field_name)
+
+
+class FileTerrainSettings(_GridSettings):
+    """A real elevation model from a file, resampled to the simulation grid.
+
+    Formats: ``.npy`` (2-D array, row i along +y i.e. south to north, needs
+    ``source_cell_size``), ESRI ASCII grid ``.asc`` (north-up, header gives the cell size),
+    GeoTIFF ``.tif``/``.tiff`` (needs the optional ``geotiff`` extra, rasterio).
+    """
+
+    kind: Literal["file"] = "file"
+    path: Path = Field(description="elevation model file")
+    source_cell_size: float | None = Field(
+        None, gt=0, description="cell size (m) of a .npy file (others carry their own)"
+    )
+    home: tuple[float, float] | None = Field(
+        None,
+        description="home (x, y) in metres from the model's south-west corner; None = centre",
+    )
+    vertical_scale: float = Field(1.0, gt=0, description="factor applied to the heights")
+
+    @field_validator("path")
+    @classmethod
+    def _readable(cls, v: Path) -> Path:
+        suffix = v.suffix.lower()
+        if suffix not in (".npy", ".asc", ".tif", ".tiff"):
+            raise ValueError(f"unsupported format {suffix!r} (use .npy, .asc, .tif, .tiff)")
+        if not v.is_file():
+            raise ValueError(f"no such file: {v}")
+        return v
+
+    @model_validator(mode="after")
+    def _npy_cell(self):
+        if self.path.suffix.lower() == ".npy" and self.source_cell_size is None:
+            raise ValueError("source_cell_size: required for a .npy elevation model")
+        return self
+
+
+TerrainSettings = Annotated[
+    FlatTerrainSettings
+    | MarsTerrainSettings
+    | UrbanTerrainSettings
+    | RubbleTerrainSettings
+    | FileTerrainSettings,
+    Field(discriminator="kind"),
+]
+"""Settings of any terrain kind, discriminated by ``kind``."""
+
+_ADAPTER: TypeAdapter = TypeAdapter(TerrainSettings)
+
+
+def parse_terrain_settings(data: Any) -> TerrainSettings:
+    """Validate a mapping such as ``{"kind": "mars", "rock_density": 0.05}`` (or pass a
+    settings model through). Raises pydantic.ValidationError naming the bad field."""
+    if isinstance(data, BaseModel):
+        return data  # type: ignore[return-value]
+    return _ADAPTER.validate_python(data)
