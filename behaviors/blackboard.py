@@ -1,0 +1,112 @@
+"""Every blackboard key of the landing mission, declared once.
+
+Keys are absolute py_trees blackboard names. Behaviours register them with the access they
+need (see each behaviour's constructor); the runner reads them through a
+:class:`py_trees.blackboard.Client` with READ access, e.g.::
+
+    client = py_trees.blackboard.Client(name="runner")
+    client.register_key(key=PHASE, access=py_trees.common.Access.READ)
+    client.get(PHASE)
+
+:func:`build_mission_tree <behaviors.tree.build_mission_tree>` writes the initial value of
+every key (see :data:`DEFAULTS`), so readers never meet a missing key.
+"""
+
+from __future__ import annotations
+
+import types
+
+import py_trees
+
+PHASE = "/mission/phase"
+"""str: what the mission is doing now; one of :data:`PHASES`."""
+
+PHASES = (
+    "preflight",
+    "takeoff",
+    "mission",
+    "landing_phase",
+    "search",
+    "navigate_to_site",
+    "descend",
+    "verification",
+    "land",
+    "land_in_place",
+    "failsafe",
+    "done",
+)
+"""The values :data:`PHASE` takes ("done": landed and disarmed)."""
+
+LANDING_SITE = "/landing/site"
+"""lsm.LandingSite | None: the chosen landing site (the latest record the LSM gave for it)."""
+
+CLEAR_ALTITUDE = "/landing/clear_altitude"
+"""float | None: clear altitude for reaching the chosen site, ENU z in m (thesis eq. 3.4-3.5)."""
+
+OUTCOME_HINT = "/mission/outcome_hint"
+"""str | None: why the mission ended the way it did when not at a verified site:
+"no_site" (every landing attempt failed, landed in place), "battery_critical" (landed in
+place on the critical battery level), "battery_reserve" (waypoints skipped on the reserve
+level; the landing phase still ran)."""
+
+FAILURE_REASON = "/mission/failure_reason"
+"""str | None: why the last behaviour that failed did so (a denied command carries the
+autopilot's reason). Meaningful when the tree's root FAILED; earlier failures the landing
+phase recovered from also leave their reason here until overwritten."""
+
+FAILSAFE = "/mission/failsafe"
+"""str | None: the failsafe that took over the mission ("battery_critical"), latched."""
+
+VERIFICATION_ATTEMPTS = "/landing/verification_attempts"
+"""int: landing-site verifications started."""
+
+SEARCH_PATTERNS = "/landing/search_patterns"
+"""int: search patterns started."""
+
+PATTERN_CENTER = "/landing/pattern_center"
+"""tuple[float, float] | None: ENU x, y (m) of the centre of the next search pattern; None
+means "where the vehicle is when the search starts"."""
+
+BANNED_SITES = "/landing/banned_sites"
+"""int: sites banned after a failed verification."""
+
+DEFAULTS: types.MappingProxyType[str, object] = types.MappingProxyType(
+    {
+        PHASE: "preflight",
+        LANDING_SITE: None,
+        CLEAR_ALTITUDE: None,
+        OUTCOME_HINT: None,
+        FAILURE_REASON: None,
+        FAILSAFE: None,
+        VERIFICATION_ATTEMPTS: 0,
+        SEARCH_PATTERNS: 0,
+        PATTERN_CENTER: None,
+        BANNED_SITES: 0,
+    }
+)
+"""Every mission key with its value at the start of a mission."""
+
+KEYS: tuple[str, ...] = tuple(DEFAULTS)
+"""Every mission key."""
+
+
+def reset() -> None:
+    """Remove every mission key's value from the blackboard.
+
+    Tests and campaigns build many trees in one process; py_trees' blackboard storage is
+    global, so a new mission must not see the previous one's values.
+    """
+    for key in KEYS:
+        py_trees.blackboard.Blackboard.unset(key)
+
+
+def initialise() -> None:
+    """Write every mission key's start value (:data:`DEFAULTS`), replacing old values."""
+    for key, value in DEFAULTS.items():
+        py_trees.blackboard.Blackboard.set(key, value)
+
+
+def read_all() -> dict[str, object]:
+    """The current value of every mission key (None for a key not written), for reports."""
+    storage = py_trees.blackboard.Blackboard.storage
+    return {key: storage.get(key) for key in KEYS}

@@ -1,0 +1,367 @@
+"""Flight behaviours: preflight checks, takeoff, waypoint navigation, descent, landing."""
+
+from __future__ import annotations
+
+import py_trees
+from py_trees.common import Access, Status
+
+from behaviors import blackboard as keys
+from behaviors.base import MissionBehaviour, Point, RouteAction, VehicleAction
+from behaviors.ports import Clock, LandedState, VehiclePort
+
+GPS_FIX_3D = 3
+
+
+class Preflight(MissionBehaviour):
+    """Wait until the vehicle is ready to fly: link up, position known, 3D GPS fix, prearm ok.
+
+    Sends no command. Wrap it in :class:`behaviors.decorators.ClockTimeout` to bound the wait.
+
+    * SUCCESS: every check passes
+    * FAILURE: the battery is already at or below ``battery_reserve`` percent
+    * RUNNING: waiting; the feedback message lists what is missing
+    """
+
+    def __init__(
+        self, name: str, vehicle: VehiclePort, *, battery_reserve: float | None = None
+    ) -> None:
+        super().__init__(name, phase="preflight")
+        self.vehicle = vehicle
+        self.battery_reserve = battery_reserve
+
+    def update(self) -> Status:
+        state = self.vehicle.state
+        battery = state.battery_percent
+        if (
+            self.battery_reserve is not None
+            and battery is not None
+            and battery <= self.battery_reserve
+        ):
+            return self.fail(
+                f"battery {battery:.0f} % at or below the reserve {self.battery_reserve:.0f} %"
+            )
+        missing = []
+        if state.link_lost:
+            missing.append("link")
+        if state.position is None:
+            missing.append("position")
+        if state.gps_fix < GPS_FIX_3D:
+            missing.append(f"3D GPS fix (fix type {state.gps_fix})")
+        if not state.prearm_ok:
+            text = f" ({state.last_status_text})" if state.last_status_text else ""
+            missing.append(f"prearm checks{text}")
+        if missing:
+            self.feedback_message = "waiting for " + ", ".join(missing)
+            return Status.RUNNING
+        self.feedback_message = "ready"
+        return Status.SUCCESS
+
+
+class Takeoff(VehicleAction):
+    """Take off vertically to ``altitude`` m above home (the vehicle arms as needed).
+
+    * SUCCESS: within ``acceptance_radius`` below (or above) the altitude
+    * FAILURE: the takeoff command was denied or not answered (the autopilot's reason)
+    * RUNNING: climbing
+    """
+
+    def __init__(
+        self,
+        name: str,
+        vehicle: VehiclePort,
+        clock: Clock,
+        altitude: float,
+        *,
+        acceptance_radius: float = 1.0,
+        command_timeout: float = 5.0,
+    ) -> None:
+        super().__init__(name, vehicle, clock, command_timeout=command_timeout, phase="takeoff")
+        self.altitude = float(altitude)
+        self.acceptance_radius = float(acceptance_radius)
+
+    def initialise(self) -> None:
+        super().initialise()
+        self.command(self.vehicle.takeoff(self.altitude))
+
+    def update(self) -> Status:
+        position = self.vehicle.state.position
+        if position is not None and position[2] >= self.altitude - self.acceptance_radius:
+            self.feedback_message = f"at {position[2]:.1f} m"
+            return Status.SUCCESS
+        problem = self.command_problem()
+        if problem is not None:
+            return self.fail(problem)
+        height = "unknown" if position is None else f"{position[2]:.1f} m"
+        self.feedback_message = f"climbing to {self.altitude:.1f} m, at {height}"
+        return Status.RUNNING
+
+
+class NavigateToWaypoint(RouteAction):
+    """Fly to an ENU waypoint; with a clear altitude, climb to it first, traverse, then
+    reach the waypoint's altitude.
+
+    The traverse altitude is ``max(clear_altitude, current z)``: already higher is already
+    clear. Without a clear altitude the vehicle flies straight to the waypoint.
+
+    * SUCCESS: inside ``acceptance_radius`` of the waypoint
+    * FAILURE: a goto denied or unanswered (the autopilot's reason); bound the flight time
+      with :class:`behaviors.decorators.ClockTimeout`
+    * RUNNING: flying
+    """
+
+    def __init__(
+        self,
+        name: str,
+        vehicle: VehiclePort,
+        clock: Clock,
+        waypoint: Point | None = None,
+        *,
+        clear_altitude: float | None = None,
+        acceptance_radius: float = 1.0,
+        command_timeout: float = 5.0,
+        phase: str | None = "mission",
+    ) -> None:
+        super().__init__(
+            name,
+            vehicle,
+            clock,
+            acceptance_radius=acceptance_radius,
+            command_timeout=command_timeout,
+            phase=phase,
+        )
+        self.waypoint = None if waypoint is None else tuple(float(v) for v in waypoint)
+        self.clear_altitude = clear_altitude
+
+    def target(self) -> tuple[Point, float | None] | str:
+        """The waypoint and clear altitude to use now, or why there is none."""
+        if self.waypoint is None:
+            return "no waypoint"
+        return self.waypoint, self.clear_altitude
+
+    def plan_route(self, position: Point) -> list[Point] | str:
+        target = self.target()
+        if isinstance(target, str):
+            return target
+        (x, y, z), clear = target
+        if clear is None:
+            return [(x, y, z)]
+        traverse = max(clear, position[2])
+        return [(position[0], position[1], traverse), (x, y, traverse), (x, y, z)]
+
+
+class NavigateToSite(NavigateToWaypoint):
+    """Fly over the chosen landing site at the clear altitude (both read from the
+    blackboard): climb to the clear altitude, traverse, arrive over the site.
+
+    * SUCCESS: over the site at the clear altitude
+    * FAILURE: no site or clear altitude on the blackboard, or a goto denied / unanswered
+    * RUNNING: flying
+    """
+
+    def __init__(
+        self,
+        name: str,
+        vehicle: VehiclePort,
+        clock: Clock,
+        *,
+        acceptance_radius: float = 1.0,
+        command_timeout: float = 5.0,
+    ) -> None:
+        super().__init__(
+            name,
+            vehicle,
+            clock,
+            acceptance_radius=acceptance_radius,
+            command_timeout=command_timeout,
+            phase="navigate_to_site",
+        )
+        self.blackboard.register_key(key=keys.LANDING_SITE, access=Access.READ)
+        self.blackboard.register_key(key=keys.CLEAR_ALTITUDE, access=Access.READ)
+
+    def target(self) -> tuple[Point, float | None] | str:
+        site = self.blackboard.get(keys.LANDING_SITE)
+        clear = self.blackboard.get(keys.CLEAR_ALTITUDE)
+        if site is None or clear is None:
+            return "no landing site chosen"
+        return (site.x, site.y, clear), clear
+
+
+class ChangeAltitudeLS(RouteAction):
+    """Descend (or climb) to ``height`` m above the chosen site, over the site: the blind
+    descent to the verification altitude (z_site + 2.5 m by default).
+
+    * SUCCESS: at the height above the site
+    * FAILURE: no site on the blackboard, or a goto denied / unanswered
+    * RUNNING: moving
+    """
+
+    def __init__(
+        self,
+        name: str,
+        vehicle: VehiclePort,
+        clock: Clock,
+        height: float,
+        *,
+        acceptance_radius: float = 1.0,
+        command_timeout: float = 5.0,
+    ) -> None:
+        super().__init__(
+            name,
+            vehicle,
+            clock,
+            acceptance_radius=acceptance_radius,
+            command_timeout=command_timeout,
+            phase="descend",
+        )
+        self.height = float(height)
+        self.blackboard.register_key(key=keys.LANDING_SITE, access=Access.READ)
+
+    def plan_route(self, position: Point) -> list[Point] | str:
+        site = self.blackboard.get(keys.LANDING_SITE)
+        if site is None:
+            return "no landing site chosen"
+        return [(site.x, site.y, site.z + self.height)]
+
+
+class Land(VehicleAction):
+    """Land where the vehicle is and wait for touchdown and disarm.
+
+    On entry it writes its phase and, when given, ``outcome_hint`` to
+    :data:`behaviors.blackboard.OUTCOME_HINT`. If the vehicle sits on the ground still armed
+    for ``command_timeout`` seconds it sends a disarm (autopilots usually disarm alone).
+
+    * SUCCESS: disarmed and not in the air (phase becomes "done")
+    * FAILURE: the land (or disarm) command was denied or not answered
+    * RUNNING: descending / waiting for the disarm
+    """
+
+    def __init__(
+        self,
+        name: str,
+        vehicle: VehiclePort,
+        clock: Clock,
+        *,
+        phase: str = "land",
+        outcome_hint: str | None = None,
+        command_timeout: float = 5.0,
+    ) -> None:
+        super().__init__(name, vehicle, clock, command_timeout=command_timeout, phase=phase)
+        self.outcome_hint = outcome_hint
+        self.blackboard.register_key(key=keys.OUTCOME_HINT, access=Access.WRITE)
+        self.on_ground_since: float | None = None
+        self.disarm_sent = False
+
+    def initialise(self) -> None:
+        super().initialise()
+        if self.outcome_hint is not None:
+            self.blackboard.set(keys.OUTCOME_HINT, self.outcome_hint)
+        self.on_ground_since = None
+        self.disarm_sent = False
+        self.command(self.vehicle.land())
+
+    def update(self) -> Status:
+        state = self.vehicle.state
+        grounded = state.landed_state in (LandedState.ON_GROUND, LandedState.UNDEFINED)
+        if not state.armed and grounded:
+            self.blackboard.set(keys.PHASE, "done")
+            self.feedback_message = "landed and disarmed"
+            return Status.SUCCESS
+        problem = self.command_problem()
+        if problem is not None:
+            return self.fail(problem)
+        if state.landed_state is LandedState.ON_GROUND:
+            now = self.clock.now()
+            if self.on_ground_since is None:
+                self.on_ground_since = now
+            elif not self.disarm_sent and now - self.on_ground_since > self.command_timeout:
+                self.command(self.vehicle.disarm())
+                self.disarm_sent = True
+            self.feedback_message = "on the ground, waiting for the disarm"
+        else:
+            self.on_ground_since = None
+            height = "" if state.position is None else f" at {state.position[2]:.1f} m"
+            self.feedback_message = f"landing{height}"
+        return Status.RUNNING
+
+
+def battery_below(vehicle: VehiclePort, level: float) -> bool:
+    """True when the vehicle reports a battery level at or below ``level`` percent."""
+    battery = vehicle.state.battery_percent
+    return battery is not None and battery <= level
+
+
+class BatteryReserve(MissionBehaviour):
+    """Condition: the battery is at or below the reserve level.
+
+    The first time it holds it writes "battery_reserve" to OUTCOME_HINT (if no hint yet).
+
+    * SUCCESS: battery known and <= ``level`` %
+    * FAILURE: otherwise
+    """
+
+    def __init__(self, name: str, vehicle: VehiclePort, level: float) -> None:
+        super().__init__(name)
+        self.vehicle = vehicle
+        self.level = float(level)
+        self.blackboard.register_key(key=keys.OUTCOME_HINT, access=Access.WRITE)
+
+    def update(self) -> Status:
+        if not battery_below(self.vehicle, self.level):
+            self.feedback_message = f"battery above {self.level:g} %"
+            return Status.FAILURE
+        if self.blackboard.get(keys.OUTCOME_HINT) is None:
+            self.blackboard.set(keys.OUTCOME_HINT, "battery_reserve")
+        self.feedback_message = f"battery at or below the reserve {self.level:g} %"
+        return Status.SUCCESS
+
+
+class BatteryCritical(MissionBehaviour):
+    """Latched condition: the armed vehicle's battery reached the critical level.
+
+    When it first holds it writes "battery_critical" to FAILSAFE and OUTCOME_HINT and the
+    "failsafe" phase; from then on it keeps succeeding whatever the battery reads.
+
+    * SUCCESS: armed with battery <= ``level`` % now or earlier in this mission
+    * FAILURE: otherwise
+    """
+
+    def __init__(self, name: str, vehicle: VehiclePort, level: float) -> None:
+        super().__init__(name)
+        self.vehicle = vehicle
+        self.level = float(level)
+        self.blackboard.register_key(key=keys.FAILSAFE, access=Access.WRITE)
+        self.blackboard.register_key(key=keys.OUTCOME_HINT, access=Access.WRITE)
+
+    def update(self) -> Status:
+        if self.blackboard.get(keys.FAILSAFE) == "battery_critical":
+            return Status.SUCCESS
+        if not (self.vehicle.state.armed and battery_below(self.vehicle, self.level)):
+            self.feedback_message = f"battery above {self.level:g} % (or disarmed)"
+            return Status.FAILURE
+        self.blackboard.set(keys.FAILSAFE, "battery_critical")
+        self.blackboard.set(keys.OUTCOME_HINT, "battery_critical")
+        self.blackboard.set(keys.PHASE, "failsafe")
+        self.feedback_message = f"battery at or below the critical {self.level:g} %"
+        return Status.SUCCESS
+
+
+class NoFailsafe(py_trees.behaviour.Behaviour):
+    """Condition: no failsafe has taken over the mission.
+
+    Guards the mission branch so that it cannot restart after a failsafe ended it.
+
+    * SUCCESS: FAILSAFE is None
+    * FAILURE: a failsafe is latched
+    """
+
+    def __init__(self, name: str = "No failsafe?") -> None:
+        super().__init__(name=name)
+        self.blackboard = self.attach_blackboard_client(name)
+        self.blackboard.register_key(key=keys.FAILSAFE, access=Access.READ)
+
+    def update(self) -> Status:
+        failsafe = self.blackboard.get(keys.FAILSAFE)
+        if failsafe is None:
+            return Status.SUCCESS
+        self.feedback_message = f"failsafe {failsafe} took over"
+        return Status.FAILURE

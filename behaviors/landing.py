@@ -1,0 +1,210 @@
+"""Landing-site behaviours (thesis section 3.3.1): check, choose, clear altitude, verify."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
+
+from py_trees.common import Access, Status
+
+from behaviors import blackboard as keys
+from behaviors.base import MissionBehaviour, horizontal_distance
+from behaviors.ports import Clock, VehiclePort
+from lsm.records import LandingSite
+
+if TYPE_CHECKING:
+    from lsm import LandingSiteManager
+
+
+def clear_altitude(
+    site: LandingSite,
+    drone_position: Sequence[float],
+    buffer: float,
+    failsafe_altitude: float,
+) -> float:
+    """Clear altitude for flying to ``site`` (thesis eq. 3.4-3.5), ENU z in m.
+
+    ``z_clear = min(z_obst + z_buffer + d_drone-LS, z_failsafe)``: the obstacle altitude
+    around the site plus a buffer, plus the horizontal drone-site distance (worst case,
+    terrain rising at 45 degrees from the site towards the drone), capped at the failsafe
+    altitude.
+
+    Args:
+        site: the landing site (its ``obstacle_altitude`` and x, y are used).
+        drone_position: ENU x, y[, z] of the drone, m.
+        buffer: z_buffer, m >= 0.
+        failsafe_altitude: z_failsafe, the cap, m.
+    """
+    distance = horizontal_distance(drone_position, (site.x, site.y))
+    return min(site.obstacle_altitude + buffer + distance, failsafe_altitude)
+
+
+class CheckLandingSite(MissionBehaviour):
+    """Condition: the LSM holds at least one landing site.
+
+    * SUCCESS: at least one site retained
+    * FAILURE: none
+    """
+
+    def __init__(self, name: str, lsm: LandingSiteManager) -> None:
+        super().__init__(name, phase="landing_phase")
+        self.lsm = lsm
+
+    def update(self) -> Status:
+        count = len(self.lsm)
+        self.feedback_message = f"{count} site(s) known"
+        return Status.SUCCESS if count else Status.FAILURE
+
+
+class GetClearAltitude(MissionBehaviour):
+    """Compute the clear altitude for the chosen site from the vehicle position and write it
+    to CLEAR_ALTITUDE.
+
+    * SUCCESS: written
+    * FAILURE: no site chosen or vehicle position unknown
+    """
+
+    def __init__(
+        self, name: str, vehicle: VehiclePort, *, buffer: float, failsafe_altitude: float
+    ) -> None:
+        super().__init__(name)
+        self.vehicle = vehicle
+        self.buffer = float(buffer)
+        self.failsafe_altitude = float(failsafe_altitude)
+        self.blackboard.register_key(key=keys.LANDING_SITE, access=Access.READ)
+        self.blackboard.register_key(key=keys.CLEAR_ALTITUDE, access=Access.WRITE)
+
+    def update(self) -> Status:
+        site = self.blackboard.get(keys.LANDING_SITE)
+        position = self.vehicle.state.position
+        if site is None:
+            return self.fail("no landing site chosen")
+        if position is None:
+            return self.fail("vehicle position unknown")
+        z_clear = clear_altitude(site, position, self.buffer, self.failsafe_altitude)
+        self.blackboard.set(keys.CLEAR_ALTITUDE, z_clear)
+        self.feedback_message = f"clear altitude {z_clear:.1f} m"
+        return Status.SUCCESS
+
+
+class GetLandingSite(MissionBehaviour):
+    """Choose the best site (lowest loss at the drone position) and its clear altitude.
+
+    Writes LANDING_SITE and CLEAR_ALTITUDE (:func:`clear_altitude`).
+
+    * SUCCESS: a site was chosen
+    * FAILURE: the LSM holds no site, or the vehicle position is unknown
+    """
+
+    def __init__(
+        self,
+        name: str,
+        vehicle: VehiclePort,
+        lsm: LandingSiteManager,
+        *,
+        buffer: float,
+        failsafe_altitude: float,
+    ) -> None:
+        super().__init__(name, phase="landing_phase")
+        self.vehicle = vehicle
+        self.lsm = lsm
+        self.buffer = float(buffer)
+        self.failsafe_altitude = float(failsafe_altitude)
+        self.blackboard.register_key(key=keys.LANDING_SITE, access=Access.WRITE)
+        self.blackboard.register_key(key=keys.CLEAR_ALTITUDE, access=Access.WRITE)
+
+    def update(self) -> Status:
+        position = self.vehicle.state.position
+        if position is None:
+            return self.fail("vehicle position unknown")
+        site = self.lsm.best(position)
+        if site is None:
+            return self.fail("no landing site known")
+        z_clear = clear_altitude(site, position, self.buffer, self.failsafe_altitude)
+        self.blackboard.set(keys.LANDING_SITE, site)
+        self.blackboard.set(keys.CLEAR_ALTITUDE, z_clear)
+        self.feedback_message = (
+            f"site {site.id} at ({site.x:.1f}, {site.y:.1f}, {site.z:.1f}), "
+            f"loss {site.loss:.3f}, clear altitude {z_clear:.1f} m"
+        )
+        return Status.SUCCESS
+
+
+class LandingSiteVerification(MissionBehaviour):
+    """Hover over the chosen site for ``duration`` clock seconds waiting for the LSM to
+    show it re-detected at low altitude (``lsm.is_verified``).
+
+    The chosen site is the LSM record with the same id or, if that one is gone, a retained
+    site within ``match_radius`` (horizontal) of it. Sends no command: the vehicle holds
+    the position the descent brought it to. On success the fresh record replaces
+    LANDING_SITE; on failure the site is banned (``lsm.ban``) so that high-altitude
+    detections of it are rejected from now on.
+
+    * SUCCESS: the chosen site is verified
+    * FAILURE: not verified within ``duration`` (site banned), or no site chosen
+    * RUNNING: hovering
+    """
+
+    def __init__(
+        self,
+        name: str,
+        lsm: LandingSiteManager,
+        clock: Clock,
+        *,
+        duration: float,
+        match_radius: float,
+    ) -> None:
+        super().__init__(name, phase="verification")
+        self.lsm = lsm
+        self.clock = clock
+        self.duration = float(duration)
+        self.match_radius = float(match_radius)
+        self.deadline = 0.0
+        self.site: LandingSite | None = None
+        self.blackboard.register_key(key=keys.LANDING_SITE, access=Access.WRITE)
+        self.blackboard.register_key(key=keys.VERIFICATION_ATTEMPTS, access=Access.WRITE)
+        self.blackboard.register_key(key=keys.BANNED_SITES, access=Access.WRITE)
+
+    def initialise(self) -> None:
+        super().initialise()
+        self.site = self.blackboard.get(keys.LANDING_SITE)
+        self.deadline = self.clock.now() + self.duration
+        attempts = self.blackboard.get(keys.VERIFICATION_ATTEMPTS)
+        self.blackboard.set(keys.VERIFICATION_ATTEMPTS, attempts + 1)
+
+    def current_record(self) -> LandingSite | None:
+        """The LSM's record of the chosen site now (same id, else the nearest in match
+        radius), or None."""
+        site = self.site
+        assert site is not None
+        record = self.lsm.get(site.id)
+        if record is not None:
+            return record
+        nearest, best = None, self.match_radius
+        for candidate in self.lsm.ranked():
+            distance = horizontal_distance(candidate.position, site.position)
+            if distance <= best:
+                nearest, best = candidate, distance
+        return nearest
+
+    def update(self) -> Status:
+        if self.site is None:
+            return self.fail("no landing site chosen")
+        record = self.current_record()
+        if record is not None and self.lsm.is_verified(record):
+            self.blackboard.set(keys.LANDING_SITE, record)
+            self.feedback_message = (
+                f"site {record.id} verified (seen from {record.verification_altitude:.1f} m)"
+            )
+            return Status.SUCCESS
+        remaining = self.deadline - self.clock.now()
+        if remaining > 0:
+            self.feedback_message = f"waiting for re-detection, {remaining:.1f} s left"
+            return Status.RUNNING
+        banned = record is not None and self.lsm.ban(record.id)
+        if banned:
+            self.blackboard.set(keys.BANNED_SITES, self.blackboard.get(keys.BANNED_SITES) + 1)
+        outcome = "banned" if banned else "no longer retained, not banned"
+        return self.fail(
+            f"site {self.site.id} not re-detected within {self.duration:g} s ({outcome})"
+        )

@@ -1,0 +1,173 @@
+"""Search behaviours (thesis section 3.3.1): fly a rectangle to find sites, move the
+pattern to a new random centre."""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING
+
+import numpy as np
+from py_trees.common import Access, Status
+
+from behaviors import blackboard as keys
+from behaviors.base import Point, RouteAction
+from behaviors.ports import Clock, VehiclePort
+
+if TYPE_CHECKING:
+    from lsm import LandingSiteManager
+
+
+def rectangle_pattern(
+    center: tuple[float, float],
+    size: tuple[float, float],
+    altitude: float,
+    start_near: tuple[float, float] | None = None,
+) -> list[Point]:
+    """Waypoints of a closed rectangle around ``center``, flown at ``altitude``.
+
+    Args:
+        center: ENU x, y of the rectangle centre, m.
+        size: width (along x) and height (along y), m.
+        altitude: ENU z of every waypoint, m.
+        start_near: begin at the corner nearest this x, y (default: the south-west corner).
+
+    Returns:
+        five (x, y, z) corners, counter-clockwise, the first repeated at the end.
+    """
+    cx, cy = center
+    hw, hh = size[0] / 2.0, size[1] / 2.0
+    corners = [(cx - hw, cy - hh), (cx + hw, cy - hh), (cx + hw, cy + hh), (cx - hw, cy + hh)]
+    first = 0
+    if start_near is not None:
+        sx, sy = start_near
+        first = min(range(4), key=lambda i: math.hypot(corners[i][0] - sx, corners[i][1] - sy))
+    order = corners[first:] + corners[:first]
+    return [(x, y, altitude) for x, y in order + order[:1]]
+
+
+def random_point_in_disc(
+    rng: np.random.Generator, center: tuple[float, float], radius: float
+) -> tuple[float, float]:
+    """A point drawn uniformly over the disc of ``radius`` m around ``center`` (ENU x, y)."""
+    r = radius * math.sqrt(rng.random())
+    angle = 2.0 * math.pi * rng.random()
+    return (center[0] + r * math.cos(angle), center[1] + r * math.sin(angle))
+
+
+def _climb_first(position: Point, altitude: float, radius: float) -> list[Point]:
+    """A vertical leg up to ``altitude`` when the vehicle is below it (never fly low
+    sideways, e.g. from a verification hover)."""
+    if position[2] < altitude - radius:
+        return [(position[0], position[1], altitude)]
+    return []
+
+
+class LandingSiteSearch(RouteAction):
+    """Fly a rectangle of waypoints at ``altitude`` so that the detector sees new ground.
+
+    The centre is PATTERN_CENTER when ``use_pattern_center`` (set by
+    :class:`GetNextPatternCenterWP`), else where the vehicle is on entry. A vehicle below
+    ``altitude`` climbs vertically first. Each entry adds one to SEARCH_PATTERNS.
+
+    * SUCCESS: the LSM holds a site (checked every tick; the rest of the pattern is dropped)
+    * FAILURE: the pattern was flown and the LSM is still empty, or a goto denied / unanswered
+    * RUNNING: flying the pattern
+    """
+
+    def __init__(
+        self,
+        name: str,
+        vehicle: VehiclePort,
+        clock: Clock,
+        lsm: LandingSiteManager,
+        *,
+        size: tuple[float, float],
+        altitude: float,
+        use_pattern_center: bool = False,
+        acceptance_radius: float = 1.0,
+        command_timeout: float = 5.0,
+    ) -> None:
+        super().__init__(
+            name,
+            vehicle,
+            clock,
+            acceptance_radius=acceptance_radius,
+            command_timeout=command_timeout,
+            phase="search",
+        )
+        self.lsm = lsm
+        self.size = (float(size[0]), float(size[1]))
+        self.altitude = float(altitude)
+        self.use_pattern_center = use_pattern_center
+        self.blackboard.register_key(key=keys.SEARCH_PATTERNS, access=Access.WRITE)
+        self.blackboard.register_key(key=keys.PATTERN_CENTER, access=Access.READ)
+
+    def initialise(self) -> None:
+        super().initialise()
+        self.blackboard.set(keys.SEARCH_PATTERNS, self.blackboard.get(keys.SEARCH_PATTERNS) + 1)
+
+    def check(self, position: Point) -> Status | None:
+        if len(self.lsm):
+            self.feedback_message = "site found"
+            return Status.SUCCESS
+        return None
+
+    def plan_route(self, position: Point) -> list[Point] | str:
+        center = self.blackboard.get(keys.PATTERN_CENTER) if self.use_pattern_center else None
+        if center is None:
+            center = (position[0], position[1])
+        corners = rectangle_pattern(center, self.size, self.altitude, start_near=position[:2])
+        return _climb_first(position, self.altitude, self.acceptance_radius) + corners
+
+    def route_done(self) -> Status:
+        return self.fail("pattern flown, no landing site found")
+
+
+class GetNextPatternCenterWP(RouteAction):
+    """Draw a new search-pattern centre uniformly within ``radius`` of ``anchor`` (the last
+    mission waypoint) with the seeded generator, write it to PATTERN_CENTER, fly there at
+    ``altitude`` (climbing vertically first when below it). Meant to run under py_trees'
+    ``Retry`` with :class:`LandingSiteSearch`: every entry draws a new centre.
+
+    * SUCCESS: at the new centre
+    * FAILURE: a goto denied or unanswered
+    * RUNNING: flying
+    """
+
+    def __init__(
+        self,
+        name: str,
+        vehicle: VehiclePort,
+        clock: Clock,
+        rng: np.random.Generator,
+        *,
+        anchor: tuple[float, float],
+        radius: float,
+        altitude: float,
+        acceptance_radius: float = 1.0,
+        command_timeout: float = 5.0,
+    ) -> None:
+        super().__init__(
+            name,
+            vehicle,
+            clock,
+            acceptance_radius=acceptance_radius,
+            command_timeout=command_timeout,
+            phase="search",
+        )
+        self.rng = rng
+        self.anchor = (float(anchor[0]), float(anchor[1]))
+        self.radius = float(radius)
+        self.altitude = float(altitude)
+        self.center: tuple[float, float] | None = None
+        self.blackboard.register_key(key=keys.PATTERN_CENTER, access=Access.WRITE)
+
+    def initialise(self) -> None:
+        super().initialise()
+        self.center = random_point_in_disc(self.rng, self.anchor, self.radius)
+        self.blackboard.set(keys.PATTERN_CENTER, self.center)
+
+    def plan_route(self, position: Point) -> list[Point] | str:
+        assert self.center is not None
+        climb = _climb_first(position, self.altitude, self.acceptance_radius)
+        return climb + [(self.center[0], self.center[1], self.altitude)]

@@ -1,0 +1,282 @@
+"""The landing-mission behaviour tree (DESIGN.md section 5), built from a MissionPlan.
+
+::
+
+    Landing mission (Selector, no memory: the failsafe is checked every tick)
+     ├─ Battery critical failsafe (Sequence)   [latched once it fires]
+     │   ├─ Battery critical?
+     │   └─ Land where it is
+     └─ Mission (Sequence, memory)
+         ├─ No failsafe?                       [a mission ended by the failsafe never restarts]
+         ├─ Preflight                          [link, position, GPS fix, prearm; clock timeout]
+         ├─ Takeoff                            [to the first waypoint's altitude]
+         ├─ Waypoints (Selector, no memory)
+         │   ├─ Battery reserve?               [SUCCESS skips the remaining waypoints]
+         │   └─ Mission waypoints (Sequence of NavigateToWaypoint)
+         └─ Landing (Selector, memory)
+             ├─ Landing phase = Retry(N) ─ Landing attempt (Sequence, memory)
+             │   ├─ Ensure sites = Selector[CheckLandingSite, LandingSiteSearch,
+             │   │                          Retry(M) ─ Sequence[GetNextPatternCenterWP,
+             │   │                                              LandingSiteSearch]]
+             │   ├─ GetLandingSite
+             │   ├─ NavigateToSite             [clear altitude, over the site]
+             │   ├─ ChangeAltitudeLS           [verification altitude above the site]
+             │   ├─ LandingSiteVerification    [bans the site on failure]
+             │   └─ Land
+             └─ Land in place                  [OUTCOME_HINT "no_site"]
+
+The root returns SUCCESS once the vehicle has landed and disarmed (at a site or in place),
+FAILURE when the mission failed (FAILURE_REASON says why, e.g. a denied command with the
+autopilot's reason), RUNNING otherwise. Stop ticking once it is no longer RUNNING.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+import py_trees
+from py_trees.composites import Selector, Sequence
+from py_trees.decorators import Retry
+
+from behaviors import blackboard
+from behaviors.decorators import ClockTimeout
+from behaviors.flight import (
+    BatteryCritical,
+    BatteryReserve,
+    ChangeAltitudeLS,
+    Land,
+    NavigateToSite,
+    NavigateToWaypoint,
+    NoFailsafe,
+    Preflight,
+    Takeoff,
+)
+from behaviors.landing import CheckLandingSite, GetLandingSite, LandingSiteVerification
+from behaviors.ports import Clock, VehiclePort
+from behaviors.search import GetNextPatternCenterWP, LandingSiteSearch
+from behaviors.settings import MissionPlan
+
+if TYPE_CHECKING:
+    from lsm import LandingSiteManager
+
+
+def _within(child: py_trees.behaviour.Behaviour, clock: Clock, seconds: float) -> ClockTimeout:
+    return ClockTimeout(f"{child.name} within {seconds:g} s", child, clock, seconds)
+
+
+def build_mission_tree(
+    plan: MissionPlan,
+    vehicle: VehiclePort,
+    lsm: LandingSiteManager,
+    clock: Clock,
+    rng: np.random.Generator,
+) -> py_trees.trees.BehaviourTree:
+    """Build the landing-mission tree for ``plan`` (see the module docstring for its shape).
+
+    Every blackboard key of :mod:`behaviors.blackboard` is reset to its start value, so build
+    (and run) one mission at a time per process.
+
+    Args:
+        plan: waypoints, altitudes and landing settings.
+        vehicle: the vehicle port (non-blocking commands, state snapshots).
+        lsm: the Landing Site Manager the detector feeds; its ``settings.match_radius``
+            decides which retained site is the chosen one during verification.
+        clock: the injected clock every timeout and hover reads.
+        rng: seeded generator for the random search-pattern centres.
+
+    Returns:
+        the tree, not yet set up; tick it once per runner step.
+    """
+    s = plan.landing
+    radius = s.acceptance_radius
+    cmd = s.command_timeout
+    nav = s.navigation_timeout
+
+    blackboard.reset()
+    blackboard.initialise()
+
+    failsafe = Sequence(
+        "Battery critical failsafe",
+        memory=True,
+        children=[
+            BatteryCritical("Battery critical?", vehicle, s.battery_critical),
+            _within(
+                Land("Land where it is", vehicle, clock, phase="failsafe", command_timeout=cmd),
+                clock,
+                nav,
+            ),
+        ],
+    )
+
+    waypoints = Sequence(
+        "Mission waypoints",
+        memory=True,
+        children=[
+            _within(
+                NavigateToWaypoint(
+                    f"Waypoint {i + 1}",
+                    vehicle,
+                    clock,
+                    wp,
+                    acceptance_radius=radius,
+                    command_timeout=cmd,
+                ),
+                clock,
+                nav,
+            )
+            for i, wp in enumerate(plan.waypoints)
+        ],
+    )
+
+    def search(name: str, use_pattern_center: bool) -> ClockTimeout:
+        return _within(
+            LandingSiteSearch(
+                name,
+                vehicle,
+                clock,
+                lsm,
+                size=s.search_rectangle,
+                altitude=plan.cruise_altitude,
+                use_pattern_center=use_pattern_center,
+                acceptance_radius=radius,
+                command_timeout=cmd,
+            ),
+            clock,
+            nav,
+        )
+
+    last_x, last_y, _ = plan.waypoints[-1]
+    new_pattern = Retry(
+        "Pattern retries",
+        Sequence(
+            "New pattern",
+            memory=True,
+            children=[
+                _within(
+                    GetNextPatternCenterWP(
+                        "GetNextPatternCenterWP",
+                        vehicle,
+                        clock,
+                        rng,
+                        anchor=(last_x, last_y),
+                        radius=s.pattern_center_radius,
+                        altitude=plan.cruise_altitude,
+                        acceptance_radius=radius,
+                        command_timeout=cmd,
+                    ),
+                    clock,
+                    nav,
+                ),
+                search("Search at the new centre", use_pattern_center=True),
+            ],
+        ),
+        s.pattern_retries,
+    )
+    ensure_sites = Selector(
+        "Ensure sites",
+        memory=True,
+        children=[
+            CheckLandingSite("CheckLandingSite", lsm),
+            search("LandingSiteSearch", use_pattern_center=False),
+            new_pattern,
+        ],
+    )
+    attempt = Sequence(
+        "Landing attempt",
+        memory=True,
+        children=[
+            ensure_sites,
+            GetLandingSite(
+                "GetLandingSite",
+                vehicle,
+                lsm,
+                buffer=s.clear_altitude_buffer,
+                failsafe_altitude=s.failsafe_altitude,
+            ),
+            _within(
+                NavigateToSite(
+                    "NavigateToSite", vehicle, clock, acceptance_radius=radius, command_timeout=cmd
+                ),
+                clock,
+                nav,
+            ),
+            _within(
+                ChangeAltitudeLS(
+                    "ChangeAltitudeLS",
+                    vehicle,
+                    clock,
+                    s.verification_altitude,
+                    acceptance_radius=radius,
+                    command_timeout=cmd,
+                ),
+                clock,
+                nav,
+            ),
+            LandingSiteVerification(
+                "LandingSiteVerification",
+                lsm,
+                clock,
+                duration=s.verification_duration,
+                match_radius=lsm.settings.match_radius,
+            ),
+            _within(Land("Land", vehicle, clock, command_timeout=cmd), clock, nav),
+        ],
+    )
+    landing = Selector(
+        "Landing",
+        memory=True,
+        children=[
+            Retry("Landing phase", attempt, s.landing_retries),
+            _within(
+                Land(
+                    "Land in place",
+                    vehicle,
+                    clock,
+                    phase="land_in_place",
+                    outcome_hint="no_site",
+                    command_timeout=cmd,
+                ),
+                clock,
+                nav,
+            ),
+        ],
+    )
+
+    mission = Sequence(
+        "Mission",
+        memory=True,
+        children=[
+            NoFailsafe("No failsafe?"),
+            ClockTimeout(
+                f"Preflight within {s.preflight_timeout:g} s",
+                Preflight("Preflight", vehicle, battery_reserve=s.battery_reserve),
+                clock,
+                s.preflight_timeout,
+            ),
+            _within(
+                Takeoff(
+                    "Takeoff",
+                    vehicle,
+                    clock,
+                    plan.effective_takeoff_altitude,
+                    acceptance_radius=radius,
+                    command_timeout=cmd,
+                ),
+                clock,
+                nav,
+            ),
+            Selector(
+                "Waypoints",
+                memory=False,
+                children=[
+                    BatteryReserve("Battery reserve?", vehicle, s.battery_reserve),
+                    waypoints,
+                ],
+            ),
+            landing,
+        ],
+    )
+
+    root = Selector("Landing mission", memory=False, children=[failsafe, mission])
+    return py_trees.trees.BehaviourTree(root)
