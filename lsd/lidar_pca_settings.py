@@ -1,0 +1,94 @@
+"""Validated settings of the LiDAR PCA landing-spot detector (Loureiro et al. 2021, tables 1-2).
+
+Angles are degrees here (they come from YAML); the detector converts to radians.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Literal
+
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+
+class SpotWeights(BaseModel):
+    """Weights w1..w4 of the spot grade (paper eq. 6, table 2)."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+
+    radius: float = Field(1.0, ge=0, description="w1: accepted plane radius")
+    slope: float = Field(1.0, ge=0, description="w2: plane slope")
+    sigma: float = Field(1.0, ge=0, description="w3: z standard deviation")
+    distance: float = Field(1.0, ge=0, description="w4: horizontal distance spot -> vehicle")
+
+    @model_validator(mode="after")
+    def _not_all_zero(self) -> SpotWeights:
+        if self.radius + self.slope + self.sigma + self.distance <= 0:
+            raise ValueError("at least one spot weight must be positive")
+        return self
+
+
+class LidarPcaSettings(BaseModel):
+    """Accumulation, downsampling, plane search (Algorithm 1) and grading parameters."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+
+    travel_distance: float = Field(
+        10.0, gt=0, description="process the accumulated cloud after this travel (m)"
+    )
+    max_cloud_points: int = Field(
+        1_000_000, ge=1, description="... or when the accumulated cloud has this many points"
+    )
+    voxel_size: float = Field(0.05, gt=0, description="voxel-grid filter edge (m)")
+    seeding: Literal["random", "grid"] = Field(
+        "random",
+        description="random: n_points random search points (the paper); grid: one search "
+        "point per occupied cell of a horizontal grid covering the cloud",
+    )
+    n_points: int = Field(20, ge=1, description="random search points per processed cloud")
+    grid_spacing: float | None = Field(
+        None, gt=0, description="grid seeding cell (m); default r_max"
+    )
+    n_min: int = Field(10, ge=3, description="fewest neighbourhood points for a PCA fit")
+    r_min: float = Field(1.0, gt=0, description="first neighbourhood radius (m)")
+    r_max: float = Field(3.0, gt=0, description="largest neighbourhood radius (m)")
+    r_step: float = Field(0.5, gt=0, description="radius increment (m)")
+    theta_max_deg: float = Field(15.0, gt=0, lt=90, description="steepest plane accepted (deg)")
+    sigma_max: float = Field(0.2, gt=0, description="largest z standard deviation accepted (m)")
+    max_step: float | None = Field(
+        0.3,
+        gt=0,
+        description="beyond the paper: stop growing when a point lies farther than this from "
+        "the fitted plane (m); None disables",
+    )
+    weights: SpotWeights = SpotWeights()
+    distance_scale: float = Field(
+        100.0, gt=0, description="horizontal distance (m) at which the distance grade is 0"
+    )
+    merge_distance: float = Field(
+        1.0, ge=0, description="spots closer than this (m) are the same spot; the better stays"
+    )
+    max_spots: int = Field(1000, ge=1, description="most registered spots kept (best grades)")
+    obstacle_margin: float = Field(
+        1.0, ge=0, description="extra horizontal radius (m) searched for the obstacle altitude"
+    )
+
+    @model_validator(mode="after")
+    def _radii(self) -> LidarPcaSettings:
+        if self.r_max < self.r_min:
+            raise ValueError(f"r_max ({self.r_max}) must be >= r_min ({self.r_min})")
+        return self
+
+    @property
+    def theta_max(self) -> float:
+        """Steepest accepted slope, radians."""
+        return math.radians(self.theta_max_deg)
+
+    @property
+    def radii(self) -> list[float]:
+        """Neighbourhood radii tried in order, r_min .. r_max in r_step (r_max included)."""
+        n = int(math.floor((self.r_max - self.r_min) / self.r_step + 1e-9))
+        radii = [self.r_min + i * self.r_step for i in range(n + 1)]
+        if self.r_max - radii[-1] > 1e-9:
+            radii.append(self.r_max)
+        return radii
