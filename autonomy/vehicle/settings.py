@@ -1,0 +1,45 @@
+"""Settings of the MAVLink vehicle driver (pydantic; composed into the mission schema)."""
+
+from __future__ import annotations
+
+from pydantic import BaseModel, ConfigDict, Field
+
+# Telemetry the driver asks for with MAV_CMD_SET_MESSAGE_INTERVAL, in Hz.
+DEFAULT_STREAMS: dict[str, float] = {
+    "LOCAL_POSITION_NED": 10.0,
+    "ATTITUDE": 10.0,
+    "DISTANCE_SENSOR": 10.0,
+    "SYS_STATUS": 2.0,
+    "EXTENDED_SYS_STATE": 2.0,
+    "GPS_RAW_INT": 2.0,
+    "HOME_POSITION": 0.5,
+}
+
+
+class VehicleLinkSettings(BaseModel):
+    """How the driver talks to the autopilot. Times are seconds of the injected clock."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    link_timeout: float = Field(3.0, gt=0, description="silence after which the link is lost")
+    heartbeat_period: float = Field(1.0, gt=0, description="our own HEARTBEAT period")
+    ack_timeout: float = Field(1.0, gt=0, description="wait for a COMMAND_ACK before re-sending")
+    command_attempts: int = Field(4, ge=1, le=20, description="COMMAND_LONGs sent at most")
+    confirm_timeout: float = Field(
+        3.0, gt=0, description="after an accepting ACK, wait this long to see the effect"
+    )
+    in_progress_timeout: float = Field(30.0, gt=0)
+    setpoint_rate_ardupilot: float = Field(
+        4.0, gt=0, description="Hz; GUIDED targets are re-sent because they time out"
+    )
+    setpoint_rate_px4: float = Field(20.0, ge=10.0, description="Hz; OFFBOARD needs a stream")
+    offboard_prestream: float = Field(
+        0.5, ge=0, description="setpoints stream this long before OFFBOARD is requested"
+    )
+    max_messages_per_poll: int = Field(2000, ge=1, description="decode budget of one poll()")
+    max_backlog_bytes: int = Field(
+        262144, ge=4096, description="unread bytes kept; older ones are dropped and counted"
+    )
+    streams: dict[str, float] = Field(default_factory=lambda: dict(DEFAULT_STREAMS))
+    source_system: int = Field(255, ge=1, le=255, description="our MAVLink system id")
+    source_component: int = Field(190, ge=1, le=255, description="our component id (GCS)")
