@@ -1,0 +1,269 @@
+"""The simulated autopilot's flight logic, common to both personalities.
+
+An :class:`Autopilot` owns the arming state, the flight mode and what the position controller
+is asked to do; it answers commands with MAVLink ``MAV_RESULT`` codes and queues STATUSTEXT
+lines, but knows nothing of bytes or links (that is :mod:`sitl.copter.server`). The
+personalities in :mod:`sitl.copter.personalities` fill in the mode tables and the refusals.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
+from pymavlink.dialects.v20 import ardupilotmega as mavlink
+
+from .battery import Battery
+from .kinematics import Contact, Multicopter, Setpoint
+from .settings import SitlSettings
+
+ACCEPTED = mavlink.MAV_RESULT_ACCEPTED
+DENIED = mavlink.MAV_RESULT_DENIED
+FAILED = mavlink.MAV_RESULT_FAILED
+UNSUPPORTED = mavlink.MAV_RESULT_UNSUPPORTED
+TEMPORARILY_REJECTED = mavlink.MAV_RESULT_TEMPORARILY_REJECTED
+
+ON_GROUND = mavlink.MAV_LANDED_STATE_ON_GROUND
+IN_AIR = mavlink.MAV_LANDED_STATE_IN_AIR
+TAKEOFF = mavlink.MAV_LANDED_STATE_TAKEOFF
+LANDING = mavlink.MAV_LANDED_STATE_LANDING
+
+# How close (m) to a takeoff altitude counts as reached.
+TAKEOFF_REACHED = 0.3
+# Depth (m) below the vehicle of the target a landing descent aims at: the descent speed
+# limit, not the target, sets the speed.
+_FAR_BELOW = 1000.0
+# Within this horizontal distance (m) of home, RTL starts its descent.
+_RTL_RADIUS = 1.0
+
+Slope = Callable[[float, float], float]
+
+
+@dataclass(frozen=True, slots=True)
+class Touchdown:
+    """Where and how fast the vehicle last touched the ground (ENU m, m/s)."""
+
+    x: float
+    y: float
+    z: float
+    speed: float
+    vertical_speed: float
+    slope_deg: float
+
+
+class Autopilot:
+    """Flight logic of a simulated multicopter autopilot.
+
+    Args:
+        settings: the SITL settings.
+        model: the airframe it flies.
+        battery: the pack it drains.
+        slope: function (x, y) -> terrain slope in degrees at that point.
+        ground_z: terrain height at home (ENU z of home on the ground, m).
+    """
+
+    #: personality name, e.g. "ardupilot"
+    name = "base"
+    #: MAV_AUTOPILOT value of the HEARTBEAT
+    mav_autopilot = mavlink.MAV_AUTOPILOT_GENERIC
+    #: mode name -> custom_mode
+    modes: dict[str, int] = {}
+    initial_mode = ""
+    #: modes in which the vehicle holds a captured position (no RC on this vehicle)
+    hold_modes: frozenset[str] = frozenset()
+    #: modes in which the vehicle descends to land
+    land_modes: frozenset[str] = frozenset()
+    rtl_modes: frozenset[str] = frozenset()
+
+    def __init__(
+        self,
+        settings: SitlSettings,
+        model: Multicopter,
+        battery: Battery,
+        slope: Slope,
+        ground_z: float = 0.0,
+    ) -> None:
+        self.settings = settings
+        self.model = model
+        self.battery = battery
+        self.slope = slope
+        self.home_z = ground_z
+        self.time = 0.0
+        self.armed = False
+        self.mode = self.initial_mode
+        self.flying = False  # a takeoff (or liftoff) happened since arming/landing
+        self.took_off = False  # left the ground since the last arming
+        self.crashed = False
+        self.crash_reason = ""
+        self.touchdown: Touchdown | None = None
+        self.ground_since: float | None = None
+        self.hold: tuple[float, float, float] = model.position
+        self.guided = Setpoint(position=model.position, hold_ground=True)
+        self.guided_velocity_time = -math.inf
+        self.takeoff_target: float | None = None
+        self.rtl_phase = ""
+        self.rtl_altitude = 0.0
+        self.texts: list[tuple[int, str]] = []
+        self.home_changed = False
+
+    # ----------------------------------------------------------------- queries
+    @property
+    def settled(self) -> bool:
+        """EKF and GPS have settled: arming checks pass (prearm-ok health bit)."""
+        return self.time >= self.settings.arming_settle_time
+
+    @property
+    def custom_mode(self) -> int:
+        return self.modes[self.mode]
+
+    @property
+    def landed_state(self) -> int:
+        if self.takeoff_target is not None and self.armed:
+            return TAKEOFF
+        if not self.armed or self.model.on_ground:
+            return ON_GROUND
+        if self.mode in self.land_modes:
+            return LANDING
+        if self.mode in self.rtl_modes and self.rtl_phase == "land":
+            return LANDING
+        return IN_AIR
+
+    def mode_name(self, custom_mode: int) -> str | None:
+        for name, value in self.modes.items():
+            if value == custom_mode:
+                return name
+        return None
+
+    def text(self, severity: int, text: str) -> None:
+        self.texts.append((severity, text))
+
+    # ---------------------------------------------------------------- commands
+    def arm(self, force: bool = False) -> int:
+        raise NotImplementedError
+
+    def disarm(self, force: bool = False) -> int:
+        if not self.armed:
+            return ACCEPTED
+        if not self.model.on_ground and not force:
+            return self.refuse_disarm_in_air()
+        self._disarm("Disarming motors")
+        return ACCEPTED
+
+    def refuse_disarm_in_air(self) -> int:
+        return FAILED
+
+    def set_mode(self, name: str) -> int:
+        raise NotImplementedError
+
+    def takeoff(self, altitude: float) -> int:
+        raise NotImplementedError
+
+    def land(self) -> int:
+        raise NotImplementedError
+
+    def return_to_launch(self) -> int:
+        raise NotImplementedError
+
+    def position_target(self, setpoint: Setpoint) -> None:
+        """A SET_POSITION_TARGET_LOCAL_NED arrived (already converted to ENU)."""
+        raise NotImplementedError
+
+    # ------------------------------------------------------------ mode helpers
+    def _arm(self) -> None:
+        self.armed = True
+        self.model.motors_on = True
+        self.took_off = False
+        self.flying = False
+        self.ground_since = self.time if self.model.on_ground else None
+        self.hold = self.model.position
+        self.guided = Setpoint(position=self.model.position, hold_ground=True)
+        self.home_changed = True  # autopilots (re)set home when arming
+
+    def _disarm(self, text: str) -> None:
+        self.armed = False
+        self.model.motors_on = False
+        self.flying = False
+        self.takeoff_target = None
+        self.text(mavlink.MAV_SEVERITY_INFO, text)
+
+    def _enter(self, name: str) -> None:
+        """Switch mode: capture the position to hold and reset phase state."""
+        self.mode = name
+        self.hold = self.model.position
+        self.takeoff_target = None
+        self.guided = Setpoint(position=self.model.position, hold_ground=not self.flying)
+        if name in self.rtl_modes:
+            self.rtl_phase = "climb"
+            self.rtl_altitude = max(self.model.z, self.home_z + self.settings.rtl_altitude)
+
+    def _land_setpoint(self, x: float, y: float, agl: float, final_speed: float) -> Setpoint:
+        s = self.settings
+        if agl > s.land_alt_low:
+            speed = s.land_speed_high or s.max_descent_speed
+        else:
+            speed = final_speed
+        return Setpoint(position=(x, y, self.model.z - _FAR_BELOW), max_descent=speed)
+
+    def _rtl_setpoint(self, agl: float, final_speed: float) -> Setpoint:
+        m = self.model
+        if not self.flying:
+            return Setpoint(position=self.hold, hold_ground=True)
+        if self.rtl_phase == "climb":
+            if m.z >= self.rtl_altitude - TAKEOFF_REACHED:
+                self.rtl_phase = "return"
+            return Setpoint(position=(self.hold[0], self.hold[1], self.rtl_altitude))
+        if self.rtl_phase == "return":
+            if math.hypot(m.x, m.y) < _RTL_RADIUS:
+                self.rtl_phase = "land"
+            return Setpoint(position=(0.0, 0.0, self.rtl_altitude))
+        return self._land_setpoint(0.0, 0.0, agl, final_speed)
+
+    # ------------------------------------------------------------- simulation
+    def control(self, agl: float) -> Setpoint:
+        """The setpoint for the next physics step (mode logic runs here)."""
+        raise NotImplementedError
+
+    def disarm_delay(self) -> float:
+        """Seconds on the ground, armed, before the autopilot disarms by itself."""
+        raise NotImplementedError
+
+    def on_contact(self, contact: Contact) -> None:
+        """The vehicle touched the ground: judge the touchdown (crash or landing)."""
+        s = self.settings
+        slope = float(self.slope(contact.x, contact.y))
+        descent = -contact.vz
+        self.touchdown = Touchdown(
+            contact.x, contact.y, contact.z, contact.speed, descent, slope
+        )
+        self.flying = False
+        self.takeoff_target = None
+        self.ground_since = self.time
+        reason = ""
+        if descent > s.crash_speed:
+            reason = f"hard landing at {descent:.1f} m/s (limit {s.crash_speed:g})"
+        elif slope > s.crash_slope:
+            reason = f"tipped over on a {slope:.0f} deg slope (limit {s.crash_slope:g})"
+        if reason:
+            self.crashed = True
+            self.crash_reason = reason
+            self.text(mavlink.MAV_SEVERITY_EMERGENCY, f"Crash: {reason}"[:50])
+            if self.armed:
+                self._disarm("Crash: Disarming")
+
+    def after_step(self) -> None:
+        """Timers that run after each physics step: auto-disarm, liftoff, battery."""
+        m = self.model
+        if not m.on_ground:
+            self.ground_since = None
+            if self.armed and not self.took_off:
+                self.took_off = True
+            self.flying = self.flying or self.armed
+        elif self.armed:
+            if self.ground_since is None:
+                self.ground_since = self.time
+            elif self.time - self.ground_since >= self.disarm_delay():
+                self._disarm("Disarming motors")
+        if self.armed and self.battery.empty:
+            self.text(mavlink.MAV_SEVERITY_EMERGENCY, "Battery exhausted: motors stopped")
+            self._disarm("Disarming motors")

@@ -1,0 +1,326 @@
+"""The two autopilot personalities: ArduPilot Copter and PX4 multicopter.
+
+Each mimics the behaviour a driver meets on the real autopilot: the mode numbers in the
+HEARTBEAT, what is refused and with which MAV_RESULT and STATUSTEXT, how takeoff, landing and
+auto-disarm work. Neither has an RC transmitter, so manual modes hold position.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+
+from pymavlink.dialects.v20 import ardupilotmega as mavlink
+
+from .autopilot import (
+    ACCEPTED,
+    FAILED,
+    TAKEOFF_REACHED,
+    TEMPORARILY_REJECTED,
+    Autopilot,
+)
+from .kinematics import Setpoint
+
+_CRITICAL = mavlink.MAV_SEVERITY_CRITICAL
+_INFO = mavlink.MAV_SEVERITY_INFO
+_WARNING = mavlink.MAV_SEVERITY_WARNING
+
+# MAV_CMD_COMPONENT_ARM_DISARM param2 magic numbers that skip the checks.
+FORCE_ARM = 2989
+FORCE_DISARM = 21196
+
+
+class ArduCopter(Autopilot):
+    """ArduPilot Copter: boots in STABILIZE, streams nothing until asked, GUIDED for offboard."""
+
+    name = "ardupilot"
+    mav_autopilot = mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA
+    modes = {
+        "STABILIZE": 0,
+        "ACRO": 1,
+        "ALT_HOLD": 2,
+        "AUTO": 3,
+        "GUIDED": 4,
+        "LOITER": 5,
+        "RTL": 6,
+        "CIRCLE": 7,
+        "LAND": 9,
+        "POSHOLD": 16,
+        "BRAKE": 17,
+        "SMART_RTL": 21,
+    }
+    initial_mode = "STABILIZE"
+    hold_modes = frozenset({"STABILIZE", "ALT_HOLD", "LOITER", "POSHOLD", "BRAKE"})
+    land_modes = frozenset({"LAND"})
+    rtl_modes = frozenset({"RTL", "SMART_RTL"})
+    # Modes this simulator cannot fly (no mission, no pilot sticks): changing to them fails.
+    _unflyable = frozenset({"ACRO", "AUTO", "CIRCLE"})
+    _not_armable = frozenset({"LAND", "RTL", "SMART_RTL", "AUTO", "CIRCLE"})
+
+    @property
+    def base_mode(self) -> int:
+        flags = (
+            mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
+            | mavlink.MAV_MODE_FLAG_STABILIZE_ENABLED
+            | mavlink.MAV_MODE_FLAG_MANUAL_INPUT_ENABLED
+        )
+        if self.mode == "GUIDED":
+            flags |= mavlink.MAV_MODE_FLAG_GUIDED_ENABLED
+        if self.armed:
+            flags |= mavlink.MAV_MODE_FLAG_SAFETY_ARMED
+        return flags
+
+    def arm(self, force: bool = False) -> int:
+        if self.armed:
+            return ACCEPTED
+        if self.crashed:
+            self.text(_CRITICAL, "PreArm: Crashed, reboot the vehicle")
+            return FAILED
+        if self.mode in self._not_armable:
+            self.text(_CRITICAL, "Arm: Mode not armable")
+            return FAILED
+        if not force:
+            if not self.settled:
+                self.text(_CRITICAL, "PreArm: Need Position Estimate")
+                return FAILED
+            if self.battery.empty:
+                self.text(_CRITICAL, "PreArm: Battery 1 below minimum capacity")
+                return FAILED
+        self._arm()
+        return ACCEPTED
+
+    def set_mode(self, name: str) -> int:
+        if name not in self.modes or name in self._unflyable:
+            self.text(_WARNING, "Flight mode change failed")
+            return FAILED
+        if name != self.mode:
+            self._enter(name)
+        return ACCEPTED
+
+    def takeoff(self, altitude: float) -> int:
+        # ArduPilot's do_user_takeoff: armed, in GUIDED, still on the ground, target above.
+        m = self.model
+        if not self.armed or self.mode != "GUIDED" or self.flying:
+            return FAILED
+        if not math.isfinite(altitude) or self.home_z + altitude <= m.z:
+            return FAILED
+        self.takeoff_target = self.home_z + altitude
+        self.flying = True
+        self.guided = Setpoint(position=(m.x, m.y, self.takeoff_target))
+        return ACCEPTED
+
+    def land(self) -> int:
+        return self.set_mode("LAND")
+
+    def return_to_launch(self) -> int:
+        return self.set_mode("RTL")
+
+    def position_target(self, setpoint: Setpoint) -> None:
+        # Honoured in GUIDED only; a takeoff in progress is overridden, as on ArduPilot.
+        if self.mode != "GUIDED":
+            return
+        setpoint.hold_ground = not self.flying
+        if setpoint.hold_ground:
+            # On the ground without a takeoff: accepted but not flown.
+            setpoint.position = self.guided.position
+            setpoint.velocity = None
+        self.guided = setpoint
+        self.takeoff_target = None
+        if setpoint.position is None and setpoint.velocity is not None:
+            self.guided_velocity_time = self.time
+
+    def control(self, agl: float) -> Setpoint:
+        m = self.model
+        mode = self.mode
+        if mode == "GUIDED":
+            sp = self.guided
+            if self.takeoff_target is not None and m.z >= self.takeoff_target - TAKEOFF_REACHED:
+                self.takeoff_target = None
+            if (
+                sp.position is None
+                and sp.velocity is not None
+                and self.time - self.guided_velocity_time > self.settings.guided_velocity_timeout
+            ):
+                # A velocity target not refreshed: ArduPilot stops and holds.
+                self.guided = sp = Setpoint(position=m.position, hold_ground=sp.hold_ground)
+            return sp
+        if mode in self.land_modes:
+            return self._land_setpoint(self.hold[0], self.hold[1], agl, self.settings.land_speed)
+        if mode in self.rtl_modes:
+            return self._rtl_setpoint(agl, self.settings.land_speed)
+        return Setpoint(position=self.hold, hold_ground=not self.flying)
+
+    def disarm_delay(self) -> float:
+        landing = self.mode in self.land_modes or self.mode in self.rtl_modes
+        if landing and self.took_off:
+            return self.settings.land_disarm_delay
+        return self.settings.disarm_delay
+
+
+def px4_custom_mode(main_mode: int, sub_mode: int = 0) -> int:
+    """PX4's HEARTBEAT custom_mode: (main_mode << 16) | (sub_mode << 24)."""
+    return (main_mode << 16) | (sub_mode << 24)
+
+
+class Px4Copter(Autopilot):
+    """PX4 multicopter: idles in AUTO.LOITER, streams by itself, OFFBOARD needs a setpoint
+    stream before and during the mode, takeoff and landing through AUTO modes."""
+
+    name = "px4"
+    mav_autopilot = mavlink.MAV_AUTOPILOT_PX4
+    modes = {
+        "MANUAL": px4_custom_mode(1),
+        "ALTCTL": px4_custom_mode(2),
+        "POSCTL": px4_custom_mode(3),
+        "AUTO.READY": px4_custom_mode(4, 1),
+        "AUTO.TAKEOFF": px4_custom_mode(4, 2),
+        "AUTO.LOITER": px4_custom_mode(4, 3),
+        "AUTO.MISSION": px4_custom_mode(4, 4),
+        "AUTO.RTL": px4_custom_mode(4, 5),
+        "AUTO.LAND": px4_custom_mode(4, 6),
+        "ACRO": px4_custom_mode(5),
+        "OFFBOARD": px4_custom_mode(6),
+        "STABILIZED": px4_custom_mode(7),
+    }
+    initial_mode = "AUTO.LOITER"
+    hold_modes = frozenset(
+        {"MANUAL", "ALTCTL", "POSCTL", "AUTO.LOITER", "AUTO.READY", "STABILIZED"}
+    )
+    land_modes = frozenset({"AUTO.LAND"})
+    rtl_modes = frozenset({"AUTO.RTL"})
+    _unflyable = frozenset({"ACRO", "AUTO.MISSION"})
+
+    def __init__(self, *args, **kwargs) -> None:
+        super().__init__(*args, **kwargs)
+        self.setpoint_times: deque[float] = deque()
+        self.offboard = Setpoint(position=self.model.position, hold_ground=True)
+
+    @property
+    def base_mode(self) -> int:
+        flags = (
+            mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
+            | mavlink.MAV_MODE_FLAG_STABILIZE_ENABLED
+            | mavlink.MAV_MODE_FLAG_MANUAL_INPUT_ENABLED
+        )
+        if self.mode.startswith("AUTO"):
+            flags |= mavlink.MAV_MODE_FLAG_AUTO_ENABLED | mavlink.MAV_MODE_FLAG_GUIDED_ENABLED
+        if self.mode == "OFFBOARD":
+            flags |= mavlink.MAV_MODE_FLAG_GUIDED_ENABLED
+        if self.armed:
+            flags |= mavlink.MAV_MODE_FLAG_SAFETY_ARMED
+        return flags
+
+    def arm(self, force: bool = False) -> int:
+        if self.armed:
+            return ACCEPTED
+        if self.crashed:
+            self.text(_CRITICAL, "Arming denied: vehicle crashed")
+            return TEMPORARILY_REJECTED
+        if not force:
+            if not self.settled:
+                self.text(_CRITICAL, "Preflight Fail: ekf2 not ready")
+                return TEMPORARILY_REJECTED
+            if self.battery.empty:
+                self.text(_CRITICAL, "Preflight Fail: low battery")
+                return TEMPORARILY_REJECTED
+        self._arm()
+        self.text(_INFO, "Armed by external command")
+        return ACCEPTED
+
+    def refuse_disarm_in_air(self) -> int:
+        self.text(_CRITICAL, "Disarming denied: not landed")
+        return TEMPORARILY_REJECTED
+
+    def _stream_alive(self) -> bool:
+        """Setpoints at >= offboard_min_rate over the last second, the last one fresh."""
+        s = self.settings
+        times = self.setpoint_times
+        while times and times[0] < self.time - 1.0:
+            times.popleft()
+        if not times or self.time - times[-1] > s.offboard_loss_timeout:
+            return False
+        return len(times) >= s.offboard_min_rate
+
+    def set_mode(self, name: str) -> int:
+        if name not in self.modes or name in self._unflyable:
+            self.text(_CRITICAL, f"Switching to {name} is currently not possible")
+            return TEMPORARILY_REJECTED
+        if name == "OFFBOARD":
+            # Accepted, but PX4 only switches if setpoints are already streaming.
+            if not self._stream_alive():
+                self.text(_CRITICAL, "Switching to Offboard is currently not possible")
+                return ACCEPTED
+            self.mode = "OFFBOARD"
+            self.takeoff_target = None
+            return ACCEPTED
+        if name == "AUTO.TAKEOFF":
+            return self.takeoff(math.nan)
+        if name != self.mode:
+            self._enter(name)
+        return ACCEPTED
+
+    def takeoff(self, altitude: float) -> int:
+        """MAV_CMD_NAV_TAKEOFF: ``altitude`` is param7, metres AMSL (NaN = default height)."""
+        m = self.model
+        if not self.armed:
+            self.text(_CRITICAL, "Takeoff denied: disarmed")
+            return TEMPORARILY_REJECTED
+        if self.flying:
+            return TEMPORARILY_REJECTED
+        if math.isfinite(altitude):
+            target = altitude - self.settings.home.alt
+        else:
+            target = m.z + self.settings.px4_takeoff_altitude
+        if target <= m.z:
+            return TEMPORARILY_REJECTED
+        self._enter("AUTO.TAKEOFF")
+        self.takeoff_target = target
+        self.flying = True
+        self.hold = (m.x, m.y, target)
+        self.text(_INFO, "Takeoff detected")
+        return ACCEPTED
+
+    def land(self) -> int:
+        if self.mode != "AUTO.LAND":
+            self._enter("AUTO.LAND")
+        return ACCEPTED
+
+    def return_to_launch(self) -> int:
+        return self.set_mode("AUTO.RTL")
+
+    def position_target(self, setpoint: Setpoint) -> None:
+        # Recorded in any mode (that is how OFFBOARD sees the stream); flown in OFFBOARD.
+        self.setpoint_times.append(self.time)
+        setpoint.hold_ground = False
+        self.offboard = setpoint
+
+    def control(self, agl: float) -> Setpoint:
+        m = self.model
+        s = self.settings
+        mode = self.mode
+        if mode == "OFFBOARD":
+            times = self.setpoint_times
+            if times and self.time - times[-1] <= s.offboard_loss_timeout:
+                return self.offboard
+            self.text(_CRITICAL, "Failsafe: offboard signal lost, switching to Position")
+            self._enter("POSCTL")
+            mode = self.mode
+        if mode == "AUTO.TAKEOFF":
+            if self.takeoff_target is not None and m.z >= self.takeoff_target - TAKEOFF_REACHED:
+                self.mode = "AUTO.LOITER"
+                self.takeoff_target = None
+            return Setpoint(position=self.hold)
+        if mode in self.land_modes:
+            return self._land_setpoint(self.hold[0], self.hold[1], agl, s.px4_land_speed)
+        if mode in self.rtl_modes:
+            return self._rtl_setpoint(agl, s.px4_land_speed)
+        return Setpoint(position=self.hold, hold_ground=not self.flying)
+
+    def disarm_delay(self) -> float:
+        # COM_DISARM_LAND after a landing, COM_DISARM_PRFLT if it never took off.
+        if self.took_off:
+            return self.settings.px4_land_disarm_delay
+        return self.settings.disarm_delay
+
+
+PERSONALITIES: dict[str, type[Autopilot]] = {"ardupilot": ArduCopter, "px4": Px4Copter}

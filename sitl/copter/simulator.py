@@ -1,0 +1,221 @@
+"""The embedded SITL: a simulated multicopter that speaks MAVLink over byte links."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import numpy as np
+
+from .battery import Battery
+from .geo import heading_to_enu_yaw
+from .kinematics import Multicopter
+from .personalities import PERSONALITIES
+from .server import MavlinkServer
+from .settings import SitlSettings
+from .wind import Wind
+
+
+class Touchdown(NamedTuple):
+    """Where and how fast the vehicle last touched the ground: ENU metres, speed m/s."""
+
+    x: float
+    y: float
+    z: float
+    speed: float
+
+
+@dataclass(frozen=True, slots=True)
+class TruthState:
+    """Ground truth of the simulated vehicle, for reports and tests (not sent over MAVLink).
+
+    position: ENU m; velocity: ENU m/s; yaw: rad ENU (counter-clockwise from east);
+    mode: flight mode name of the personality ("GUIDED", "AUTO.LOITER", ...);
+    landed: resting on the ground; touchdown: the last touchdown after a flight, or None;
+    touchdown_vertical_speed (m/s, down > 0) and touchdown_slope_deg of that touchdown.
+    """
+
+    time: float
+    position: tuple[float, float, float]
+    velocity: tuple[float, float, float]
+    yaw: float
+    armed: bool
+    mode: str
+    landed: bool
+    crashed: bool
+    crash_reason: str
+    battery_percent: float
+    touchdown: Touchdown | None
+    touchdown_vertical_speed: float | None
+    touchdown_slope_deg: float | None
+    ground_height: float
+    wind: tuple[float, float]
+
+
+class Sitl:
+    """A multicopter simulator that speaks MAVLink 2 like ArduPilot Copter (or PX4).
+
+    Args:
+        settings: airframe, world and link settings; defaults if None.
+        terrain: any object with ``height(x, y) -> ndarray`` (vectorised, ENU metres);
+            None = flat ground at z = 0.
+        autopilot: personality, ``"ardupilot"`` or ``"px4"``.
+        seed: seeds the wind gusts.
+
+    Time is simulated: :meth:`step` reads what arrived on the attached links, handles it,
+    integrates the model for ``dt`` seconds and sends the telemetry that fell due.
+    """
+
+    def __init__(
+        self,
+        settings: SitlSettings | None = None,
+        *,
+        terrain=None,
+        autopilot: str = "ardupilot",
+        seed: int = 0,
+    ) -> None:
+        if autopilot not in PERSONALITIES:
+            known = ", ".join(sorted(PERSONALITIES))
+            raise ValueError(f"autopilot: unknown personality {autopilot!r} (known: {known})")
+        self.settings = s = settings if settings is not None else SitlSettings()
+        self.terrain = terrain
+        self._time = 0.0
+        self._closed = False
+        home_z = self._height(0.0, 0.0)
+        self.model = Multicopter(
+            max_horizontal_speed=s.max_horizontal_speed,
+            max_climb_speed=s.max_climb_speed,
+            max_descent_speed=s.max_descent_speed,
+            max_horizontal_acceleration=s.max_horizontal_acceleration,
+            max_vertical_acceleration=s.max_vertical_acceleration,
+            max_yaw_rate=math.radians(s.max_yaw_rate),
+            drag=s.drag,
+            position=(0.0, 0.0, home_z),
+        )
+        self.battery = Battery(s.battery)
+        self.wind = Wind(s.wind, np.random.default_rng(seed))
+        self.autopilot = PERSONALITIES[autopilot](
+            s, self.model, self.battery, self.slope, ground_z=home_z
+        )
+        self._ground = home_z
+        self.server = MavlinkServer(
+            self.autopilot,
+            self._agl,
+            streams_by_default=autopilot == "px4",
+        )
+
+    # ------------------------------------------------------------------ terrain
+    def _height(self, x: float, y: float) -> float:
+        if self.terrain is None:
+            return 0.0
+        return float(np.asarray(self.terrain.height(np.array([x]), np.array([y]))).ravel()[0])
+
+    def slope(self, x: float, y: float) -> float:
+        """Terrain slope at (x, y) in degrees, by central differences over
+        ``settings.slope_baseline`` metres."""
+        if self.terrain is None:
+            return 0.0
+        b = self.settings.slope_baseline
+        xs = np.array([x + b, x - b, x, x])
+        ys = np.array([y, y, y + b, y - b])
+        h = np.asarray(self.terrain.height(xs, ys), dtype=np.float64).ravel()
+        gx = (h[0] - h[1]) / (2.0 * b)
+        gy = (h[2] - h[3]) / (2.0 * b)
+        return math.degrees(math.atan(math.hypot(gx, gy)))
+
+    def _agl(self) -> float:
+        return self.model.z - self._ground
+
+    # --------------------------------------------------------------------- API
+    @property
+    def time(self) -> float:
+        """Simulated seconds since boot."""
+        return self._time
+
+    @property
+    def personality(self) -> str:
+        return self.autopilot.name
+
+    def attach(self, endpoint) -> None:
+        """Serve MAVLink on ``endpoint`` (anything with ``read() -> bytes`` and
+        ``write(bytes)``, e.g. :attr:`sitl.link.MemoryLink.vehicle`)."""
+        self.server.attach(endpoint)
+
+    def detach(self, endpoint) -> None:
+        """Stop serving ``endpoint``."""
+        self.server.detach(endpoint)
+
+    @property
+    def corrupt_bytes(self) -> int:
+        """Bytes skipped on the links because they did not parse as MAVLink."""
+        return self.server.corrupt_bytes
+
+    def step(self, dt: float) -> None:
+        """Advance simulated time by ``dt`` seconds: handle incoming bytes, integrate the
+        model in steps of at most ``settings.physics_step``, emit due telemetry."""
+        if self._closed:
+            raise RuntimeError("the SITL is closed")
+        if not dt >= 0.0 or not math.isfinite(dt):
+            raise ValueError(f"dt: must be a finite number >= 0, got {dt}")
+        ap = self.autopilot
+        model = self.model
+        battery = self.battery
+        ap.time = self._time
+        self.server.receive()
+        if dt > 0.0:
+            n = max(1, math.ceil(dt / self.settings.physics_step - 1e-9))
+            h = dt / n
+            ground = self._ground = self._height(model.x, model.y)
+            wind = self.wind.advance(dt)
+            t0 = self._time
+            for i in range(1, n + 1):
+                sp = ap.control(model.z - ground)
+                contact = model.step(h, sp, wind, ground)
+                self._time = ap.time = t0 + i * h
+                if contact is not None:
+                    ap.on_contact(contact)
+                flying = model.motors_on and not model.on_ground
+                battery.drain(
+                    h, flying=flying, climb_rate=model.vz, speed=math.hypot(model.vx, model.vy)
+                )
+                ap.after_step()
+        self.server.emit(self._time)
+
+    @property
+    def truth(self) -> TruthState:
+        ap = self.autopilot
+        m = self.model
+        td = ap.touchdown
+        return TruthState(
+            time=self._time,
+            position=m.position,
+            velocity=m.velocity,
+            yaw=heading_to_enu_yaw(m.heading),
+            armed=ap.armed,
+            mode=ap.mode,
+            landed=m.on_ground,
+            crashed=ap.crashed,
+            crash_reason=ap.crash_reason,
+            battery_percent=self.battery.percent,
+            touchdown=None if td is None else Touchdown(td.x, td.y, td.z, td.speed),
+            touchdown_vertical_speed=None if td is None else td.vertical_speed,
+            touchdown_slope_deg=None if td is None else td.slope_deg,
+            ground_height=self._ground,
+            wind=self.wind.velocity,
+        )
+
+    def close(self) -> None:
+        """Stop serving all links (closing those that can be closed)."""
+        for link in self.server.links:
+            close = getattr(link.endpoint, "close", None)
+            if close is not None:
+                close()
+        self.server.links.clear()
+        self._closed = True
+
+    def __enter__(self) -> Sitl:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
