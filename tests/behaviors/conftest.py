@@ -1,0 +1,25 @@
+"""Makes the behaviour-test doubles importable as ``behaviors_fakes`` however pytest is run
+(the suite uses --import-mode=importlib, which puts no test directory on sys.path)."""
+
+import importlib.util
+import sys
+from pathlib import Path
+
+import py_trees
+import pytest
+
+if "behaviors_fakes" not in sys.modules:
+    _spec = importlib.util.spec_from_file_location(
+        "behaviors_fakes", Path(__file__).with_name("fakes.py")
+    )
+    _module = importlib.util.module_from_spec(_spec)
+    sys.modules["behaviors_fakes"] = _module
+    _spec.loader.exec_module(_module)
+
+
+@pytest.fixture(autouse=True)
+def _clean_blackboard():
+    """Every test starts and ends with an empty py_trees blackboard (it is global)."""
+    py_trees.blackboard.Blackboard.clear()
+    yield
+    py_trees.blackboard.Blackboard.clear()
