@@ -1,0 +1,453 @@
+"""Depth-image costmap landing-site detector (Mittal, Valada, Burgard, "Vision-based
+Autonomous Landing in Catastrophe-Struck Environments", section III-B).
+
+Per frame (H x W depth image, pinhole intrinsics, camera pose):
+
+- J_DE (eq. 1): 1 - (D^2 - min D^2) / max D^2, depth accuracy falling with depth squared.
+- J_FL (eq. 2-3): Euclidean distance transform (pixels) to the Canny edges of the depth map
+  scaled to 8 bit. Beyond the paper, invalid pixels and the image border count as edges: a
+  footprint that leaves the valid image is not known to be clear.
+- J_N (eq. 4-5): exp(-theta^2 / (2 theta_th^2)), theta the angle between world z and the
+  surface normal from averaged 3D gradients of the back-projected points (world frame).
+- J_EC: distance camera -> point as the energy proxy of eq. 6; as a score it is inverted
+  (1 - normalised distance) so that, like the others, higher is better.
+- J (eq. 7) = c1 J_DE + c2 J_FL + c3 J_N + c4 J_EC after min-max normalising J_DE, J_FL and
+  J_EC over the valid pixels. Sites: J >= threshold and J_FL (pixels) >= the vehicle radius
+  projected at the pixel's depth (f r / D), sampled every ``site_stride`` pixels.
+- 3D positions from the depth and pose; a global list keeps a site only if no listed site is
+  within ``dedup_distance`` (k-d tree); single-linkage agglomerative clustering on euclidean
+  distance and z difference yields the sparse sites (cluster centroids, eq. 8).
+
+Observation fields: size = J_FL * D / f (metric radius of the inscribed circle); roughness =
+1 - J_N (0 on level ground); uncertainty = sigma / sigma_ref when the frame carries depth
+sigma, else the raw eq. 1 term (D^2 - min D^2) / max D^2; obstacle altitude = highest world z
+within the footprint + margin around the site.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+from scipy.cluster.hierarchy import fcluster, linkage
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+from scipy.spatial import cKDTree
+from scipy.spatial.distance import pdist
+
+from lsd.depth_costmap_settings import CostmapWeights, DepthCostmapSettings
+from lsd.frames import DepthFrame
+from lsm.records import SiteObservation
+
+__all__ = [
+    "CostmapWeights",
+    "Costmaps",
+    "DenseSites",
+    "DepthCostmapDetector",
+    "DepthCostmapSettings",
+    "SiteList",
+    "cluster_sites",
+    "compute_costmaps",
+    "dense_sites",
+    "frame_problem",
+]
+
+SOURCE = "depth_costmap"
+
+
+@dataclass
+class Costmaps:
+    """The per-pixel maps of one frame, all (H, W).
+
+    Attributes:
+        valid: bool, depth finite and within [d_min, d_max].
+        points: (H, W, 3) float32 world ENU points (NaN where invalid).
+        depth_accuracy, flatness, steepness, energy: float32 normalised scores in [0, 1].
+        flatness_px: float32 distance (pixels) to the nearest depth edge.
+        accuracy_raw: float32 eq. 1 term (D^2 - min D^2) / max D^2 (0 near, 1 far).
+        decision: float32 eq. 7 score in [0, 1] (0 where invalid).
+    """
+
+    valid: np.ndarray
+    points: np.ndarray
+    depth_accuracy: np.ndarray
+    flatness: np.ndarray
+    steepness: np.ndarray
+    energy: np.ndarray
+    flatness_px: np.ndarray
+    accuracy_raw: np.ndarray
+    decision: np.ndarray
+
+
+@dataclass
+class DenseSites:
+    """Per-frame candidate sites (K of them), parallel arrays.
+
+    pixels (K, 2) (row, col); positions (K, 3) ENU m; score (K,) eq. 7; size, roughness,
+    uncertainty, obstacle_altitude, observation_altitude (K,).
+    """
+
+    pixels: np.ndarray = field(default_factory=lambda: np.empty((0, 2), dtype=np.int64))
+    positions: np.ndarray = field(default_factory=lambda: np.empty((0, 3)))
+    score: np.ndarray = field(default_factory=lambda: np.empty(0))
+    size: np.ndarray = field(default_factory=lambda: np.empty(0))
+    roughness: np.ndarray = field(default_factory=lambda: np.empty(0))
+    uncertainty: np.ndarray = field(default_factory=lambda: np.empty(0))
+    obstacle_altitude: np.ndarray = field(default_factory=lambda: np.empty(0))
+    observation_altitude: np.ndarray = field(default_factory=lambda: np.empty(0))
+
+    def __len__(self) -> int:
+        return len(self.score)
+
+    def take(self, index: np.ndarray) -> DenseSites:
+        return DenseSites(**{k: v[index] for k, v in vars(self).items()})
+
+
+def frame_problem(frame: DepthFrame) -> str | None:
+    """Why a frame cannot be used (one line), or None if it can."""
+    k = frame.intrinsics
+    depth = np.asarray(frame.depth)
+    if depth.ndim != 2 or depth.size == 0:
+        return f"depth must be a non-empty 2D image, got shape {depth.shape}"
+    if not all(np.isfinite(v) and v > 0 for v in (k.fx, k.fy)):
+        return f"focal lengths must be positive, got fx={k.fx}, fy={k.fy}"
+    if not (np.isfinite(k.cx) and np.isfinite(k.cy)):
+        return "principal point must be finite"
+    pos = np.asarray(frame.position, dtype=np.float64)
+    rot = np.asarray(frame.rotation, dtype=np.float64)
+    if pos.shape != (3,) or rot.shape != (3, 3):
+        return "pose must be a (3,) position and a (3, 3) rotation"
+    if not (np.isfinite(pos).all() and np.isfinite(rot).all()):
+        return "pose has NaN or inf"
+    return None
+
+
+def _minmax(values: np.ndarray, valid: np.ndarray) -> np.ndarray:
+    """Min-max normalise a float32 map over the valid pixels to [0, 1] (a constant map
+    becomes 1); invalid pixels 0."""
+    mask = valid.view(np.uint8)
+    if not valid.any():
+        return np.zeros(values.shape, dtype=np.float32)
+    lo, hi, _, _ = cv2.minMaxLoc(values, mask=mask)
+    if hi > lo:
+        out = (values - np.float32(lo)) * np.float32(1.0 / (hi - lo))
+    else:
+        out = np.ones(values.shape, dtype=np.float32)
+    out *= mask
+    return out
+
+
+def compute_costmaps(frame: DepthFrame, settings: DepthCostmapSettings) -> Costmaps:
+    """All costmaps of one frame (see the module docstring); the frame must pass
+    :func:`frame_problem`."""
+    s = settings
+    k = frame.intrinsics
+    depth = np.asarray(frame.depth, dtype=np.float32)
+    h, w = depth.shape
+    with np.errstate(invalid="ignore"):
+        valid = np.isfinite(depth) & (depth >= max(s.d_min, 1e-9)) & (depth <= s.d_max)
+    if valid.any():
+        lo, hi = float(depth[valid].min()), float(depth[valid].max())
+    else:
+        lo, hi = 1.0, 1.0
+    d = np.where(valid, depth, np.float32(np.nan))
+
+    # J_DE (eq. 1)
+    accuracy_raw = np.where(valid, (d * d - lo * lo) / (hi * hi), np.float32(1.0))
+    depth_accuracy = _minmax(np.float32(1.0) - accuracy_raw, valid)
+
+    # J_FL (eq. 2-3): Canny on the 8-bit depth map, distance transform to the edges.
+    scale = 255.0 / max(hi - lo, 1e-12)
+    depth8 = np.where(valid, np.clip((depth - lo) * scale, 0, 255), 0).astype(np.uint8)
+    edges = cv2.Canny(depth8, s.canny_low, s.canny_high, L2gradient=True) > 0
+    edges |= ~valid
+    edges[0, :] = edges[-1, :] = True
+    edges[:, 0] = edges[:, -1] = True
+    flatness_px = cv2.distanceTransform(
+        (~edges).astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_5
+    )
+    flatness = _minmax(flatness_px, valid)
+
+    # World points of every pixel (NaN where invalid), float32 for the image filters.
+    xn = ((np.arange(w, dtype=np.float32) - k.cx) / k.fx)[None, :]
+    yn = ((np.arange(h, dtype=np.float32) - k.cy) / k.fy)[:, None]
+    rot = np.asarray(frame.rotation, dtype=np.float32)
+    pos = np.asarray(frame.position, dtype=np.float64)
+    points = np.empty((h, w, 3), dtype=np.float32)
+    for i in range(3):  # three world axes, each a whole-image expression
+        points[..., i] = (rot[i, 0] * xn + rot[i, 1] * yn + rot[i, 2]) * d + np.float32(pos[i])
+
+    # J_N (eq. 4-5): normals from box-averaged 3D gradients (one separable filter each).
+    box = np.full(s.normal_window, 1.0 / s.normal_window, dtype=np.float32)
+    diff = np.array([-0.5, 0.0, 0.5], dtype=np.float32)
+    gu = cv2.sepFilter2D(points, -1, np.convolve(diff, box), box)
+    gv = cv2.sepFilter2D(points, -1, box, np.convolve(diff, box))
+    nx = gu[..., 1] * gv[..., 2] - gu[..., 2] * gv[..., 1]
+    ny = gu[..., 2] * gv[..., 0] - gu[..., 0] * gv[..., 2]
+    nz = gu[..., 0] * gv[..., 1] - gu[..., 1] * gv[..., 0]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        cos_t = np.abs(nz) / np.sqrt(nx * nx + ny * ny + nz * nz)
+    # fmax/fmin map NaN (next to invalid pixels) to 0, i.e. vertical: no site there.
+    theta = np.arccos(np.fmin(np.fmax(cos_t, np.float32(0.0)), np.float32(1.0)))
+    steepness = np.exp(theta * theta * np.float32(-0.5 / s.theta_th**2)) * valid
+
+    # J_EC: distance camera -> point (= depth * |(xn, yn, 1)|), inverted so near scores high.
+    dist = d * np.sqrt(1.0 + xn * xn + yn * yn)
+    energy = (1.0 - _minmax(dist, valid)) * valid
+
+    c = s.weights
+    decision = (
+        c.depth_accuracy * depth_accuracy
+        + c.flatness * flatness
+        + c.steepness * steepness
+        + c.energy * energy
+    )
+    decision = np.where(valid, decision, np.float32(0.0))
+    return Costmaps(
+        valid=valid,
+        points=points,
+        depth_accuracy=depth_accuracy,
+        flatness=flatness,
+        steepness=steepness,
+        energy=energy,
+        flatness_px=flatness_px,
+        accuracy_raw=accuracy_raw,
+        decision=decision,
+    )
+
+
+def dense_sites(
+    frame: DepthFrame, maps: Costmaps, settings: DepthCostmapSettings
+) -> DenseSites:
+    """Thresholded, footprint-checked candidate sites of one frame, sampled every
+    ``site_stride`` pixels."""
+    s = settings
+    k = frame.intrinsics
+    depth = np.asarray(frame.depth, dtype=np.float64)
+    f = min(k.fx, k.fy)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        footprint_px = f * s.vehicle_radius / depth
+    mask = maps.valid & (maps.decision >= s.threshold) & (maps.flatness_px >= footprint_px)
+    stride = s.site_stride
+    sample = np.zeros_like(mask)
+    sample[stride // 2 :: stride, stride // 2 :: stride] = True
+    rows, cols = np.nonzero(mask & sample)
+    if len(rows) == 0:
+        return DenseSites()
+    d = depth[rows, cols]
+    positions = maps.points[rows, cols].astype(np.float64)
+
+    # Obstacle altitude: one dilation of the world-z image with the footprint (+ margin)
+    # projected at the median site depth.
+    z = np.where(maps.valid, maps.points[..., 2], -np.inf).astype(np.float32)
+    radius_px = int(np.ceil(f * (s.vehicle_radius + s.obstacle_margin) / np.median(d)))
+    # A square window (separable, fast) covers the disk: conservative.
+    kernel = np.ones((2 * radius_px + 1, 2 * radius_px + 1), dtype=np.uint8)
+    zmax = cv2.dilate(z, kernel, borderType=cv2.BORDER_REPLICATE)
+    obstacle = np.maximum(zmax[rows, cols].astype(np.float64), positions[:, 2])
+
+    if frame.sigma is not None:
+        sig = np.asarray(frame.sigma, dtype=np.float64)[rows, cols]
+        uncertainty = np.clip(np.nan_to_num(sig, nan=s.sigma_ref) / s.sigma_ref, 0.0, 1.0)
+    else:
+        uncertainty = np.clip(maps.accuracy_raw[rows, cols], 0.0, 1.0)
+    cam_z = float(np.asarray(frame.position, dtype=np.float64)[2])
+    return DenseSites(
+        pixels=np.stack((rows, cols), axis=1),
+        positions=positions,
+        score=maps.decision[rows, cols],
+        size=maps.flatness_px[rows, cols].astype(np.float64) * d / f,
+        roughness=np.clip(1.0 - maps.steepness[rows, cols], 0.0, 1.0),
+        uncertainty=uncertainty,
+        obstacle_altitude=obstacle,
+        observation_altitude=np.maximum(cam_z - positions[:, 2], 0.0),
+    )
+
+
+def cluster_sites(
+    positions: np.ndarray, distance: float, dz: float, hierarchy_limit: int = 2000
+) -> np.ndarray:
+    """Agglomerative single-linkage clustering of sites, ``(N, 3)`` -> labels ``(N,)`` 0..C-1.
+
+    Two sites link when their euclidean distance is <= ``distance`` and their z difference
+    <= ``dz`` (metric max(d / distance, |dz| / dz), cut at 1). Up to ``hierarchy_limit`` sites
+    this runs :func:`scipy.cluster.hierarchy.linkage`; above it, the connected components of
+    the same link graph from a k-d tree, which is the same partition without the O(N^2)
+    distance matrix.
+    """
+    pos = np.asarray(positions, dtype=np.float64)
+    n = len(pos)
+    if n == 0:
+        return np.empty(0, dtype=np.int64)
+    if n == 1:
+        return np.zeros(1, dtype=np.int64)
+    if n <= hierarchy_limit:
+        metric = np.maximum(pdist(pos) / distance, pdist(pos[:, 2:3], "cityblock") / dz)
+        labels = fcluster(linkage(metric, method="single"), t=1.0, criterion="distance")
+        return np.unique(labels, return_inverse=True)[1].ravel()
+    pairs = cKDTree(pos).query_pairs(distance, output_type="ndarray")
+    pairs = pairs[np.abs(pos[pairs[:, 0], 2] - pos[pairs[:, 1], 2]) <= dz]
+    graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
+    return connected_components(graph, directed=False)[1].astype(np.int64)
+
+
+class SiteList:
+    """The global list of dense sites, de-duplicated with a k-d tree.
+
+    A site is added only if no listed site lies within ``dedup_distance``; a site that is
+    already listed is refreshed instead (redetection: the lower observation altitude wins).
+    """
+
+    def __init__(self, dedup_distance: float, max_sites: int) -> None:
+        self.dedup_distance = float(dedup_distance)
+        self.max_sites = int(max_sites)
+        self.sites = DenseSites()
+        self.timestamp = np.empty(0)
+        self._tree: cKDTree | None = None
+
+    def __len__(self) -> int:
+        return len(self.sites)
+
+    def add(self, new: DenseSites, now: float = 0.0) -> np.ndarray:
+        """Add a frame's sites; return, for each input site, its index in the list, or -1
+        when it was not listed (list full, or a dropped in-batch duplicate of a duplicate)."""
+        out = np.full(len(new), -1, dtype=np.int64)
+        if len(new) == 0:
+            return out
+        r = self.dedup_distance
+        fresh = np.ones(len(new), dtype=bool)
+        if self._tree is not None and r > 0:
+            dist, near = self._tree.query(new.positions, distance_upper_bound=r)
+            seen = np.isfinite(dist)
+            out[seen] = near[seen]
+            fresh = ~seen
+            old_alt = self.sites.observation_altitude[np.where(seen, near, 0)]
+            lower = seen & (new.observation_altitude < old_alt)
+            for key, arr in vars(self.sites).items():
+                if key != "positions":  # the listed position stays put
+                    arr[near[lower]] = getattr(new, key)[lower]
+            self.timestamp[near[seen]] = now
+        idx = np.flatnonzero(fresh)
+        alias = np.full(len(new), -1, dtype=np.int64)
+        if r > 0 and len(idx) > 1:
+            # Within the batch, any pair closer than r loses its later member (so no two
+            # listed sites are within r); the loser points at its partner.
+            pairs = cKDTree(new.positions[idx]).query_pairs(r, output_type="ndarray")
+            if len(pairs):
+                later, earlier = idx[pairs.max(axis=1)], idx[pairs.min(axis=1)]
+                alias[later] = earlier
+                idx = idx[alias[idx] < 0]
+        idx = idx[: max(self.max_sites - len(self.sites), 0)]
+        if len(idx):
+            start = len(self.sites)
+            self.sites = DenseSites(
+                **{
+                    k: np.concatenate((v, getattr(new, k)[idx]))
+                    for k, v in vars(self.sites).items()
+                }
+            )
+            self.timestamp = np.concatenate((self.timestamp, np.full(len(idx), float(now))))
+            self._tree = cKDTree(self.sites.positions)
+            out[idx] = start + np.arange(len(idx))
+        has_alias = alias >= 0
+        out[has_alias] = out[alias[has_alias]]
+        return out
+
+
+class DepthCostmapDetector:
+    """Stateful costmap detector: per frame costmaps -> dense sites -> global list ->
+    clusters.
+
+    :meth:`process` returns one observation per cluster that this frame's sites fell in; a
+    frame that cannot be used (bad shape, non-positive focal length, NaN pose) is dropped and
+    counted in :attr:`counters` with the reason in :attr:`last_problem`, never raised.
+    """
+
+    def __init__(self, settings: DepthCostmapSettings | None = None) -> None:
+        self.settings = settings or DepthCostmapSettings()
+        self.site_list = SiteList(self.settings.dedup_distance, self.settings.max_sites)
+        self.last_maps: Costmaps | None = None
+        self.last_sites = DenseSites()
+        self.last_problem: str | None = None
+        self.labels = np.empty(0, dtype=np.int64)
+        self.counters: dict[str, int] = {
+            "frames": 0,
+            "frames_dropped": 0,
+            "pixels_invalid": 0,
+            "dense_sites": 0,
+            "sites_listed": 0,
+        }
+
+    def process(self, frame: DepthFrame) -> list[SiteObservation]:
+        """Detect sites in one frame; return the observations of the clusters it touched."""
+        s = self.settings
+        self.counters["frames"] += 1
+        self.last_problem = frame_problem(frame)
+        if self.last_problem is not None:
+            self.counters["frames_dropped"] += 1
+            return []
+        maps = compute_costmaps(frame, s)
+        dense = dense_sites(frame, maps, s)
+        self.last_maps, self.last_sites = maps, dense
+        self.counters["pixels_invalid"] += int((~maps.valid).sum())
+        self.counters["dense_sites"] += len(dense)
+        before = len(self.site_list)
+        ids = self.site_list.add(dense, frame.timestamp)
+        self.counters["sites_listed"] += len(self.site_list) - before
+        if len(self.site_list) == 0:
+            return []
+        self.labels = cluster_sites(
+            self.site_list.sites.positions, s.cluster_distance, s.cluster_dz, s.hierarchy_limit
+        )
+        touched = np.unique(self.labels[ids[ids >= 0]])
+        return self._observations(touched)
+
+    def clusters(self) -> list[SiteObservation]:
+        """Every cluster of the global list as an observation (the sparse sites)."""
+        if len(self.site_list) == 0:
+            return []
+        return self._observations(np.arange(int(self.labels.max()) + 1))
+
+    def _observations(self, which: np.ndarray) -> list[SiteObservation]:
+        """Cluster centroids (eq. 8) with aggregated properties: mean roughness, uncertainty
+        and size, highest obstacle, lowest observation altitude, latest time. A centroid
+        farther than ``cluster_distance`` from every member (a chained, non-convex cluster)
+        is replaced by the member nearest to it, so the site stays on detected ground."""
+        if len(which) == 0:
+            return []
+        sites = self.site_list.sites
+        labels = self.labels
+        n = int(labels.max()) + 1
+        count = np.bincount(labels, minlength=n).astype(np.float64)
+
+        def mean(values: np.ndarray) -> np.ndarray:
+            return np.bincount(labels, values, minlength=n) / count
+
+        centre = np.stack([mean(sites.positions[:, k]) for k in range(3)], axis=1)
+        gap = np.linalg.norm(sites.positions - centre[labels], axis=1)
+        order = np.lexsort((gap, labels))
+        nearest = order[np.unique(labels[order], return_index=True)[1]]
+        far = gap[nearest] > self.settings.cluster_distance
+        centre[far] = sites.positions[nearest[far]]
+        obstacle = np.full(n, -np.inf)
+        np.maximum.at(obstacle, labels, sites.obstacle_altitude)
+        obs_alt = np.full(n, np.inf)
+        np.minimum.at(obs_alt, labels, sites.observation_altitude)
+        stamp = np.full(n, -np.inf)
+        np.maximum.at(stamp, labels, self.site_list.timestamp)
+        rough, unc, size = mean(sites.roughness), mean(sites.uncertainty), mean(sites.size)
+        rows = zip(
+            centre[which].tolist(),
+            rough[which].tolist(),
+            unc[which].tolist(),
+            size[which].tolist(),
+            np.maximum(obstacle, centre[:, 2])[which].tolist(),
+            obs_alt[which].tolist(),
+            stamp[which].tolist(),
+            strict=True,
+        )
+        return [
+            SiteObservation(c[0], c[1], c[2], r, u, sz, ob, alt, t, SOURCE)
+            for c, r, u, sz, ob, alt, t in rows
+        ]

@@ -1,0 +1,79 @@
+"""Validated settings of the depth-image costmap detector (Mittal et al., section III-B).
+
+Defaults are the paper's simulation values (c = 0.05/0.4/0.4/0.15, threshold 0.72,
+theta_th = 15 deg, clustering 0.5 m / 0.01 m); its real-world stereo values were
+c = 0.15/0.35/0.4/0.1, threshold 0.7 and a 0.05 m z threshold. Over noisy depth (SfM at
+cruise altitude) raise ``cluster_dz`` to the depth noise.
+"""
+
+from __future__ import annotations
+
+import math
+
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+
+class CostmapWeights(BaseModel):
+    """c1..c4 of eq. 7: each in [0, 1], summing to 1."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+
+    depth_accuracy: float = Field(0.05, ge=0, le=1, description="c1, J_DE")
+    flatness: float = Field(0.4, ge=0, le=1, description="c2, J_FL")
+    steepness: float = Field(0.4, ge=0, le=1, description="c3, J_N")
+    energy: float = Field(0.15, ge=0, le=1, description="c4, J_EC")
+
+    @model_validator(mode="after")
+    def _sum_to_one(self) -> CostmapWeights:
+        total = self.depth_accuracy + self.flatness + self.steepness + self.energy
+        if abs(total - 1.0) > 1e-6:
+            raise ValueError(f"costmap weights must sum to 1, got {total:g}")
+        return self
+
+
+class DepthCostmapSettings(BaseModel):
+    """Costmaps, thresholds, footprint, de-duplication and clustering parameters."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+
+    weights: CostmapWeights = CostmapWeights()
+    threshold: float = Field(0.72, ge=0, le=1, description="decision-map score to be a site")
+    theta_th_deg: float = Field(15.0, gt=0, lt=90, description="steepness scale (deg), eq. 5")
+    d_min: float = Field(0.05, ge=0, description="nearest valid depth (m)")
+    d_max: float = Field(200.0, gt=0, description="farthest valid depth (m)")
+    vehicle_radius: float = Field(0.5, gt=0, description="footprint radius checked (m)")
+    canny_low: float = Field(30.0, gt=0, description="Canny hysteresis low (8-bit depth units)")
+    canny_high: float = Field(90.0, gt=0, description="Canny hysteresis high")
+    normal_window: int = Field(5, ge=1, description="box window (px) averaging 3D gradients")
+    site_stride: int = Field(8, ge=1, description="dense sites are sampled every N pixels")
+    dedup_distance: float = Field(
+        0.25, ge=0, description="a site with a listed neighbour this close (m) is not added"
+    )
+    cluster_distance: float = Field(0.5, gt=0, description="clustering euclidean threshold (m)")
+    cluster_dz: float = Field(0.01, gt=0, description="clustering z-difference threshold (m)")
+    hierarchy_limit: int = Field(
+        2000,
+        ge=2,
+        description="lists up to this size use scipy.cluster.hierarchy; larger ones the "
+        "equivalent k-d tree single-linkage components (O(n log n) instead of O(n^2))",
+    )
+    max_sites: int = Field(200_000, ge=1, description="most sites in the global list")
+    sigma_ref: float = Field(
+        1.0, gt=0, description="depth 1-sigma (m) that counts as uncertainty 1"
+    )
+    obstacle_margin: float = Field(
+        0.5, ge=0, description="extra radius (m) searched for the obstacle altitude"
+    )
+
+    @model_validator(mode="after")
+    def _ranges(self) -> DepthCostmapSettings:
+        if self.d_max <= self.d_min:
+            raise ValueError(f"d_max ({self.d_max}) must exceed d_min ({self.d_min})")
+        if self.canny_high < self.canny_low:
+            raise ValueError("canny_high must be >= canny_low")
+        return self
+
+    @property
+    def theta_th(self) -> float:
+        """Steepness scale, radians."""
+        return math.radians(self.theta_th_deg)

@@ -1,0 +1,266 @@
+"""Depth-image costmap detector on constructed depth images with known answers."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from pydantic import ValidationError
+
+from lsd.depth_costmap import (
+    DenseSites,
+    DepthCostmapDetector,
+    DepthCostmapSettings,
+    SiteList,
+    cluster_sites,
+    compute_costmaps,
+)
+from lsd.frames import DepthFrame, Intrinsics
+
+K = Intrinsics(fx=320.0, fy=320.0, cx=319.5, cy=239.5, width=640, height=480)
+NADIR = np.array([[1.0, 0, 0], [0, -1.0, 0], [0, 0, -1.0]])  # camera x east, y south, z down
+ALT = 20.0
+
+
+def rays(rotation, k=K):
+    """(H, W, 3) world direction of each pixel's ray per metre of depth."""
+    u = np.arange(k.width, dtype=np.float64)[None, :]
+    v = np.arange(k.height, dtype=np.float64)[:, None]
+    cam = np.stack(np.broadcast_arrays((u - k.cx) / k.fx, (v - k.cy) / k.fy, 1.0), axis=-1)
+    return cam @ np.asarray(rotation).T
+
+
+def plane_depth(normal, offset, position, rotation):
+    """Depth image of the plane normal . p = offset."""
+    r = rays(rotation)
+    n = np.asarray(normal, dtype=np.float64)
+    return (offset - n @ position) / (r @ n)
+
+
+def render(position=(0.0, 0.0, ALT), rotation=NADIR, box=None, ramp_deg=None):
+    """Depth of flat ground (or a ramp rising along x) with an optional box
+    (centre x, centre y, half side, height) seen from above."""
+    pos = np.asarray(position, dtype=np.float64)
+    if ramp_deg is None:
+        depth = plane_depth((0, 0, 1), 0.0, pos, rotation)
+    else:
+        depth = plane_depth((-math.tan(math.radians(ramp_deg)), 0, 1), 0.0, pos, rotation)
+    if box is not None:
+        bx, by, hs, h = box
+        top = plane_depth((0, 0, 1), h, pos, rotation)
+        hit = pos + rays(rotation) * top[..., None]
+        inside = (np.abs(hit[..., 0] - bx) <= hs) & (np.abs(hit[..., 1] - by) <= hs)
+        depth = np.where(inside & (top < depth), top, depth)
+    return depth.astype(np.float32)
+
+
+def frame(depth, position=(0.0, 0.0, ALT), rotation=NADIR, k=K, sigma=None, t=0.0):
+    return DepthFrame(depth, sigma, k, np.asarray(position, float), np.asarray(rotation), t)
+
+
+BOX = (5.0, 0.0, 2.0, 2.0)
+
+
+def horizontal_distance_to_box(xy, box=BOX):
+    bx, by, hs, _ = box
+    dx = np.maximum(np.abs(xy[:, 0] - bx) - hs, 0.0)
+    dy = np.maximum(np.abs(xy[:, 1] - by) - hs, 0.0)
+    return np.hypot(dx, dy)
+
+
+def test_flat_ground_with_box_sites_only_on_the_ground_clear_of_the_box():
+    settings = DepthCostmapSettings(vehicle_radius=1.0)
+    det = DepthCostmapDetector(settings)
+    obs = det.process(frame(render(box=BOX), t=3.0))
+    dense = det.last_sites
+    assert len(dense) > 50 and obs
+    np.testing.assert_allclose(dense.positions[:, 2], 0.0, atol=1e-3)
+    # Footprint clear of the box edge (within one pixel at 18-20 m).
+    pixel = ALT / K.fx
+    assert horizontal_distance_to_box(dense.positions).min() >= 1.0 - 2 * pixel
+    assert np.all(dense.size >= 1.0 - 2 * pixel)
+    # The box edges are depth edges: flatness is zero there.
+    maps = det.last_maps
+    assert maps.flatness_px.min() == 0.0
+    for o in obs:
+        assert o.source == "depth_costmap" and o.timestamp == 3.0
+        assert o.observation_altitude == pytest.approx(ALT - o.z, abs=1e-3)
+        assert 0 <= o.roughness <= 1 and 0 <= o.uncertainty <= 1
+        assert o.obstacle_altitude >= o.z
+    near = horizontal_distance_to_box(np.array([[o.x, o.y] for o in obs])) < 1.0 + 0.5 + 0.5
+    assert all(o.obstacle_altitude == pytest.approx(2.0, abs=1e-3)
+               for o, n in zip(obs, near, strict=True) if n)
+
+
+def test_thirty_degree_ramp_gives_no_site_and_a_gentle_one_does():
+    det = DepthCostmapDetector()
+    assert det.process(frame(render(ramp_deg=30.0))) == []
+    maps = det.last_maps
+    theta = math.radians(30.0)
+    expected = math.exp(-(theta**2) / (2 * math.radians(15.0) ** 2))
+    centre = maps.steepness[200:280, 280:360]
+    np.testing.assert_allclose(centre, expected, atol=0.01)
+    assert DepthCostmapDetector().process(frame(render(ramp_deg=5.0)))
+
+
+def test_depth_noise_breaks_flatness_and_gives_no_site():
+    rng = np.random.default_rng(0)
+    noisy = render() + rng.normal(0.0, 0.3, (K.height, K.width)).astype(np.float32)
+    det = DepthCostmapDetector()
+    assert det.process(frame(noisy)) == []
+    assert det.last_maps.flatness_px.max() < 5
+
+
+def test_tilted_camera_still_sees_level_ground_as_level():
+    tilt = math.radians(20.0)
+    roll = np.array(
+        [[1, 0, 0], [0, math.cos(tilt), -math.sin(tilt)], [0, math.sin(tilt), math.cos(tilt)]]
+    )
+    rot = NADIR @ roll
+    det = DepthCostmapDetector()
+    obs = det.process(frame(render(rotation=rot), rotation=rot))
+    assert obs
+    centre = det.last_maps.steepness[200:280, 280:360]
+    np.testing.assert_allclose(centre, 1.0, atol=1e-3)
+    np.testing.assert_allclose(det.last_sites.positions[:, 2], 0.0, atol=1e-3)
+
+
+def test_eq1_depth_accuracy_and_energy_prefer_near_pixels():
+    maps = compute_costmaps(frame(render(ramp_deg=10.0)), DepthCostmapSettings())
+    # The ramp rises towards +x (image right): right is nearer to the camera.
+    assert maps.depth_accuracy[240, 600] > maps.depth_accuracy[240, 40]
+    assert maps.energy[240, 600] > maps.energy[240, 40]
+    for m in (maps.depth_accuracy, maps.flatness, maps.energy, maps.decision):
+        assert m.min() >= 0.0 and m.max() <= 1.0 + 1e-6
+
+
+def test_zero_and_nan_depth_are_invalid_and_no_site_touches_them():
+    depth = render()
+    depth[200:280, 280:360] = 0.0
+    depth[0:40, :] = np.nan
+    det = DepthCostmapDetector(DepthCostmapSettings(vehicle_radius=1.0))
+    obs = det.process(frame(depth))
+    assert obs and det.counters["pixels_invalid"] == 80 * 80 + 40 * 640
+    px = det.last_sites.pixels
+    footprint_px = K.fx * 1.0 / ALT
+    in_hole_rows = (px[:, 0] > 200 - footprint_px) & (px[:, 0] < 280 + footprint_px)
+    in_hole_cols = (px[:, 1] > 280 - footprint_px) & (px[:, 1] < 360 + footprint_px)
+    assert not np.any(in_hole_rows & in_hole_cols)
+    assert px[:, 0].min() >= 40 + footprint_px
+
+
+@pytest.mark.parametrize(
+    "k",
+    [
+        Intrinsics(fx=0.0, fy=320.0, cx=319.5, cy=239.5, width=640, height=480),
+        Intrinsics(fx=320.0, fy=-1.0, cx=319.5, cy=239.5, width=640, height=480),
+        Intrinsics(fx=float("nan"), fy=320.0, cx=319.5, cy=239.5, width=640, height=480),
+    ],
+)
+def test_bad_intrinsics_drop_the_frame_without_raising(k):
+    det = DepthCostmapDetector()
+    assert det.process(frame(render(), k=k)) == []
+    assert det.counters["frames_dropped"] == 1 and "focal" in det.last_problem
+
+
+def test_bad_pose_or_shape_drops_the_frame():
+    det = DepthCostmapDetector()
+    assert det.process(frame(render(), position=(0.0, np.nan, 20.0))) == []
+    assert det.process(frame(np.zeros(10, dtype=np.float32))) == []
+    assert det.process(frame(np.full((480, 640), np.nan, dtype=np.float32))) == []
+    assert det.counters["frames_dropped"] == 2
+
+
+def test_reprocessing_a_frame_adds_no_site_and_redetects_the_same_clusters():
+    det = DepthCostmapDetector()
+    f = frame(render(box=BOX))
+    first = det.process(f)
+    n = len(det.site_list)
+    second = det.process(f)
+    assert len(det.site_list) == n
+    assert sorted((round(o.x, 6), round(o.y, 6)) for o in first) == sorted(
+        (round(o.x, 6), round(o.y, 6)) for o in second
+    )
+
+
+def sites_at(positions, alt=20.0):
+    n = len(positions)
+    return DenseSites(
+        pixels=np.zeros((n, 2), dtype=np.int64),
+        positions=np.asarray(positions, dtype=np.float64),
+        score=np.ones(n),
+        size=np.ones(n),
+        roughness=np.zeros(n),
+        uncertainty=np.zeros(n),
+        obstacle_altitude=np.zeros(n),
+        observation_altitude=np.full(n, alt),
+    )
+
+
+def test_site_list_adds_a_site_only_without_a_neighbour_within_the_threshold():
+    lst = SiteList(dedup_distance=0.5, max_sites=100)
+    ids = lst.add(sites_at([[0, 0, 0], [0.2, 0, 0], [3, 0, 0]]))
+    assert len(lst) == 2
+    assert ids[0] == ids[1] and ids[2] != ids[0]
+    ids2 = lst.add(sites_at([[0.1, 0.1, 0], [6, 0, 0]], alt=5.0), now=9.0)
+    assert len(lst) == 3 and ids2[0] == ids[0]
+    # The redetection from lower down refreshed the listed site's properties.
+    assert lst.sites.observation_altitude[ids[0]] == 5.0 and lst.timestamp[ids[0]] == 9.0
+    pos = lst.sites.positions
+    d = np.linalg.norm(pos[:, None] - pos[None], axis=2) + np.eye(len(pos)) * 1e9
+    assert d.min() > 0.5
+
+
+def test_clustering_merges_sites_closer_than_both_thresholds():
+    a = [[0, 0, 0], [0.3, 0, 0], [0.6, 0, 0]]  # chain within 0.5 m: one cluster
+    b = [[5, 0, 0], [5.3, 0, 0.005]]  # dz 5 mm < 10 mm: one cluster
+    c = [[5, 5, 0], [5.3, 5, 0.05]]  # dz 5 cm > 10 mm: two clusters
+    labels = cluster_sites(np.array(a + b + c, dtype=float), 0.5, 0.01)
+    assert len(set(labels[:3])) == 1 and len(set(labels[3:5])) == 1
+    assert labels[5] != labels[6] and len(set(labels)) == 4
+
+
+def test_hierarchy_and_kdtree_clustering_give_the_same_partition():
+    rng = np.random.default_rng(5)
+    pts = np.c_[rng.uniform(0, 10, (600, 2)), rng.choice([0.0, 0.5, 1.0], 600)]
+    a = cluster_sites(pts, 0.5, 0.01, hierarchy_limit=10_000)
+    b = cluster_sites(pts, 0.5, 0.01, hierarchy_limit=2)
+    assert len(set(a)) == len(set(b)) > 1
+    pairs_a = a[:, None] == a[None, :]
+    pairs_b = b[:, None] == b[None, :]
+    assert np.array_equal(pairs_a, pairs_b)
+
+
+def test_detector_returns_cluster_centroids():
+    det = DepthCostmapDetector(DepthCostmapSettings(cluster_distance=0.5, cluster_dz=0.01))
+    det.process(frame(render()))
+    clusters = det.clusters()
+    labels = det.labels
+    assert len(clusters) == labels.max() + 1 < len(det.site_list)
+    for label, site in enumerate(clusters):
+        members = det.site_list.sites.positions[labels == label]
+        centre = members.mean(axis=0)
+        got = np.array(site.position)
+        if np.linalg.norm(members - centre, axis=1).min() <= 0.5:
+            np.testing.assert_allclose(got, centre, atol=1e-9)  # eq. 8 centroid
+        else:  # chained cluster: the member nearest the centroid
+            assert np.linalg.norm(members - got, axis=1).min() < 1e-9
+
+
+def test_frame_sigma_sets_the_uncertainty():
+    depth = render()
+    sigma = np.full_like(depth, 0.25)
+    det = DepthCostmapDetector(DepthCostmapSettings(sigma_ref=1.0))
+    obs = det.process(frame(depth, sigma=sigma))
+    assert obs and all(o.uncertainty == pytest.approx(0.25) for o in obs)
+
+
+def test_settings_validation_names_the_field():
+    with pytest.raises(ValidationError, match="sum to 1"):
+        DepthCostmapSettings(weights={"depth_accuracy": 0.5, "flatness": 0.5, "steepness": 0.5,
+                                      "energy": 0.0})
+    with pytest.raises(ValidationError, match="d_max"):
+        DepthCostmapSettings(d_min=10.0, d_max=5.0)
+    with pytest.raises(ValidationError, match="threshold"):
+        DepthCostmapSettings(threshold=1.5)
