@@ -78,22 +78,22 @@ class MarsTerrainSettings(_ProceduralSettings):
     """Mars-like relief: fractal terrain, craters with raised rims, rock fields, scarps."""
 
     kind: Literal["mars"] = "mars"
-    relief_rms: float = Field(1.5, ge=0, description="RMS height (m) of the fractal relief")
+    relief_rms: float = Field(2.0, ge=0, description="RMS height (m) of the fractal relief")
     relief_wavelength: float = Field(
         150.0, gt=0, description="longest wavelength (m) of the fractal relief"
     )
     relief_beta: float = Field(
-        3.2, gt=1, le=5, description="power-spectrum exponent: P(k) ~ k^-beta (higher: smoother)"
+        4.2, gt=1, le=6, description="power-spectrum exponent: P(k) ~ k^-beta (higher: smoother)"
     )
     crater_density: float = Field(
-        60.0, ge=0, description="craters per km^2 with diameter >= crater_diameter[0]"
+        150.0, ge=0, description="craters per km^2 with diameter >= crater_diameter[0]"
     )
-    crater_diameter: Range = Field((4.0, 60.0), description="crater diameter range (m)")
+    crater_diameter: Range = Field((5.0, 80.0), description="crater diameter range (m)")
     crater_sfd_exponent: float = Field(
         2.0, gt=0, description="q of the cumulative crater size-frequency law N(>D) ~ D^-q"
     )
     rock_density: float = Field(
-        0.03, ge=0, description="rocks per m^2 with diameter >= rock_diameter[0], in rock fields"
+        0.2, ge=0, description="rocks per m^2 with diameter >= rock_diameter[0], in rock fields"
     )
     rock_diameter: Range = Field((0.15, 2.5), description="rock diameter range (m)")
     rock_sfd_exponent: float = Field(
@@ -137,7 +137,7 @@ class UrbanTerrainSettings(_ProceduralSettings):
         0.5, ge=0, le=1, description="probability that a roof carries a rooftop unit"
     )
     tree_density: float = Field(
-        40.0, ge=0, description="trees per hectare of open (non-road, non-building) ground"
+        25.0, ge=0, description="trees per hectare of open (non-road, non-building) ground"
     )
     tree_height: Range = Field((4.0, 14.0), description="tree height range (m)")
     car_density: float = Field(6.0, ge=0, description="parked cars per 100 m of road")
@@ -153,8 +153,7 @@ class UrbanTerrainSettings(_ProceduralSettings):
     def _road_fits(self):
         if self.road_width >= self.block_size:
             raise ValueError(
-                f"road_width: {self.road_width} m must be less than block_size "
-                f"{self.block_size} m"
+                f"road_width: {self.road_width} m must be less than block_size {self.block_size} m"
             )
         return self
 
@@ -163,16 +162,16 @@ class RubbleTerrainSettings(_ProceduralSettings):
     """A collapsed-structure field: debris piles and scattered blocks, a few flat slabs."""
 
     kind: Literal["rubble"] = "rubble"
-    pile_density: float = Field(12.0, ge=0, description="debris piles per hectare")
-    pile_radius: Range = Field((3.0, 12.0), description="pile radius range (m)")
+    pile_density: float = Field(40.0, ge=0, description="debris piles per hectare")
+    pile_radius: Range = Field((4.0, 15.0), description="pile radius range (m)")
     pile_height: Range = Field((0.8, 4.0), description="pile height range (m)")
     block_density: float = Field(
-        0.05, ge=0, description="debris blocks per m^2 with size >= block_size[0]"
+        0.1, ge=0, description="debris blocks per m^2 with size >= block_size[0]"
     )
     block_size: Range = Field((0.2, 2.0), description="debris block side range (m)")
     block_sfd_exponent: float = Field(2.2, gt=0, description="q of N(>s) ~ s^-q for blocks")
-    slab_density: float = Field(3.0, ge=0, description="flat slabs per hectare")
-    slab_size: Range = Field((3.0, 8.0), description="slab side range (m)")
+    slab_density: float = Field(8.0, ge=0, description="flat slabs per hectare")
+    slab_size: Range = Field((6.0, 12.0), description="slab side range (m)")
     slab_tilt_deg: float = Field(6.0, ge=0, lt=90, description="largest slab tilt (deg)")
 
     @field_validator("pile_radius", "pile_height", "block_size", "slab_size")

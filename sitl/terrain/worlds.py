@@ -47,6 +47,13 @@ def procedural_frame(settings) -> tuple[tuple[int, int], tuple[float, float]]:
     return (ny, nx), (x0, y0)
 
 
+def home_keep_out(settings) -> float:
+    """Radius (m) around home that generators keep free of features: the takeoff clearing
+    plus the ring over which it blends back into the terrain (see :func:`clear_home`)."""
+    radius = settings.home_clear_radius
+    return 0.0 if radius == 0 else radius + max(radius, 5.0)
+
+
 def clear_home(
     grid: np.ndarray, origin: tuple[float, float], cell_size: float, radius: float
 ) -> np.ndarray:
