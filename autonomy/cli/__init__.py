@@ -17,6 +17,10 @@ from autonomy.errors import UserError
 
 # Subcommand modules, in the order `lander --help` lists them.
 COMMAND_MODULES: tuple[str, ...] = (
+    "autonomy.cli.fly",
+    "autonomy.cli.demo",
+    "autonomy.cli.validate",
+    "autonomy.cli.tree",
 )
 
 

@@ -1,0 +1,46 @@
+"""``lander fly MISSION.yaml``: fly a mission and write its flight report."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from autonomy.cli.validate import load_or_explain
+from autonomy.config import apply_overrides
+
+
+def run(args: argparse.Namespace) -> int:
+    mission = load_or_explain("fly", args.mission)
+    if mission is None:
+        return 2
+    if args.connect is not None:
+        mission = apply_overrides(mission, {"vehicle.connection": args.connect})
+    out = Path(args.out) if args.out else Path("out") / Path(args.mission).stem
+    from autonomy.runner import fly
+
+    result = fly(mission, seed=args.seed, out_dir=out, console=not args.quiet,
+                 on_interrupt=args.on_interrupt)
+    if args.quiet:
+        print(f"{result.outcome}: report {out / 'report.png'}")
+    return 0 if result.outcome == "landed" else 1
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    parser = subparsers.add_parser(
+        "fly", help="fly a mission and write its flight report",
+        description="Fly a mission: lockstep on the embedded SITL for sim://, live over "
+        "MAVLink otherwise. Writes summary.json, events.jsonl, flight.tlog and report.png "
+        "to --out. Exit 0 when the vehicle landed safely, 1 for any other outcome, 2 for "
+        "bad input.",
+    )
+    parser.add_argument("mission", metavar="MISSION.yaml", help="mission file")
+    parser.add_argument("--connect", metavar="URL",
+                        help="vehicle connection (sim://, udp:HOST:PORT, tcp:HOST:PORT, ...); "
+                        "overrides vehicle.connection")
+    parser.add_argument("--seed", type=int, help="overrides the mission's seed")
+    parser.add_argument("--out", metavar="DIR", help="report directory (default out/MISSION)")
+    parser.add_argument("--quiet", action="store_true",
+                        help="no per-phase lines, only the outcome and the report path")
+    parser.add_argument("--on-interrupt", choices=("land", "hold"), default="land",
+                        help="live mode: what Ctrl-C does before exiting (default land)")
+    parser.set_defaults(func=run)

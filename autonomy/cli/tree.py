@@ -1,0 +1,56 @@
+"""``lander tree MISSION.yaml``: print the mission's behaviour tree, optionally as dot."""
+
+from __future__ import annotations
+
+import argparse
+
+import numpy as np
+
+from autonomy.clock import SimClock
+from autonomy.errors import UserError
+from behaviors.ports import VehicleState
+
+
+class _OfflineVehicle:
+    """A vehicle for building a tree that is never ticked: every command is refused."""
+
+    state = VehicleState()
+
+    def _refuse(self, *args, **kwargs):
+        raise RuntimeError("lander tree: the tree is only displayed, not flown")
+
+    arm = disarm = set_mode = takeoff = goto = set_velocity = hold = land = _refuse
+
+
+def run(args: argparse.Namespace) -> int:
+    from autonomy.cli.validate import load_or_explain
+    from behaviors.display import render_ascii, write_dot
+    from behaviors.tree import build_mission_tree
+    from lsm import LandingSiteManager
+
+    mission = load_or_explain("tree", args.mission)
+    if mission is None:
+        return 2
+    tree = build_mission_tree(
+        mission.plan(), _OfflineVehicle(), LandingSiteManager(mission.lsm, mission.weights),
+        SimClock(), np.random.default_rng(mission.seed),
+    )
+    print(render_ascii(tree))
+    if args.dot:
+        try:
+            write_dot(tree, args.dot)
+        except OSError as exc:
+            raise UserError(f"--dot {args.dot}: {exc.strerror or exc}") from None
+        print(f"dot: {args.dot}")
+    return 0
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    parser = subparsers.add_parser(
+        "tree", help="print the mission's behaviour tree",
+        description="Print the behaviour tree a mission file builds (ASCII) and optionally "
+        "write it as a Graphviz dot file.",
+    )
+    parser.add_argument("mission", metavar="MISSION.yaml", help="mission file")
+    parser.add_argument("--dot", metavar="FILE", help="write the tree as Graphviz dot source")
+    parser.set_defaults(func=run)

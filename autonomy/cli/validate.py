@@ -1,0 +1,43 @@
+"""``lander validate MISSION.yaml``: check a mission file without flying it."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from autonomy.config import Mission, MissionFileError, load_mission
+
+
+def load_or_explain(command: str, path: str | Path) -> Mission | None:
+    """Load a mission; on problems print one ``lander COMMAND: error:`` line each to stderr
+    and return None."""
+    try:
+        return load_mission(path)
+    except MissionFileError as exc:
+        for problem in exc.problems:
+            print(f"lander {command}: error: {problem}", file=sys.stderr)
+        return None
+
+
+def run(args: argparse.Namespace) -> int:
+    mission = load_or_explain("validate", args.mission)
+    if mission is None:
+        return 2
+    waypoints = len(mission.waypoints)
+    print(
+        f"ok: {args.mission}: {waypoints} waypoint{'s' * (waypoints != 1)}, "
+        f"{mission.world.kind} world, {mission.perception.detector} detector, "
+        f"{mission.vehicle.connection}"
+    )
+    return 0
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    parser = subparsers.add_parser(
+        "validate", help="check a mission file (nothing is flown)",
+        description="Check a mission file: prints 'ok' (exit 0) or one line per problem with "
+        "file:line and field (exit 2). Nothing is flown.",
+    )
+    parser.add_argument("mission", metavar="MISSION.yaml", help="mission file")
+    parser.set_defaults(func=run)

@@ -1,0 +1,31 @@
+"""The flight report: summary.json, events.jsonl, flight.tlog and report.png.
+
+The runner fills a :class:`FlightData` while it flies and records events in an
+:class:`EventLog`; :func:`build_summary` turns the data into the summary.json dict and
+:func:`write_report_png` draws the map and altitude plot.
+"""
+
+from autonomy.report.data import FlightData, FlightTrace
+from autonomy.report.events import EventLog, TreeStatusRecorder, read_events
+from autonomy.report.plot import write_report_png
+from autonomy.report.summary import (
+    OUTCOMES,
+    build_summary,
+    classify,
+    format_summary,
+    write_summary,
+)
+
+__all__ = [
+    "OUTCOMES",
+    "EventLog",
+    "FlightData",
+    "FlightTrace",
+    "TreeStatusRecorder",
+    "build_summary",
+    "classify",
+    "format_summary",
+    "read_events",
+    "write_report_png",
+    "write_summary",
+]

@@ -1,0 +1,107 @@
+"""The flight's event log (events.jsonl) and the tree-status recorder that feeds it.
+
+Every event is a JSON object with ``t`` (clock seconds), ``kind`` (``tree``, ``phase``,
+``lsm``, ``perception``, ``flight``) and kind-specific fields. Events carry nothing that
+differs between two runs with the same seed (no wall time, no object ids), so a lockstep
+flight's events.jsonl is reproducible byte for byte.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Callable
+from pathlib import Path
+from typing import IO, Any
+
+import numpy as np
+import py_trees
+
+
+def _clean(value: Any) -> Any:
+    """A JSON-able copy: numpy scalars to Python, floats rounded to 0.1 mm / 0.1 ms."""
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    if isinstance(value, (int, np.integer)):
+        return int(value)
+    if isinstance(value, (float, np.floating)):
+        value = float(value)
+        return round(value, 4) if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {str(k): _clean(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple, np.ndarray)):
+        return [_clean(v) for v in value]
+    if value is None or isinstance(value, str):
+        return value
+    return str(value)
+
+
+class EventLog:
+    """Flight events in time order, kept in memory and optionally streamed to a file.
+
+    Args:
+        now: the clock's ``now`` that stamps each event.
+        path: events.jsonl to write (one JSON object per line), or None.
+    """
+
+    def __init__(self, now: Callable[[], float], path: Path | None = None) -> None:
+        self._now = now
+        self.events: list[dict[str, Any]] = []
+        self._file: IO[str] | None = path.open("w", encoding="utf-8") if path else None
+
+    def add(self, kind: str, **fields: Any) -> dict[str, Any]:
+        """Record one event of ``kind`` now; returns it."""
+        event = _clean({"t": self._now(), "kind": kind, **fields})
+        self.events.append(event)
+        if self._file is not None:
+            self._file.write(json.dumps(event, separators=(",", ":")) + "\n")
+        return event
+
+    def close(self) -> None:
+        if self._file is not None:
+            self._file.close()
+            self._file = None
+
+
+def read_events(path: str | Path) -> list[dict[str, Any]]:
+    """The events of an events.jsonl file."""
+    with Path(path).open(encoding="utf-8") as f:
+        return [json.loads(line) for line in f if line.strip()]
+
+
+class TreeStatusRecorder:
+    """Post-tick handler logging every status change of every behaviour in a tree.
+
+    Each change becomes a ``tree`` event with the behaviour's name, its path from the root
+    (names joined by ``/``), the old and new status and its feedback message. Statuses are
+    compared over the whole tree after each tick, so behaviours invalidated by a parent
+    (a preempted branch) are recorded too.
+    """
+
+    def __init__(self, log: EventLog) -> None:
+        self._log = log
+        self._status: dict[int, py_trees.common.Status] = {}
+        self._paths: dict[int, str] = {}
+
+    def _path(self, node: py_trees.behaviour.Behaviour) -> str:
+        key = id(node)
+        path = self._paths.get(key)
+        if path is None:
+            names = []
+            walk: py_trees.behaviour.Behaviour | None = node
+            while walk is not None:
+                names.append(walk.name)
+                walk = walk.parent
+            path = self._paths[key] = "/".join(reversed(names))
+        return path
+
+    def __call__(self, tree: py_trees.trees.BehaviourTree) -> None:
+        invalid = py_trees.common.Status.INVALID
+        for node in tree.root.iterate():
+            old = self._status.get(id(node), invalid)
+            if node.status != old:
+                self._status[id(node)] = node.status
+                self._log.add(
+                    "tree", behaviour=node.name, path=self._path(node), old=old.value,
+                    new=node.status.value, feedback=node.feedback_message,
+                )

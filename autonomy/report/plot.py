@@ -1,0 +1,120 @@
+"""report.png: the flight on a map of the terrain, and its altitude over time by phase."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")  # files only, no display
+
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+from matplotlib.colors import LightSource  # noqa: E402
+from matplotlib.patches import Circle  # noqa: E402
+
+from autonomy.report.data import FlightData  # noqa: E402
+
+_MAX_PIXELS = 600  # map raster side after striding the terrain grid
+_PHASE_COLOURS = plt.get_cmap("tab20").colors
+
+
+def _map_window(data: FlightData, xyz: np.ndarray) -> tuple[float, float, float, float]:
+    """(xmin, xmax, ymin, ymax) around the trajectory and the sites, 20 m margin."""
+    pts = [xyz[:, :2]] if len(xyz) else [np.zeros((1, 2))]
+    pts.append(np.array([[s.x, s.y] for s in data.sites]).reshape(-1, 2))
+    pts.append(np.array([[x, y] for x, y, _ in data.ban_zones]).reshape(-1, 2))
+    allp = np.concatenate(pts)
+    lo, hi = allp.min(axis=0) - 20.0, allp.max(axis=0) + 20.0
+    side = max(hi - lo)  # square window keeps the map readable
+    mid = (lo + hi) / 2
+    return (mid[0] - side / 2, mid[0] + side / 2, mid[1] - side / 2, mid[1] + side / 2)
+
+
+def _draw_terrain(ax, terrain, window) -> None:
+    if terrain is None:
+        ax.set_facecolor("#d9d2c3")
+        return
+    xs, ys = terrain.coordinates()
+    j0, j1 = np.searchsorted(xs, [window[0], window[1]])
+    i0, i1 = np.searchsorted(ys, [window[2], window[3]])
+    if j1 - j0 < 2 or i1 - i0 < 2:
+        ax.set_facecolor("#d9d2c3")
+        return
+    step = max(1, int(max(i1 - i0, j1 - j0) // _MAX_PIXELS))
+    grid = np.asarray(terrain.grid[i0:i1:step, j0:j1:step], dtype=np.float64)
+    lo, hi = float(grid.min()), float(grid.max())
+    shaded = LightSource(azdeg=315, altdeg=45).shade(
+        grid, cmap=plt.get_cmap("gist_earth"), blend_mode="overlay",
+        vmin=lo - 0.5, vmax=max(hi, lo + 5.0),  # a flat world is a plain colour, not black
+        vert_exag=1.0, dx=terrain.cell_size * step, dy=terrain.cell_size * step,
+    )
+    extent = (xs[j0], xs[j1 - 1], ys[i0], ys[i1 - 1])
+    ax.imshow(shaded, origin="lower", extent=extent, interpolation="bilinear")
+    ax.contour(
+        np.linspace(extent[0], extent[1], grid.shape[1]),
+        np.linspace(extent[2], extent[3], grid.shape[0]),
+        grid, levels=10, colors="k", linewidths=0.3, alpha=0.4,
+    )
+
+
+def write_report_png(data: FlightData, path: Path, *, outcome: str = "") -> None:
+    """Draw the two-panel flight report into ``path`` (PNG)."""
+    t, xyz, _ = data.trace.arrays()
+    fig, (ax_map, ax_alt) = plt.subplots(
+        1, 2, figsize=(15, 6.5), gridspec_kw={"width_ratios": [1, 1.3]}
+    )
+    window = _map_window(data, xyz)
+    _draw_terrain(ax_map, data.terrain, window)
+    if len(xyz):
+        ax_map.plot(xyz[:, 0], xyz[:, 1], "-", color="white", lw=2.2, alpha=0.8)
+        ax_map.plot(xyz[:, 0], xyz[:, 1], "-", color="tab:blue", lw=1.2, label="trajectory")
+        ax_map.plot(*xyz[0, :2], "o", color="tab:blue", ms=6, label="home")
+    if data.sites:
+        sites = np.array([(s.x, s.y, s.loss) for s in data.sites])
+        sc = ax_map.scatter(
+            sites[:, 0], sites[:, 1], c=sites[:, 2], cmap="viridis_r", s=40,
+            edgecolors="k", linewidths=0.5, zorder=4, label="candidate sites",
+        )
+        fig.colorbar(sc, ax=ax_map, shrink=0.8, label="site loss (lower is better)")
+    for i, (x, y, r) in enumerate(data.ban_zones):
+        ax_map.add_patch(Circle((x, y), r, fill=False, ec="tab:red", ls="--", lw=1, zorder=4))
+        ax_map.plot(x, y, "x", color="tab:red", ms=9, mew=2, zorder=5,
+                    label="banned site" if i == 0 else None)
+    if data.chosen_site is not None:
+        ax_map.plot(data.chosen_site.x, data.chosen_site.y, "*", color="gold", ms=18,
+                    mec="k", zorder=6, label="chosen site")
+    if data.touchdown is not None:
+        colour = {True: "lime", False: "red", None: "white"}[data.touchdown_safe]
+        ax_map.plot(data.touchdown[0], data.touchdown[1], "v", color=colour, ms=10, mec="k",
+                    zorder=7, label="touchdown")
+    ax_map.set_xlim(window[0], window[1])
+    ax_map.set_ylim(window[2], window[3])
+    ax_map.set_aspect("equal")
+    ax_map.set_xlabel("east (m)")
+    ax_map.set_ylabel("north (m)")
+    ax_map.legend(loc="upper left", fontsize=8, framealpha=0.8)
+    ax_map.set_title(f"{data.mission_name or 'mission'} - {data.world} world")
+
+    if len(t):
+        ax_alt.plot(t, xyz[:, 2], color="tab:blue", lw=1.5, label="altitude (ENU z)")
+        if data.terrain is not None:
+            ground = data.terrain.height(xyz[:, 0], xyz[:, 1])
+            ax_alt.fill_between(t, np.minimum(ground, xyz[:, 2]).min() - 1, ground,
+                                color="tan", alpha=0.6, label="ground below")
+        ends = [start for start, _ in data.trace.phases[1:]] + [float(t[-1])]
+        names = sorted({p for _, p in data.trace.phases})
+        seen: set[str] = set()
+        for (start, phase), end in zip(data.trace.phases, ends, strict=True):
+            colour = _PHASE_COLOURS[names.index(phase) % len(_PHASE_COLOURS)]
+            ax_alt.axvspan(start, end, color=colour, alpha=0.35,
+                           label=None if phase in seen else phase)
+            seen.add(phase)
+    ax_alt.set_xlabel("time (s)")
+    ax_alt.set_ylabel("altitude above home (m)")
+    ax_alt.legend(loc="upper right", fontsize=8, ncol=2, framealpha=0.8)
+    ax_alt.set_title(f"outcome: {outcome}" if outcome else "altitude")
+    ax_alt.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)

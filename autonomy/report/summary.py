@@ -1,0 +1,141 @@
+"""The flight's outcome, its summary.json and the console's closing lines."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from autonomy.report.data import FlightData
+from autonomy.report.events import _clean
+
+OUTCOMES = ("landed", "landed_unsafe", "crashed", "no_site", "aborted")
+"""landed: touched down and disarmed on ground-truth-safe ground (or unjudged ground when
+there is no simulated truth); landed_unsafe: touched down on unsafe ground; crashed: the
+simulator flagged a crash; no_site: every landing attempt failed and the vehicle landed in
+place; aborted: the mission failed, hit the time limit or was interrupted before landing."""
+
+
+def classify(data: FlightData) -> str:
+    """The outcome (one of :data:`OUTCOMES`) of a finished flight."""
+    if data.crashed:
+        return "crashed"
+    if data.status != "SUCCESS":
+        return "aborted"
+    if data.outcome_hint == "no_site":
+        return "no_site"
+    if data.touchdown_safe is False:
+        return "landed_unsafe"
+    return "landed"
+
+
+def build_summary(data: FlightData) -> dict[str, Any]:
+    """The summary.json dict of a flight (times in clock seconds, distances in metres)."""
+    site = data.chosen_site
+    error = None
+    if site is not None and data.touchdown is not None:
+        error = math.hypot(data.touchdown[0] - site.x, data.touchdown[1] - site.y)
+    mission_end = data.trace.mission_end()
+    time_to_land = None
+    if mission_end is not None and data.touchdown_time is not None:
+        time_to_land = max(0.0, data.touchdown_time - mission_end)
+    _, _, battery = data.trace.arrays()
+    known = battery[~np.isnan(battery)]
+    start = float(known[0]) if known.size else None
+    end = float(known[-1]) if known.size else None
+    counters = dict(sorted(data.lsm_counters.items()))
+    summary = {
+        "mission": data.mission_name,
+        "seed": data.seed,
+        "autopilot": data.autopilot,
+        "world": data.world,
+        "detector": data.detector,
+        "outcome": classify(data),
+        "tree_status": data.status,
+        "stop_reason": data.stop_reason,
+        "outcome_hint": data.outcome_hint,
+        "failure_reason": data.failure_reason,
+        "crash_reason": data.crash_reason,
+        "chosen_site": None if site is None else {
+            "id": site.id, "x": site.x, "y": site.y, "z": site.z,
+            "roughness": site.roughness, "uncertainty": site.uncertainty, "size": site.size,
+            "verification_altitude": site.verification_altitude,
+        },
+        "touchdown": None if data.touchdown is None else {
+            "x": data.touchdown[0], "y": data.touchdown[1], "z": data.touchdown[2],
+            "speed": data.touchdown_speed, "t": data.touchdown_time,
+        },
+        "touchdown_error": error,
+        "touchdown_safe": data.touchdown_safe,
+        "mission_time": data.end_time,
+        "mission_end_time": mission_end,
+        "time_to_land": time_to_land,
+        "distance": data.trace.distance(),
+        "energy": {
+            "battery_start": start,
+            "battery_end": end,
+            "battery_used": None if start is None else start - end,
+            "wh": data.energy_wh,
+        },
+        "sites_received": counters.get("received", 0),
+        "sites_retained": len(data.sites),
+        "sites_verified": data.sites_verified,
+        "sites_banned": len(data.ban_zones),
+        "verification_attempts": data.verification_attempts,
+        "search_patterns": data.search_patterns,
+        "lsm_counters": counters,
+        "perception": dict(sorted(data.perception_counters.items())),
+        "wall_time": data.wall_time,
+        "realtime_factor": (data.end_time / data.wall_time) if data.wall_time > 0 else None,
+    }
+    return _clean(summary)
+
+
+def write_summary(summary: dict[str, Any], path: Path) -> None:
+    path.write_text(json.dumps(summary, indent=2) + "\n", encoding="utf-8")
+
+
+def format_summary(summary: dict[str, Any]) -> str:
+    """A few human lines about a flight, for the end of the console output."""
+
+    def num(value: Any, fmt: str = ".1f", unit: str = "") -> str:
+        return "-" if value is None else f"{value:{fmt}}{unit}"
+
+    lines = [f"outcome: {summary['outcome']}"]
+    if summary.get("outcome_hint"):
+        lines[0] += f" ({summary['outcome_hint']})"
+    if summary.get("failure_reason") and summary["outcome"] == "aborted":
+        lines.append(f"reason: {summary['failure_reason']}")
+    elif summary["outcome"] == "aborted":
+        lines.append(f"reason: {summary['stop_reason']}")
+    site = summary.get("chosen_site")
+    td = summary.get("touchdown")
+    if td is not None:
+        safe = {True: "safe", False: "UNSAFE", None: "not judged"}[summary["touchdown_safe"]]
+        where = f"touchdown at ({td['x']:.1f}, {td['y']:.1f}, {td['z']:.1f}) m, ground {safe}"
+        if site is not None:
+            where += (f"; {num(summary['touchdown_error'], '.2f', ' m')} from site "
+                      f"{site['id']}")
+        lines.append(where)
+    energy = summary["energy"]
+    lines.append(
+        f"mission time {num(summary['mission_time'], '.1f', ' s')}, time to land "
+        f"{num(summary['time_to_land'], '.1f', ' s')}, distance "
+        f"{num(summary['distance'], '.0f', ' m')}, battery used "
+        f"{num(energy['battery_used'], '.1f', ' %')}"
+    )
+    lines.append(
+        f"sites: {summary['sites_received']} observations, {summary['sites_retained']} "
+        f"retained, {summary['sites_verified']} verified, {summary['sites_banned']} banned; "
+        f"{summary['verification_attempts']} verification attempts, "
+        f"{summary['search_patterns']} search patterns"
+    )
+    if summary.get("realtime_factor"):
+        lines.append(
+            f"simulated {summary['mission_time']:.0f} s in {summary['wall_time']:.1f} s "
+            f"({summary['realtime_factor']:.0f}x real time)"
+        )
+    return "\n".join(lines)

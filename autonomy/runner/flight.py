@@ -1,0 +1,179 @@
+"""One flight: the per-tick loop that connects vehicle, perception, LSM and tree.
+
+Per tick (DESIGN.md section 6, lockstep): advance the simulator and the clock, poll the
+vehicle, tell the LSM where the drone is, at the perception rate feed the source's
+observations to the LSM, tick the tree, record. :class:`Flight` does everything after the
+clock advance; :mod:`autonomy.runner.lockstep` and :mod:`autonomy.runner.live` drive it.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from collections.abc import Callable
+from typing import IO, Any
+
+import py_trees
+
+from autonomy.report.data import FlightTrace
+from autonomy.report.events import EventLog, TreeStatusRecorder
+from behaviors import blackboard as bb
+from behaviors.ports import LandedState
+from lsm import LandingSiteManager
+
+Status = py_trees.common.Status
+
+
+class PhaseConsole:
+    """The live console view: one line each time the mission phase changes."""
+
+    def __init__(self, stream: IO[str] | None = None) -> None:
+        self._stream = stream or sys.stdout
+
+    def phase(self, t: float, phase: str, altitude: float | None, sites: int,
+              best_loss: float | None, battery: float | None) -> None:
+        alt = "   -  " if altitude is None else f"{altitude:6.1f}"
+        loss = "   -  " if best_loss is None else f"{best_loss:6.3f}"
+        batt = "  -" if battery is None else f"{battery:3.0f}"
+        print(
+            f"[{t:7.1f} s] {phase:<17} alt {alt} m  sites {sites:3d}  best loss {loss}"
+            f"  battery {batt} %",
+            file=self._stream, flush=True,
+        )
+
+
+class Flight:
+    """The wiring of one flight, ticked by a driver loop.
+
+    Args:
+        vehicle: the vehicle (``poll()``, ``state``; satisfies behaviors.ports.VehiclePort).
+        lsm: the Landing Site Manager (its ``on_decision`` should log into ``log``).
+        source: the perception source.
+        tree: the mission tree.
+        log: the event log.
+        now: the clock's now.
+        perception_every: tree ticks between perception updates.
+        truth: a callable returning the simulator's ground truth, or None when flying live.
+        lockstep: True to drain the LSM queue synchronously after each perception update.
+        console: optional phase console.
+    """
+
+    def __init__(
+        self, *, vehicle: Any, lsm: LandingSiteManager, source: Any,
+        tree: py_trees.trees.BehaviourTree, log: EventLog, now: Callable[[], float],
+        perception_every: int, truth: Callable[[], Any] | None, lockstep: bool,
+        console: PhaseConsole | None = None,
+    ) -> None:
+        self.vehicle = vehicle
+        self.lsm = lsm
+        self.source = source
+        self.tree = tree
+        self.log = log
+        self.now = now
+        self.perception_every = max(1, int(perception_every))
+        self.truth = truth
+        self.lockstep = lockstep
+        self.console = console
+        self.trace = FlightTrace()
+        self.ticks = 0
+        self.phase: str | None = None
+        self.touchdown: tuple[float, float, float] | None = None
+        self.touchdown_time: float | None = None
+        self.touchdown_speed: float | None = None
+        self._airborne = False
+        self._last_touchdown: Any = None
+        self._reader = py_trees.blackboard.Client(name="runner")
+        for key in (bb.PHASE, bb.LANDING_SITE, bb.OUTCOME_HINT, bb.FAILURE_REASON,
+                    bb.VERIFICATION_ATTEMPTS, bb.SEARCH_PATTERNS):
+            self._reader.register_key(key=key, access=py_trees.common.Access.READ)
+        tree.add_post_tick_handler(TreeStatusRecorder(log))
+
+    def read(self, key: str, default: Any = None) -> Any:
+        """A blackboard value, or ``default`` when it is not set."""
+        try:
+            return self._reader.get(key)
+        except KeyError:
+            return default
+
+    @property
+    def status(self) -> Status:
+        return self.tree.root.status
+
+    @property
+    def done(self) -> bool:
+        """The tree finished (landed and disarmed, or failed)."""
+        return self.status in (Status.SUCCESS, Status.FAILURE)
+
+    def crashed(self) -> tuple[bool, str | None]:
+        if self.truth is None:
+            return False, None
+        truth = self.truth()
+        if not getattr(truth, "crashed", False):
+            return False, None
+        return True, getattr(truth, "crash_reason", None) or "crash"
+
+    def tick(self) -> None:
+        """One tick after the clock advanced: poll, perceive, decide, record."""
+        now = self.now()
+        self.vehicle.poll()
+        state = self.vehicle.state
+        if state.position is not None:
+            self.lsm.set_drone_position(state.position)
+        if self.ticks % self.perception_every == 0:
+            for obs in self.source.update(state, now):
+                self.lsm.submit(obs)
+            if self.lockstep:
+                self.lsm.process_pending()
+            for event in self.source.drain_events():
+                self.log.add("perception", **event)
+        self.tree.tick()
+        self.ticks += 1
+        self._record(now, state)
+
+    def _record(self, now: float, state: Any) -> None:
+        truth = self.truth() if self.truth is not None else None
+        if truth is not None:
+            xyz = tuple(float(v) for v in truth.position)
+            battery = getattr(truth, "battery_percent", None)
+            if battery is None:
+                battery = state.battery_percent
+        else:
+            xyz = state.position
+            battery = state.battery_percent
+        self.trace.append(now, xyz, battery)
+        self._track_touchdown(now, truth, state)
+        phase = self.read(bb.PHASE)
+        if phase != self.phase and phase is not None:
+            self.phase = phase
+            self.trace.phases.append((now, phase))
+            best = self.lsm.best(state.position) if state.position is not None else None
+            loss = None if best is None or math.isnan(best.loss) else best.loss
+            self.log.add("phase", phase=phase, position=xyz, battery=battery,
+                         sites=len(self.lsm), best_loss=loss)
+            if self.console is not None:
+                self.console.phase(now, phase, None if xyz is None else xyz[2],
+                                   len(self.lsm), loss, battery)
+
+    def _track_touchdown(self, now: float, truth: Any, state: Any) -> None:
+        if truth is not None:
+            td = getattr(truth, "touchdown", None)
+            if td is not None and td != self._last_touchdown:
+                self._last_touchdown = td
+                x, y, z = (float(getattr(td, k)) if hasattr(td, k) else float(td[i])
+                           for i, k in enumerate("xyz"))
+                speed = getattr(td, "speed", None)
+                if speed is None and not hasattr(td, "x") and len(td) > 3:
+                    speed = td[3]
+                self._touch(now, (x, y, z), None if speed is None else float(speed))
+            return
+        # Live: the autopilot's landed state going from air to ground is the touchdown.
+        if state.landed_state in (LandedState.IN_AIR, LandedState.LANDING):
+            self._airborne = True
+        elif state.landed_state == LandedState.ON_GROUND and self._airborne:
+            self._airborne = False
+            if state.position is not None:
+                self._touch(now, tuple(state.position), abs(state.velocity[2]))
+
+    def _touch(self, now: float, xyz: tuple[float, float, float], speed: float | None) -> None:
+        self.touchdown, self.touchdown_time, self.touchdown_speed = xyz, now, speed
+        self.log.add("flight", event="touchdown", position=xyz, speed=speed)

@@ -1,0 +1,262 @@
+"""fly(): one mission, lockstep against the embedded SITL or live over a MAVLink link.
+
+Lockstep (``sim://``): every tick advances the simulator and a :class:`SimClock` by
+``1 / tick_rate`` and then runs the tick, so a flight takes only CPU time and two flights
+with the same seed are identical. Live (any other connection): the LSM runs on its worker
+thread, the tree ticks at ``tick_rate`` on wall time, and Ctrl-C lands (or holds) the
+vehicle before returning.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+import py_trees
+
+from autonomy.clock import SimClock, WallClock
+from autonomy.config import Mission
+from autonomy.report import (
+    EventLog,
+    FlightData,
+    build_summary,
+    format_summary,
+    write_report_png,
+    write_summary,
+)
+from autonomy.runner.flight import Flight, PhaseConsole
+from autonomy.runner.world import (
+    FlightSeeds,
+    build_sitl,
+    build_source,
+    build_terrain,
+    judge_touchdown,
+)
+from behaviors import blackboard as bb
+from behaviors.ports import LandedState
+from lsm import LandingSiteManager
+
+Status = py_trees.common.Status
+REPORT_FILES = ("summary.json", "events.jsonl", "flight.tlog", "report.png")
+
+
+@dataclass
+class FlightResult:
+    """What :func:`fly` returns.
+
+    Attributes:
+        summary: the summary.json dict (see :func:`autonomy.report.build_summary`).
+        events: every event of the flight, as written to events.jsonl.
+        data: the trace and end state the report was drawn from.
+        out_dir: where the report files are, or None when none were written.
+    """
+
+    summary: dict[str, Any]
+    events: list[dict[str, Any]] = field(repr=False)
+    data: FlightData = field(repr=False)
+    out_dir: Path | None = None
+
+    @property
+    def outcome(self) -> str:
+        return self.summary["outcome"]
+
+
+def fly(
+    mission: Mission,
+    *,
+    seed: int | None = None,
+    out_dir: Path | str | None = None,
+    console: bool = False,
+    on_interrupt: Literal["land", "hold"] = "land",
+) -> FlightResult:
+    """Fly ``mission`` and report on it.
+
+    Args:
+        mission: the validated mission.
+        seed: overrides ``mission.seed`` (terrain, sensor noise, wind, pattern centres).
+        out_dir: directory for summary.json, events.jsonl, flight.tlog and report.png
+            (created); None writes nothing, which is fastest.
+        console: print a line per phase change and a closing summary to stdout.
+        on_interrupt: live mode only: what Ctrl-C does before returning.
+
+    Raises:
+        UserError: the vehicle cannot be reached, or the world cannot be built.
+    """
+    from autonomy.vehicle import connect
+    from behaviors.tree import build_mission_tree
+
+    seed = mission.seed if seed is None else int(seed)
+    seeds = FlightSeeds.derive(seed)
+    lockstep = mission.vehicle.lockstep
+    out = Path(out_dir) if out_dir is not None else None
+    if out is not None:
+        out.mkdir(parents=True, exist_ok=True)
+    wall_start = time.perf_counter()
+
+    terrain = build_terrain(mission, seeds.terrain)
+    clock: Any = SimClock() if lockstep else WallClock()
+    log = EventLog(clock.now, out / "events.jsonl" if out else None)
+    lsm = LandingSiteManager(
+        mission.lsm, mission.weights,
+        on_decision=lambda d: log.add("lsm", decision=d.kind, site=d.site_id,
+                                      reason=d.reason),
+    )
+    source = build_source(mission, terrain, np.random.default_rng(seeds.perception))
+    sitl = build_sitl(mission, terrain, seeds.sitl) if lockstep else None
+    vehicle = None
+    try:
+        vehicle = connect(
+            mission.vehicle.connection, clock, sitl=sitl,
+            signing_key=mission.vehicle.signing_key_bytes(),
+            link_timeout=mission.vehicle.link.link_timeout,
+            settings=mission.vehicle.link,
+            tlog_path=out / "flight.tlog" if out else None,
+        )
+        bb.reset()
+        tree = build_mission_tree(
+            mission.plan(), vehicle, lsm, clock, np.random.default_rng(seeds.tree)
+        )
+        tree.setup()
+        flight = Flight(
+            vehicle=vehicle, lsm=lsm, source=source, tree=tree, log=log, now=clock.now,
+            perception_every=max(1, round(mission.tick_rate / mission.perception.rate)),
+            truth=(lambda: sitl.truth) if sitl is not None else None,
+            lockstep=lockstep, console=PhaseConsole() if console else None,
+        )
+        log.add("flight", event="start", mission=mission.name, seed=seed,
+                connection=mission.vehicle.connection, lockstep=lockstep)
+        if lockstep:
+            stop_reason = _run_lockstep(flight, sitl, clock, mission)
+        else:
+            stop_reason = _run_live(flight, lsm, mission, on_interrupt)
+        log.add("flight", event="end", status=flight.status.name, reason=stop_reason)
+        data = _flight_data(mission, seed, flight, terrain, stop_reason, lockstep, sitl)
+    finally:
+        if not lockstep:
+            lsm.stop()
+        if vehicle is not None:
+            vehicle.close()
+        if sitl is not None and hasattr(sitl, "close"):
+            sitl.close()
+        log.close()
+    data.wall_time = time.perf_counter() - wall_start
+    summary = build_summary(data)
+    if out is not None:
+        write_summary(summary, out / "summary.json")
+        write_report_png(data, out / "report.png", outcome=summary["outcome"])
+    if console:
+        print(format_summary(summary))
+        if out is not None:
+            print(f"report: {out / 'report.png'} (summary.json, events.jsonl, flight.tlog "
+                  f"in {out})")
+    return FlightResult(summary=summary, events=log.events, data=data, out_dir=out)
+
+
+def _run_lockstep(flight: Flight, sitl: Any, clock: SimClock, mission: Mission) -> str:
+    dt = 1.0 / mission.tick_rate
+    limit_ticks = math.ceil(mission.time_limit * mission.tick_rate)
+    for _ in range(limit_ticks):
+        sitl.step(dt)
+        clock.advance(dt)
+        flight.tick()
+        if flight.done:
+            return "landed" if flight.status == Status.SUCCESS else "mission failed"
+        crashed, _ = flight.crashed()
+        if crashed:
+            return "crashed"
+    return "time limit"
+
+
+def _run_live(flight: Flight, lsm: LandingSiteManager, mission: Mission,
+              on_interrupt: str) -> str:
+    period = 1.0 / mission.tick_rate
+    lsm.start()
+    start = time.monotonic()
+    next_tick = start
+    try:
+        while True:
+            flight.tick()
+            if flight.done:
+                return "landed" if flight.status == Status.SUCCESS else "mission failed"
+            if time.monotonic() - start >= mission.time_limit:
+                return "time limit"
+            next_tick += period
+            time.sleep(max(0.0, next_tick - time.monotonic()))
+    except KeyboardInterrupt:
+        return _interrupted(flight, on_interrupt)
+
+
+def _interrupted(flight: Flight, on_interrupt: str) -> str:
+    """Ctrl-C in live mode: land (or hold) the vehicle, then give the loop back."""
+    flight.log.add("flight", event="interrupt", action=on_interrupt)
+    vehicle = flight.vehicle
+    handle = vehicle.land() if on_interrupt == "land" else vehicle.hold()
+    deadline = time.monotonic() + (120.0 if on_interrupt == "land" else 10.0)
+    print(f"interrupted: {'landing' if on_interrupt == 'land' else 'holding'} "
+          "(Ctrl-C again to leave at once)", flush=True)
+    try:
+        while time.monotonic() < deadline:
+            vehicle.poll()
+            state = vehicle.state
+            if on_interrupt == "hold" and handle.status.done:
+                break
+            if (on_interrupt == "land" and not state.armed
+                    and state.landed_state == LandedState.ON_GROUND):
+                break
+            time.sleep(0.05)
+    except KeyboardInterrupt:
+        pass
+    return f"interrupted ({on_interrupt}: {handle.status.value})"
+
+
+def _flight_data(mission: Mission, seed: int, flight: Flight, terrain: Any,
+                 stop_reason: str, lockstep: bool, sitl: Any) -> FlightData:
+    lsm = flight.lsm
+    sites = list(lsm.ranked(flight.vehicle.state.position))
+    crashed, crash_reason = flight.crashed()
+    touchdown = flight.touchdown
+    safe = None
+    if touchdown is not None and lockstep:
+        safe = judge_touchdown(terrain, touchdown[0], touchdown[1])
+    energy = None
+    _, _, battery = flight.trace.arrays()
+    known = battery[~np.isnan(battery)]
+    if lockstep and known.size and hasattr(mission.sitl, "battery"):
+        pack = mission.sitl.battery
+        energy = (known[0] - known[-1]) / 100 * pack.capacity_mah / 1000 * pack.cells * 3.7
+    return FlightData(
+        mission_name=mission.name,
+        seed=seed,
+        autopilot=getattr(flight.vehicle.state, "autopilot", mission.vehicle.autopilot),
+        world=getattr(terrain, "kind", "flat"),
+        detector=mission.perception.detector,
+        trace=flight.trace,
+        end_time=flight.now(),
+        status=flight.status.name,
+        stop_reason=stop_reason,
+        sites=sites,
+        ban_zones=list(lsm.ban_zones()),
+        chosen_site=flight.read(bb.LANDING_SITE),
+        touchdown=touchdown,
+        touchdown_time=flight.touchdown_time,
+        touchdown_speed=flight.touchdown_speed,
+        touchdown_safe=safe,
+        crashed=crashed,
+        crash_reason=crash_reason,
+        outcome_hint=flight.read(bb.OUTCOME_HINT),
+        failure_reason=flight.read(bb.FAILURE_REASON),
+        verification_attempts=int(flight.read(bb.VERIFICATION_ATTEMPTS, 0) or 0),
+        search_patterns=int(flight.read(bb.SEARCH_PATTERNS, 0) or 0),
+        sites_verified=sum(1 for s in sites if lsm.is_verified(s)),
+        lsm_counters=dict(lsm.counters()),
+        perception_counters=dict(getattr(flight.source, "counters", dict)()),
+        energy_wh=energy,
+        terrain=terrain,
+    )
+
+
+__all__ = ["REPORT_FILES", "FlightResult", "fly"]

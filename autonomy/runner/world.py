@@ -1,0 +1,68 @@
+"""Building what a flight needs from its mission: seeds, terrain, simulator, site source."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from autonomy.config import Mission
+from autonomy.errors import UserError
+from autonomy.perception.base import SiteSource
+from autonomy.perception.scripted import ScriptedSiteSource
+
+
+@dataclass(frozen=True)
+class FlightSeeds:
+    """Independent seeds of a flight's random parts, all derived from the mission seed."""
+
+    terrain: int
+    sitl: int
+    perception: int
+    tree: int
+
+    @classmethod
+    def derive(cls, seed: int) -> FlightSeeds:
+        """Spawn child seeds with numpy's SeedSequence, so the parts never share a stream."""
+        children = np.random.SeedSequence(seed).spawn(4)
+        return cls(*(int(c.generate_state(1, dtype=np.uint32)[0]) for c in children))
+
+
+def build_terrain(mission: Mission, seed: int) -> Any:
+    """The simulated world's :class:`sitl.terrain.Terrain`."""
+    from sitl.terrain import make_terrain
+
+    try:
+        return make_terrain(mission.world, seed=seed)
+    except (OSError, ValueError) as exc:  # e.g. a missing or unreadable elevation file
+        raise UserError(f"world: {exc}") from None
+
+
+def build_source(mission: Mission, terrain: Any, rng: np.random.Generator) -> SiteSource:
+    """The perception source the mission selects, seeing ``terrain``."""
+    perception = mission.perception
+    if perception.detector == "scripted":
+        return ScriptedSiteSource(
+            mission.sites, perception.scripted, rng=rng,
+            height=None if terrain is None else terrain.height,
+        )
+    raise UserError(f"perception.detector: unknown detector {perception.detector!r}")
+
+
+def build_sitl(mission: Mission, terrain: Any, seed: int) -> Any:
+    """The embedded simulator for a sim:// flight."""
+    from sitl import Sitl
+
+    return Sitl(mission.sitl, terrain=terrain, autopilot=mission.vehicle.autopilot, seed=seed)
+
+
+def judge_touchdown(terrain: Any, x: float, y: float) -> bool | None:
+    """Ground-truth safety of a touchdown point, or None when it cannot be judged."""
+    if terrain is None:
+        return None
+    try:
+        from sitl.terrain.safety import SafetySettings, is_safe
+    except ImportError:  # the safety model is not there: nothing to judge with
+        return None
+    return bool(is_safe(terrain, x, y, SafetySettings()))

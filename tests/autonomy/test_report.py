@@ -1,0 +1,116 @@
+"""The flight report pieces: event log, tree recorder, outcome, summary, plot."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import py_trees
+
+from autonomy.report import (
+    EventLog,
+    FlightData,
+    FlightTrace,
+    TreeStatusRecorder,
+    build_summary,
+    classify,
+    format_summary,
+    read_events,
+    write_report_png,
+)
+from lsm.records import LandingSite
+
+
+def test_event_log_streams_json_lines_stamped_with_the_clock(tmp_path):
+    now = [0.0]
+    log = EventLog(lambda: now[0], tmp_path / "events.jsonl")
+    log.add("flight", event="start", value=float("nan"), where=(1.23456789, 2))
+    now[0] = 1.5
+    log.add("lsm", decision="inserted", site=3)
+    log.close()
+    events = read_events(tmp_path / "events.jsonl")
+    assert events == log.events
+    assert events[0] == {"t": 0.0, "kind": "flight", "event": "start", "value": None,
+                         "where": [1.2346, 2]}
+    assert events[1]["t"] == 1.5
+
+
+def test_tree_recorder_logs_every_status_change_with_its_path():
+    root = py_trees.composites.Sequence("Root", memory=True, children=[
+        py_trees.behaviours.Success("A"),
+        py_trees.behaviours.StatusQueue("B", queue=[py_trees.common.Status.RUNNING],
+                                        eventually=py_trees.common.Status.FAILURE),
+    ])
+    tree = py_trees.trees.BehaviourTree(root)
+    log = EventLog(lambda: 0.0)
+    tree.add_post_tick_handler(TreeStatusRecorder(log))
+    tree.tick()
+    tree.tick()
+    changes = [(e["path"], e["old"], e["new"]) for e in log.events]
+    assert ("Root/A", "INVALID", "SUCCESS") in changes
+    assert ("Root/B", "INVALID", "RUNNING") in changes
+    assert ("Root/B", "RUNNING", "FAILURE") in changes
+    assert ("Root", "RUNNING", "FAILURE") in changes
+    assert len(changes) == len(set(changes))
+
+
+def site(id_, x, y, loss=0.1):
+    return LandingSite(id=id_, x=x, y=y, z=0.0, roughness=0.1, uncertainty=0.1, size=3.0,
+                       obstacle_altitude=0.0, verification_altitude=2.5, first_seen=0.0,
+                       last_seen=1.0, detection_count=3, loss=loss)
+
+
+def flight_data(**changes):
+    trace = FlightTrace()
+    for i in range(11):
+        trace.append(float(i), (3.0 * i, 4.0 * i, 10.0), 100.0 - i)
+    trace.phases = [(0.0, "takeoff"), (2.0, "mission"), (5.0, "navigate_to_site"),
+                    (9.0, "land"), (10.0, "done")]
+    data = dict(
+        mission_name="t", seed=1, autopilot="ardupilot", world="flat", detector="scripted",
+        trace=trace, end_time=10.0, status="SUCCESS", stop_reason="landed",
+        sites=[site(1, 30.0, 40.0, -0.2), site(2, 10.0, 0.0, 0.3)],
+        ban_zones=[(5.0, 5.0, 3.0)], chosen_site=site(1, 30.0, 40.0),
+        touchdown=(30.3, 40.4, 0.0), touchdown_time=9.5, touchdown_speed=0.4,
+        touchdown_safe=True, crashed=False, crash_reason=None, outcome_hint=None,
+        failure_reason=None, verification_attempts=2, search_patterns=0, sites_verified=1,
+        lsm_counters={"received": 20, "inserted": 3}, perception_counters={},
+    )
+    data.update(changes)
+    return FlightData(**data)
+
+
+def test_outcome_classification():
+    assert classify(flight_data()) == "landed"
+    assert classify(flight_data(touchdown_safe=False)) == "landed_unsafe"
+    assert classify(flight_data(touchdown_safe=None)) == "landed"
+    assert classify(flight_data(outcome_hint="no_site")) == "no_site"
+    assert classify(flight_data(crashed=True)) == "crashed"
+    assert classify(flight_data(status="FAILURE")) == "aborted"
+    assert classify(flight_data(status="RUNNING")) == "aborted"
+
+
+def test_summary_figures():
+    summary = build_summary(flight_data())
+    json.dumps(summary)
+    assert summary["outcome"] == "landed"
+    assert summary["touchdown_error"] == round(math.hypot(0.3, 0.4), 4)
+    assert summary["mission_end_time"] == 5.0
+    assert summary["time_to_land"] == 4.5
+    assert summary["distance"] == 50.0
+    assert summary["energy"]["battery_used"] == 10.0
+    assert summary["sites_received"] == 20 and summary["sites_retained"] == 2
+    assert summary["sites_banned"] == 1 and summary["verification_attempts"] == 2
+    text = format_summary(summary)
+    assert "outcome: landed" in text and "0.50 m from site 1" in text
+
+
+def test_report_png_with_and_without_terrain(tmp_path):
+    from sitl.terrain import make_terrain
+
+    terrain = make_terrain({"kind": "flat", "size": [100.0, 100.0], "cell_size": 0.5}, seed=0)
+    write_report_png(flight_data(terrain=terrain), tmp_path / "a.png", outcome="landed")
+    write_report_png(flight_data(sites=[], chosen_site=None, touchdown=None),
+                     tmp_path / "b.png")
+    for name in ("a.png", "b.png"):
+        assert (tmp_path / name).read_bytes()[:4] == b"\x89PNG"
