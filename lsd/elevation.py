@@ -1,0 +1,247 @@
+"""The elevation-map landing-site detector (thesis section 3; DESIGN.md section 7).
+
+Each depth frame is checked, its valid pixels are back-projected and fused into a
+robot-centric :class:`~lsd.elevation_map.ElevationMap`; the map is then analysed: a plane fit
+over the vehicle footprint around every cell gives slope, roughness and uncertainty, a
+threshold test gives the safe mask, one Euclidean distance transform gives every cell's
+size, non-maximum suppression picks sites, and a maximum filter gives each site's obstacle
+altitude. Sites come out as :class:`lsm.SiteObservation` records, already threshold-filtered.
+
+Normalisation of the emitted values (so they can enter the loss unaltered):
+``roughness = roughness_m / max_roughness`` and ``uncertainty = sigma_m / max_uncertainty``,
+where ``sigma_m`` is the RMS 1-sigma fused height error over the footprint window. Because a
+site beyond either limit is not emitted, both lie in [0, 1].
+
+Bad input never raises: bad pixels are dropped and counted, a frame that cannot be used
+(empty, NaN pose, inconsistent shapes) is skipped, counted and reported as an event.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections import Counter
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from lsd.elevation_map import ElevationMap
+from lsd.elevation_settings import DetectorSettings, ElevationMapSettings
+from lsd.frames import DepthFrame
+from lsd.plane_fit import PlaneFit, fit_planes
+from lsd.site_selection import obstacle_altitude, safe_mask, select_sites, site_size
+from lsm.records import SiteObservation
+
+
+@dataclass(frozen=True)
+class MapAnalysis:
+    """The last detection's intermediate grids (for plots and debugging).
+
+    Attributes:
+        fit: the per-cell :class:`~lsd.plane_fit.PlaneFit`.
+        safe: (n, n) bool safe mask.
+        size: (n, n) site size, metres.
+        origin_index: world cell index of cell [0, 0].
+        resolution: cell side, metres.
+    """
+
+    fit: PlaneFit
+    safe: np.ndarray
+    size: np.ndarray
+    origin_index: tuple[int, int]
+    resolution: float
+
+
+class ElevationDetector:
+    """Fuses depth frames into an elevation map and reports landing sites.
+
+    Use :meth:`process` once per frame; :meth:`counters` and :meth:`drain_events` tell what
+    was dropped or skipped and why.
+    """
+
+    def __init__(
+        self,
+        map_settings: ElevationMapSettings | None = None,
+        settings: DetectorSettings | None = None,
+    ) -> None:
+        self.map = ElevationMap(map_settings or ElevationMapSettings())
+        self.settings = settings or DetectorSettings()
+        self.last_analysis: MapAnalysis | None = None
+        self._counters: Counter[str] = Counter()
+        self._events: list[dict[str, Any]] = []
+
+    @property
+    def map_settings(self) -> ElevationMapSettings:
+        return self.map.settings
+
+    def counters(self) -> dict[str, int]:
+        """Counts of frames, pixels, points and observations by fate (a copy)."""
+        return dict(self._counters)
+
+    def drain_events(self) -> list[dict[str, Any]]:
+        """Events since the last call, each a JSON-able dict with ``"event"``."""
+        events, self._events = self._events, []
+        return events
+
+    def process(self, frame: DepthFrame) -> list[SiteObservation]:
+        """Fuse ``frame`` into the map and return the sites it now shows.
+
+        Returns an empty list when the frame is skipped.
+        """
+        if not self.integrate(frame):
+            return []
+        return self.detect(np.asarray(frame.position, dtype=np.float64), float(frame.timestamp),
+                           frame.source)
+
+    def integrate(self, frame: DepthFrame) -> bool:
+        """Fuse ``frame`` into the map (recentred on the camera); False if it was skipped."""
+        self._counters["frames_received"] += 1
+        reason = self._frame_problem(frame)
+        if reason is not None:
+            return self._skip(frame, reason)
+        depth = np.asarray(frame.depth, dtype=np.float64)
+        self._counters["pixels_received"] += depth.size
+        valid = self._valid_pixels(frame, depth)
+        if not valid.any():
+            return self._skip(frame, "no_valid_depth")
+        clean = dataclasses.replace(frame, depth=np.where(valid, depth, np.nan))
+        points, sigma = clean.to_points()
+        position = np.asarray(frame.position, dtype=np.float64)
+        rotation = np.asarray(frame.rotation, dtype=np.float64)
+        # The ray error sigma is along the optical axis; its vertical part scales the depth
+        # error by |dz| / depth (|dz| = height of the camera above the point).
+        offset = points - position
+        along_axis = offset @ rotation[:, 2]
+        vertical_sigma = sigma * np.abs(offset[:, 2]) / along_axis
+        variance = vertical_sigma**2 + self.map_settings.min_sigma**2
+
+        now = float(frame.timestamp)
+        self.map.recentre(position[0], position[1])
+        self._counters["cells_forgotten"] += self.map.forget_older_than(now)
+        fused = self.map.fuse(points, variance, now)
+        self._counters["points_fused"] += fused
+        self._counters["points_outside_map"] += len(points) - fused
+        self._counters["frames_fused"] += 1
+        return True
+
+    def detect(
+        self, camera_position: np.ndarray, now: float, source: str = ""
+    ) -> list[SiteObservation]:
+        """Analyse the map and return its landing sites, best first.
+
+        Args:
+            camera_position: (3,) ENU metres, for the observation altitude.
+            now: clock seconds stamped on the observations; cells older than ``max_age``
+                are forgotten first.
+            source: depth source appended to the observations' source (``"elevation:sfm"``).
+        """
+        s = self.settings
+        m = self.map
+        self._counters["cells_forgotten"] += m.forget_older_than(now)
+        if not m.observed.any():
+            self.last_analysis = None
+            return []
+        r = m.resolution
+        fit = fit_planes(m.mean, m.variance, r, s.footprint_radius)
+        safe = safe_mask(fit, s)
+        size = site_size(safe, r)
+        origin = (int(m.origin_index[0]), int(m.origin_index[1]))
+        self.last_analysis = MapAnalysis(fit, safe, size, origin, r)
+        with np.errstate(invalid="ignore"):
+            quality = 1.0 - 0.5 * (
+                fit.roughness / s.max_roughness + fit.sigma / s.max_uncertainty
+            )
+        i, j = select_sites(size, np.nan_to_num(quality), origin, r, s)
+        if len(i) == 0:
+            return []
+        top = obstacle_altitude(m.mean, m.variance, r, s.clearance_radius)[i, j]
+        xs, ys = m.cell_centres()
+        z = fit.height[i, j]
+        roughness = np.clip(fit.roughness[i, j] / s.max_roughness, 0.0, 1.0)
+        uncertainty = np.clip(fit.sigma[i, j] / s.max_uncertainty, 0.0, 1.0)
+        altitude = np.maximum(float(camera_position[2]) - z, 0.0)
+        label = f"{s.source}:{source}" if source else s.source
+        observations = [
+            SiteObservation(
+                x=float(xs[a]),
+                y=float(ys[b]),
+                z=float(zz),
+                roughness=float(rr),
+                uncertainty=float(uu),
+                size=float(ss),
+                obstacle_altitude=float(max(oo, zz)),
+                observation_altitude=float(hh),
+                timestamp=now,
+                source=label,
+            )
+            for a, b, zz, rr, uu, ss, oo, hh in zip(
+                i, j, z, roughness, uncertainty, size[i, j], top, altitude, strict=True
+            )
+        ]
+        self._counters["observations_emitted"] += len(observations)
+        return observations
+
+    # -- input checks -------------------------------------------------------------------
+
+    def _skip(self, frame: DepthFrame, reason: str) -> bool:
+        self._counters[f"frames_skipped_{reason}"] += 1
+        timestamp = getattr(frame, "timestamp", None)
+        self._events.append(
+            {
+                "event": "frame_skipped",
+                "reason": reason,
+                "frame_time": float(timestamp)
+                if isinstance(timestamp, (int, float)) and math.isfinite(timestamp)
+                else None,
+            }
+        )
+        return False
+
+    @staticmethod
+    def _frame_problem(frame: DepthFrame) -> str | None:
+        """Why the frame cannot be used at all, or None."""
+        depth = np.asarray(frame.depth)
+        if depth.ndim != 2 or depth.size == 0:
+            return "empty_frame"
+        if not np.issubdtype(depth.dtype, np.number):
+            return "bad_depth_type"
+        k = frame.intrinsics
+        intrinsics = np.array([k.fx, k.fy, k.cx, k.cy], dtype=np.float64)
+        if not np.all(np.isfinite(intrinsics)) or k.fx <= 0 or k.fy <= 0:
+            return "bad_intrinsics"
+        if depth.shape != (k.height, k.width):
+            return "shape_mismatch"
+        if frame.sigma is not None and np.shape(frame.sigma) != depth.shape:
+            return "shape_mismatch"
+        position = np.asarray(frame.position, dtype=np.float64)
+        rotation = np.asarray(frame.rotation, dtype=np.float64)
+        if position.shape != (3,) or rotation.shape != (3, 3):
+            return "bad_pose"
+        if not (np.all(np.isfinite(position)) and np.all(np.isfinite(rotation))):
+            return "bad_pose"
+        if not np.allclose(rotation.T @ rotation, np.eye(3), atol=1e-3):
+            return "bad_pose"
+        if not math.isfinite(float(frame.timestamp)):
+            return "bad_timestamp"
+        return None
+
+    def _valid_pixels(self, frame: DepthFrame, depth: np.ndarray) -> np.ndarray:
+        """(H, W) bool usable pixels; counts every dropped pixel by reason."""
+        s = self.map_settings
+        finite = np.isfinite(depth)
+        with np.errstate(invalid="ignore"):
+            positive = depth > 0
+            in_range = (depth >= s.min_range) & (depth <= s.max_range)
+        valid = finite & positive & in_range
+        c = self._counters
+        c["pixels_dropped_nonfinite"] += int(np.count_nonzero(~finite))
+        c["pixels_dropped_nonpositive"] += int(np.count_nonzero(finite & ~positive))
+        c["pixels_dropped_out_of_range"] += int(np.count_nonzero(finite & positive & ~in_range))
+        if frame.sigma is not None:
+            sigma = np.asarray(frame.sigma, dtype=np.float64)
+            with np.errstate(invalid="ignore"):
+                good_sigma = np.isfinite(sigma) & (sigma >= 0)
+            c["pixels_dropped_bad_sigma"] += int(np.count_nonzero(valid & ~good_sigma))
+            valid &= good_sigma
+        return valid

@@ -1,0 +1,185 @@
+"""A robot-centric 2.5D elevation grid with per-cell Kalman fusion of height measurements.
+
+The grid is a fixed-size square window of cells aligned with the world: cell ``[i, j]`` covers
+world x in ``[(ox + i) * r, (ox + i + 1) * r)`` and y in ``[(oy + j) * r, (oy + j + 1) * r)``,
+where ``(ox, oy)`` is :attr:`ElevationMap.origin_index` and ``r`` the resolution. Axis 0 is x
+(east), axis 1 is y (north). Recentring moves the window by whole cells, so a world point
+always falls in the same world cell and the estimates of the overlap are kept unchanged.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from lsd.elevation_settings import ElevationMapSettings
+
+
+def _shifted(array: np.ndarray, di: int, dj: int, fill: float) -> np.ndarray:
+    """``out[i, j] = array[i + di, j + dj]`` where that exists, ``fill`` elsewhere."""
+    out = np.full_like(array, fill)
+    n0, n1 = array.shape
+    if abs(di) >= n0 or abs(dj) >= n1:
+        return out
+    src_i = slice(max(di, 0), n0 + min(di, 0))
+    dst_i = slice(max(-di, 0), n0 - max(di, 0))
+    src_j = slice(max(dj, 0), n1 + min(dj, 0))
+    dst_j = slice(max(-dj, 0), n1 - max(dj, 0))
+    out[dst_i, dst_j] = array[src_i, src_j]
+    return out
+
+
+class ElevationMap:
+    """Fused terrain heights in a square window that follows the vehicle.
+
+    Attributes:
+        settings: the :class:`ElevationMapSettings`.
+        mean: (n, n) float64 fused height, ENU z metres; NaN where unobserved.
+        variance: (n, n) float64 variance of ``mean``, m^2; inf where unobserved.
+        last_update: (n, n) float64 clock seconds of the last measurement; -inf if none.
+        origin_index: (2,) int64 world cell index (x, y) of cell ``[0, 0]``.
+    """
+
+    def __init__(self, settings: ElevationMapSettings | None = None) -> None:
+        self.settings = settings or ElevationMapSettings()
+        n = self.settings.cells
+        self.mean = np.full((n, n), np.nan)
+        self.variance = np.full((n, n), np.inf)
+        self.last_update = np.full((n, n), -np.inf)
+        self.origin_index = np.zeros(2, dtype=np.int64)
+        self._centred = False
+
+    @property
+    def resolution(self) -> float:
+        return self.settings.resolution
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return self.mean.shape
+
+    @property
+    def observed(self) -> np.ndarray:
+        """(n, n) bool: cells holding an estimate."""
+        return np.isfinite(self.mean)
+
+    def cell_centres(self) -> tuple[np.ndarray, np.ndarray]:
+        """World x of the cell centres along axis 0 and y along axis 1, each (n,) metres."""
+        r = self.resolution
+        n0, n1 = self.shape
+        x = (self.origin_index[0] + np.arange(n0) + 0.5) * r
+        y = (self.origin_index[1] + np.arange(n1) + 0.5) * r
+        return x, y
+
+    def cell_of(
+        self, x: np.ndarray | float, y: np.ndarray | float
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Grid indices (i, j) of world positions (may lie outside the window)."""
+        r = self.resolution
+        i = np.floor(np.asarray(x, dtype=np.float64) / r).astype(np.int64) - self.origin_index[0]
+        j = np.floor(np.asarray(y, dtype=np.float64) / r).astype(np.int64) - self.origin_index[1]
+        return i, j
+
+    def height_at(self, x: np.ndarray | float, y: np.ndarray | float) -> np.ndarray:
+        """Fused height at world positions, NaN outside the window or where unobserved."""
+        i, j = self.cell_of(x, y)
+        n0, n1 = self.shape
+        inside = (i >= 0) & (i < n0) & (j >= 0) & (j < n1)
+        out = np.full(np.shape(i), np.nan)
+        out[inside] = self.mean[i[inside], j[inside]]
+        return out
+
+    def recentre(self, x: float, y: float) -> int:
+        """Move the window by whole cells so that world (x, y) lies in its centre cell.
+
+        Cells that leave the window are forgotten; cells that enter it are unobserved.
+        Returns how many cells the window moved (Chebyshev distance).
+        """
+        n0, n1 = self.shape
+        target = np.array(
+            [math.floor(x / self.resolution) - n0 // 2, math.floor(y / self.resolution) - n1 // 2],
+            dtype=np.int64,
+        )
+        if not self._centred:
+            self.origin_index = target
+            self._centred = True
+            return 0
+        di, dj = (int(v) for v in target - self.origin_index)
+        if di == 0 and dj == 0:
+            return 0
+        self.mean = _shifted(self.mean, di, dj, np.nan)
+        self.variance = _shifted(self.variance, di, dj, np.inf)
+        self.last_update = _shifted(self.last_update, di, dj, -np.inf)
+        self.origin_index = target
+        return max(abs(di), abs(dj))
+
+    def fuse(self, points: np.ndarray, variance: np.ndarray, now: float) -> int:
+        """Fuse height measurements into their cells.
+
+        All points falling in one cell are first combined by inverse-variance weighting
+        (one measurement per cell and call, its variance floored at ``min_sigma**2``), which
+        then updates the cell estimate as a 1-D Kalman filter. A measurement farther than
+        ``outlier_gate`` sigmas from the estimate is not averaged in: the cell keeps
+        whichever of the two has the smaller variance (a close-range look replaces a
+        far one; a far noisy look cannot spoil a close one).
+
+        Args:
+            points: (N, 3) world points, ENU metres.
+            variance: (N,) variance of each point's height, m^2, > 0.
+            now: clock seconds of the measurements.
+
+        Returns:
+            the number of points that fell inside the window and were fused.
+        """
+        n0, n1 = self.shape
+        i, j = self.cell_of(points[:, 0], points[:, 1])
+        inside = (i >= 0) & (i < n0) & (j >= 0) & (j < n1)
+        if not np.any(inside):
+            return 0
+        flat = i[inside] * n1 + j[inside]
+        weight = 1.0 / variance[inside]
+        z = points[inside, 2]
+        w_sum = np.bincount(flat, weights=weight, minlength=n0 * n1)
+        wz_sum = np.bincount(flat, weights=weight * z, minlength=n0 * n1)
+        cells = np.flatnonzero(w_sum > 0)
+        meas = wz_sum[cells] / w_sum[cells]
+        meas_var = np.maximum(1.0 / w_sum[cells], self.settings.min_sigma**2)
+
+        mean = self.mean.reshape(-1)
+        var = self.variance.reshape(-1)
+        mu = mean[cells]
+        p = var[cells]
+        known = np.isfinite(mu)
+        total = np.where(known, p + meas_var, 1.0)
+        innovation = np.where(known, meas - mu, 0.0)
+        outlier = known & (innovation**2 > self.settings.outlier_gate**2 * total)
+        gain = np.where(known, p / total, 1.0)
+        new_mu = np.where(known, mu + gain * innovation, meas)
+        new_var = np.where(known, p * meas_var / total, meas_var)
+        replace = outlier & (meas_var < p)
+        keep = outlier & ~replace
+        new_mu = np.where(replace, meas, np.where(keep, mu, new_mu))
+        new_var = np.where(replace, meas_var, np.where(keep, p, new_var))
+        mean[cells] = new_mu
+        var[cells] = new_var
+        self.last_update.reshape(-1)[cells] = now
+        return int(np.count_nonzero(inside))
+
+    def forget_older_than(self, now: float) -> int:
+        """Forget cells last measured more than ``max_age`` seconds before ``now``.
+
+        Returns the number of cells forgotten.
+        """
+        stale = np.isfinite(self.mean) & (self.last_update < now - self.settings.max_age)
+        count = int(np.count_nonzero(stale))
+        if count:
+            self.mean[stale] = np.nan
+            self.variance[stale] = np.inf
+            self.last_update[stale] = -np.inf
+        return count
+
+    def clear(self) -> None:
+        """Forget everything (the window stays where it is)."""
+        self.mean.fill(np.nan)
+        self.variance.fill(np.inf)
+        self.last_update.fill(-np.inf)

@@ -1,0 +1,95 @@
+"""Validated settings of the elevation-map landing-site detector (pydantic v2).
+
+Lengths are metres, times clock seconds. Angles are degrees here (they come from YAML) and
+radians in the code that uses them (see the ``*_rad`` properties).
+"""
+
+from __future__ import annotations
+
+import math
+
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+
+class ElevationMapSettings(BaseModel):
+    """The robot-centric 2.5D elevation grid and how depth points are fused into it."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+
+    size: float = Field(80.0, gt=0, description="side of the square map window (m)")
+    resolution: float = Field(0.25, gt=0, description="cell side (m)")
+    max_age: float = Field(
+        30.0, gt=0, description="a cell not observed for this long (s) is forgotten"
+    )
+    min_range: float = Field(0.2, ge=0, description="depth below this (m) is dropped")
+    max_range: float = Field(400.0, gt=0, description="depth above this (m) is dropped")
+    min_sigma: float = Field(
+        0.01, gt=0, description="floor of the 1-sigma height error of one point (m)"
+    )
+    outlier_gate: float = Field(
+        4.0,
+        gt=0,
+        description="a measurement this many sigmas from the cell estimate is not fused: "
+        "the estimate with the smaller variance is kept instead",
+    )
+
+    @model_validator(mode="after")
+    def _check(self) -> ElevationMapSettings:
+        if self.size < 4 * self.resolution:
+            raise ValueError("size: must be at least 4 cells (4 * resolution)")
+        if self.max_range <= self.min_range:
+            raise ValueError("max_range: must be greater than min_range")
+        return self
+
+    @property
+    def cells(self) -> int:
+        """Number of cells along each side of the window."""
+        return int(math.ceil(self.size / self.resolution - 1e-9))
+
+
+class DetectorSettings(BaseModel):
+    """Thresholds that make a cell landable and how sites are picked from the safe area.
+
+    Emitted observations carry ``roughness = roughness_m / max_roughness`` and
+    ``uncertainty = sigma_m / max_uncertainty``: both lie in [0, 1] because a site above
+    either limit is not emitted (1 = just at the limit).
+    """
+
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+
+    footprint_radius: float = Field(
+        1.0, gt=0, description="radius of the vehicle footprint (m): plane-fit window, least size"
+    )
+    max_slope: float = Field(15.0, gt=0, lt=90, description="steepest landable slope (deg)")
+    max_roughness: float = Field(
+        0.05, gt=0, description="largest RMS residual of the footprint plane fit (m)"
+    )
+    max_step: float = Field(
+        0.15,
+        gt=0,
+        description="largest height of a cell above or below its footprint plane (m): rocks, holes",
+    )
+    max_uncertainty: float = Field(
+        1.5, gt=0, description="largest RMS 1-sigma height error over the footprint (m)"
+    )
+    min_observed_fraction: float = Field(
+        0.5, gt=0, le=1, description="least fraction of observed cells in the footprint window"
+    )
+    noise_tolerance: float = Field(
+        3.0,
+        ge=0,
+        description="slope, roughness and step limits are widened by this many standard errors "
+        "of the estimates, so that noisy high-altitude maps still yield (uncertain) sites",
+    )
+    site_spacing: float = Field(
+        4.0, gt=0, description="side of the world-aligned blocks that hold at most one site (m)"
+    )
+    clearance_radius: float = Field(
+        5.0, ge=0, description="radius around a site searched for the obstacle altitude (m)"
+    )
+    max_sites: int = Field(50, ge=1, description="most observations emitted per frame")
+    source: str = Field("elevation", description="prefix of the observations' source field")
+
+    @property
+    def max_slope_rad(self) -> float:
+        return math.radians(self.max_slope)

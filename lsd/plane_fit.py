@@ -1,0 +1,116 @@
+"""Local plane fits over a sliding square window of an elevation grid, by box filters.
+
+For every cell the least-squares plane ``z = a + b x + c y`` through the observed cells of the
+window centred on it is found from windowed first and second moments (one
+:func:`scipy.ndimage.uniform_filter` pass over a stack of masked products), so the cost is
+independent of the window size and there is no loop over cells.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import ndimage
+
+
+@dataclass(frozen=True)
+class PlaneFit:
+    """Per-cell results of the window plane fit; every array is (n, n) float64.
+
+    Attributes:
+        height: fitted plane height at the cell centre, ENU z metres (NaN if no fit).
+        slope: inclination of the plane, radians (NaN if no fit).
+        slope_error: approximate 1-sigma error of ``slope`` from the measurement noise, rad.
+        roughness: RMS residual of the fit with the expected measurement-noise part removed,
+            ``sqrt(max(0, residual_var - mean_var))``, metres (NaN if no fit).
+        roughness_error: approximate 1-sigma error of ``roughness**2`` from the measurement
+            noise, ``mean_var * sqrt(2 / (cells - 3))``, m^2.
+        step: ``|cell height - plane height|`` at the cell itself, metres (NaN where the cell
+            is unobserved): how far the cell sticks out of (or into) its footprint plane.
+        step_error: 1-sigma error of ``step``, metres.
+        sigma: RMS 1-sigma height error of the window's observed cells, metres.
+        observed_fraction: fraction of the window's cells that are observed, [0, 1].
+    """
+
+    height: np.ndarray
+    slope: np.ndarray
+    slope_error: np.ndarray
+    roughness: np.ndarray
+    roughness_error: np.ndarray
+    step: np.ndarray
+    step_error: np.ndarray
+    sigma: np.ndarray
+    observed_fraction: np.ndarray
+
+
+def fit_planes(
+    height: np.ndarray, variance: np.ndarray, resolution: float, radius: float
+) -> PlaneFit:
+    """Fit a plane in the square window of half-side ``radius`` around every cell.
+
+    Args:
+        height: (n, m) cell heights, metres; NaN = unobserved.
+        variance: (n, m) variance of the heights, m^2 (ignored where ``height`` is NaN).
+        resolution: cell side, metres.
+        radius: half-side of the window, metres (rounded to whole cells, at least one).
+
+    Returns:
+        a :class:`PlaneFit`. A cell gets a fit only when its window holds at least three
+        observed cells that are not collinear.
+    """
+    half = max(1, int(round(radius / resolution)))
+    size = 2 * half + 1
+    observed = np.isfinite(height)
+    w = observed.astype(np.float64)
+    # Heights relative to a reference keep the second moments well conditioned.
+    ref = float(np.median(height[observed])) if observed.any() else 0.0
+    z = np.where(observed, height - ref, 0.0)
+    var = np.where(observed, variance, 0.0)
+    n0, n1 = height.shape
+    x = (np.arange(n0, dtype=np.float64) * resolution)[:, None] * np.ones((1, n1))
+    y = (np.arange(n1, dtype=np.float64) * resolution)[None, :] * np.ones((n0, 1))
+    wx, wy, wz = w * x, w * y, w * z
+    stack = np.stack((w, wx, wy, wz, wx * x, wx * y, wy * y, wz * x, wz * y, wz * z, var))
+    m = ndimage.uniform_filter(stack, size=(1, size, size), mode="constant", cval=0.0)
+    frac, sx, sy, sz, sxx, sxy, syy, sxz, syz, szz, svar = m
+    count = frac * size * size
+    with np.errstate(divide="ignore", invalid="ignore"):
+        inv = 1.0 / frac
+        mx, my, mz = sx * inv, sy * inv, sz * inv
+        cxx = sxx * inv - mx * mx
+        cxy = sxy * inv - mx * my
+        cyy = syy * inv - my * my
+        cxz = sxz * inv - mx * mz
+        cyz = syz * inv - my * mz
+        czz = szz * inv - mz * mz
+        det = cxx * cyy - cxy * cxy
+        # Collinear or too few cells: no plane (det is ~0 relative to the spread).
+        ok = (count > 2.5) & (det > 1e-9 * resolution**4)
+        b = (cyy * cxz - cxy * cyz) / det
+        c = (cxx * cyz - cxy * cxz) / det
+        residual = czz - b * cxz - c * cyz
+        mean_var = svar * inv
+        plane = mz + b * (x - mx) + c * (y - my)
+        gradient = np.hypot(b, c)
+        slope = np.arctan(gradient)
+        # Standard error of the gradient of a least-squares plane with i.i.d. noise.
+        gradient_error = np.sqrt(mean_var / (count * np.maximum(0.5 * (cxx + cyy), 1e-12)))
+        slope_error = gradient_error / (1.0 + gradient * gradient)
+        roughness = np.sqrt(np.maximum(residual - mean_var, 0.0))
+        roughness_error = mean_var * np.sqrt(2.0 / np.maximum(count - 3.0, 1.0))
+        step = np.abs(z - plane)
+        step_error = np.sqrt(np.where(observed, variance, np.inf) + mean_var / count)
+        sigma = np.sqrt(mean_var)
+    nan = np.nan
+    return PlaneFit(
+        height=np.where(ok, plane + ref, nan),
+        slope=np.where(ok, slope, nan),
+        slope_error=np.where(ok, slope_error, nan),
+        roughness=np.where(ok, roughness, nan),
+        roughness_error=np.where(ok, roughness_error, nan),
+        step=np.where(ok & observed, step, nan),
+        step_error=np.where(ok & observed, step_error, nan),
+        sigma=np.where(ok, sigma, nan),
+        observed_fraction=np.clip(frac, 0.0, 1.0),
+    )

@@ -1,0 +1,128 @@
+"""From per-cell terrain properties to landing sites: safe mask, size, suppression.
+
+All functions are pure and work on (n, n) grids whose axis 0 is x and axis 1 is y.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy import ndimage
+
+from lsd.elevation_settings import DetectorSettings
+from lsd.plane_fit import PlaneFit
+
+
+def safe_mask(fit: PlaneFit, settings: DetectorSettings) -> np.ndarray:
+    """(n, n) bool: cells that are valid landing area.
+
+    A cell is safe when its footprint window is observed enough, its plane is no steeper
+    than ``max_slope`` and no rougher than ``max_roughness``, its heights are certain to
+    ``max_uncertainty``, and the cell itself sticks out of the plane by at most
+    ``max_step``. Slope, roughness and step limits are widened by ``noise_tolerance``
+    standard errors of their estimates (nothing at close range, much at high altitude).
+    The outermost ring of cells is never safe (beyond it the terrain is unknown).
+    """
+    k = settings.noise_tolerance
+    with np.errstate(invalid="ignore"):
+        safe = (
+            (fit.observed_fraction >= settings.min_observed_fraction)
+            & (fit.slope - k * fit.slope_error <= settings.max_slope_rad)
+            & (fit.roughness**2 - k * fit.roughness_error <= settings.max_roughness**2)
+            & (fit.sigma <= settings.max_uncertainty)
+            # An unobserved cell has no step of its own; its window's tests stand for it.
+            & ~(fit.step - k * fit.step_error > settings.max_step)
+        )
+    safe[0, :] = safe[-1, :] = False
+    safe[:, 0] = safe[:, -1] = False
+    return safe
+
+
+def site_size(safe: np.ndarray, resolution: float) -> np.ndarray:
+    """(n, n) radius in metres of the largest circle of safe cells centred on each cell.
+
+    One Euclidean distance transform of the safe mask: distance from the cell centre to the
+    nearest unsafe cell centre, less half a cell (to that cell's near edge). 0 where unsafe.
+    """
+    distance = ndimage.distance_transform_edt(safe)
+    return np.where(safe, np.maximum(distance - 0.5, 0.0) * resolution, 0.0)
+
+
+def obstacle_altitude(
+    height: np.ndarray, variance: np.ndarray, resolution: float, radius: float
+) -> np.ndarray:
+    """(n, n) highest terrain, ENU z metres, within the square of half-side ``radius``.
+
+    Each observed cell counts with its height plus two sigmas, so that an uncertain map errs
+    on the high side; -inf where the square holds no observed cell.
+    """
+    half = max(0, int(round(radius / resolution)))
+    top = np.where(np.isfinite(height), height + 2.0 * np.sqrt(variance), -np.inf)
+    return ndimage.maximum_filter(top, size=2 * half + 1, mode="constant", cval=-np.inf)
+
+
+def select_sites(
+    size: np.ndarray,
+    quality: np.ndarray,
+    origin_index: tuple[int, int],
+    resolution: float,
+    settings: DetectorSettings,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Non-maximum suppression: at most one site per world-aligned block of the grid.
+
+    Sizes are capped at ``footprint_radius + site_spacing / 2`` (more room than that does not
+    make a site better), so that a wide safe area yields a site in every block rather than a
+    single one at its centre. In each block of ``site_spacing`` the cell with the largest
+    capped size wins, ties broken by ``quality`` and then by nearness to the block centre.
+    A winner is then suppressed when another block's winner closer than half a block is
+    better (:func:`scipy.ndimage.maximum_filter` over the grid of winners), so two sites never
+    crowd the border between their blocks. Cells smaller than ``footprint_radius`` are never
+    sites. Blocks are aligned to world cell indices so that a site redetected from another
+    vehicle position keeps its position.
+
+    Args:
+        size: (n, n) site size, metres (from :func:`site_size`).
+        quality: (n, n) tie-breaker in [0, 1], larger is better.
+        origin_index: world cell index of cell [0, 0].
+        resolution: cell side, metres.
+        settings: the detector settings.
+
+    Returns:
+        i, j: grid indices of the sites, each (k,) int64, best first, k <= ``max_sites``.
+    """
+    block = max(1, int(round(settings.site_spacing / resolution)))
+    cap = settings.footprint_radius + 0.5 * block * resolution
+    capped = np.minimum(size, cap)
+    eligible = size >= settings.footprint_radius
+    if not eligible.any():
+        empty = np.zeros(0, dtype=np.int64)
+        return empty, empty
+    n0, n1 = size.shape
+    # Pad so that block boundaries fall on world cell indices that are multiples of block.
+    lead = [int(np.mod(o, block)) for o in origin_index]
+    pad0 = (lead[0], (-(n0 + lead[0])) % block)
+    pad1 = (lead[1], (-(n1 + lead[1])) % block)
+    gi = np.arange(n0)[:, None] + lead[0]
+    gj = np.arange(n1)[None, :] + lead[1]
+    off_centre = ((gi % block) - (block - 1) / 2) ** 2 + ((gj % block) - (block - 1) / 2) ** 2
+    # Size dominates (its distinct values differ by far more than the tie-breaks add).
+    key = capped + 1e-3 * resolution * np.clip(quality, 0.0, 1.0) - 1e-6 * resolution * (
+        off_centre / block**2
+    )
+    key = np.where(eligible, key, -np.inf)
+    padded = np.pad(key, (pad0, pad1), constant_values=-np.inf)
+    b0, b1 = padded.shape[0] // block, padded.shape[1] // block
+    blocks = padded.reshape(b0, block, b1, block).transpose(0, 2, 1, 3).reshape(b0, b1, -1)
+    best = blocks.argmax(axis=2)
+    best_key = np.take_along_axis(blocks, best[..., None], axis=2)[..., 0]
+    bi, bj = np.nonzero(np.isfinite(best_key))
+    flat = best[bi, bj]
+    i = bi * block + flat // block - lead[0]
+    j = bj * block + flat % block - lead[1]
+    winners = np.full(size.shape, -np.inf)
+    winners[i, j] = key[i, j]
+    window = 2 * (block // 2) + 1
+    strongest = ndimage.maximum_filter(winners, size=window, mode="constant", cval=-np.inf)
+    keep = winners[i, j] >= strongest[i, j]
+    i, j = i[keep], j[keep]
+    order = np.argsort(-key[i, j], kind="stable")[: settings.max_sites]
+    return i[order].astype(np.int64), j[order].astype(np.int64)

@@ -1,0 +1,288 @@
+"""The elevation-map landing-site detector on synthetic depth frames of analytic surfaces."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+from pydantic import ValidationError
+
+from lsd.elevation import ElevationDetector
+from lsd.elevation_map import ElevationMap
+from lsd.elevation_settings import DetectorSettings, ElevationMapSettings
+from lsd.frames import DepthFrame, Intrinsics
+
+
+def nadir_rotation(yaw: float = 0.0) -> np.ndarray:
+    """Camera -> world rotation of a downward camera whose image top points along ``yaw``."""
+    c, s = math.cos(yaw), math.sin(yaw)
+    right = np.array([s, -c, 0.0])
+    heading = np.array([c, s, 0.0])
+    return np.stack((right, -heading, np.array([0.0, 0.0, -1.0])), axis=1)
+
+
+def render(height, position, *, n=128, f=None, timestamp=0.0, baseline=None, rng=None):
+    """Depth frame of the height field ``height(x, y)`` seen from ``position`` (nadir).
+
+    The surface is sampled finely and splatted into the image with a z-buffer. With a
+    ``baseline`` the depth gets Gaussian noise of the stereo/SfM error model (eq. 3.2,
+    0.5 px disparity error) and the frame carries that sigma.
+    """
+    f = n / 2 if f is None else f
+    position = np.asarray(position, dtype=np.float64)
+    rotation = nadir_rotation()
+    agl = position[2] - float(height(position[:1], position[1:2])[0])
+    half = agl * (n / 2) / f * 1.2 + 1.0
+    step = max(agl / f / 3.0, 0.01)
+    xs = np.arange(position[0] - half, position[0] + half, step)
+    ys = np.arange(position[1] - half, position[1] + half, step)
+    gx, gy = np.meshgrid(xs, ys, indexing="ij")
+    world = np.stack((gx.ravel(), gy.ravel(), height(gx, gy).ravel()), axis=1)
+    cam = (world - position) @ rotation
+    ahead = cam[:, 2] > 0
+    cam = cam[ahead]
+    u = np.floor(f * cam[:, 0] / cam[:, 2] + n / 2).astype(np.int64)
+    v = np.floor(f * cam[:, 1] / cam[:, 2] + n / 2).astype(np.int64)
+    inside = (u >= 0) & (u < n) & (v >= 0) & (v < n)
+    depth = np.full(n * n, np.inf)
+    np.minimum.at(depth, v[inside] * n + u[inside], cam[inside, 2])
+    depth = depth.reshape(n, n)
+    depth[~np.isfinite(depth)] = np.nan
+    sigma = np.zeros_like(depth)
+    if baseline is not None:
+        sigma = depth**2 / (f * baseline) * 0.5
+        depth = depth + rng.normal(size=depth.shape) * sigma
+    return DepthFrame(
+        depth=depth.astype(np.float32),
+        sigma=sigma.astype(np.float32),
+        intrinsics=Intrinsics(f, f, n / 2, n / 2, n, n),
+        position=position,
+        rotation=rotation,
+        timestamp=timestamp,
+        source="test",
+    )
+
+
+def flat(x, y):
+    return np.zeros_like(x) + 2.0
+
+
+ROCK = (1.3, 0.7)  # rock centre, world x/y
+
+
+def rock(x, y):
+    """Flat ground at z=2 with one 0.5 m rock (sloped sides, 0.75 m base radius)."""
+    r = np.hypot(x - ROCK[0], y - ROCK[1])
+    return 2.0 + np.clip(0.5 * (0.75 - r) / 0.25, 0.0, 0.5)
+
+
+def ramp(angle_deg):
+    def h(x, y):
+        return np.tan(np.radians(angle_deg)) * x + 0.0 * y
+
+    return h
+
+
+def assert_valid(observations, settings: DetectorSettings):
+    for o in observations:
+        values = (o.x, o.y, o.z, o.roughness, o.uncertainty, o.size, o.obstacle_altitude,
+                  o.observation_altitude, o.timestamp)
+        assert all(math.isfinite(v) for v in values)
+        assert 0.0 <= o.roughness <= 1.0
+        assert 0.0 <= o.uncertainty <= 1.0
+        assert o.size >= settings.footprint_radius
+        assert o.obstacle_altitude >= o.z
+        assert o.observation_altitude >= 0.0
+
+
+# -- detection ---------------------------------------------------------------------------
+
+
+def test_flat_plane_gives_large_sites_all_over_the_view():
+    detector = ElevationDetector()
+    observations = detector.process(render(flat, (3.0, -2.0, 12.0), timestamp=5.0))
+    assert_valid(observations, detector.settings)
+    assert len(observations) >= 20
+    xy = np.array([(o.x, o.y) for o in observations])
+    # Spread over the whole 24 m x 24 m view, not bunched in one place.
+    assert np.ptp(xy[:, 0]) > 12 and np.ptp(xy[:, 1]) > 12
+    assert max(o.size for o in observations) >= 4.0
+    for o in observations:
+        assert o.z == pytest.approx(2.0, abs=0.01)
+        assert o.roughness == pytest.approx(0.0, abs=0.05)
+        assert o.observation_altitude == pytest.approx(10.0, abs=0.01)
+        assert o.timestamp == 5.0
+        assert o.source == "elevation:test"
+
+
+def test_sites_keep_a_footprint_away_from_a_rock():
+    settings = DetectorSettings()
+    detector = ElevationDetector(settings=settings)
+    observations = detector.process(render(rock, (0.0, 0.0, 8.0), n=256))
+    assert_valid(observations, settings)
+    assert len(observations) >= 5
+    rock_radius = 0.75
+    for o in observations:
+        gap = math.hypot(o.x - ROCK[0], o.y - ROCK[1]) - rock_radius
+        assert gap >= settings.footprint_radius
+        # Its landable circle does not reach the rock either.
+        assert o.size <= gap + detector.map_settings.resolution
+    # Sites near the rock see it as their obstacle altitude.
+    near = [o for o in observations if math.hypot(o.x - ROCK[0], o.y - ROCK[1]) < 6.0]
+    assert near and all(o.obstacle_altitude >= 2.45 for o in near)
+
+
+def test_a_30_degree_ramp_has_no_sites_but_a_10_degree_ramp_does():
+    steep = ElevationDetector().process(render(ramp(30.0), (0.0, 0.0, 15.0)))
+    gentle = ElevationDetector().process(render(ramp(10.0), (0.0, 0.0, 15.0)))
+    assert steep == []
+    assert len(gentle) >= 10
+
+
+def test_noisy_high_altitude_frames_give_high_uncertainty():
+    rng = np.random.default_rng(7)
+    high = ElevationDetector()
+    for k in range(4):  # sideways motion, as structure from motion needs
+        high_obs = high.process(
+            render(flat, (3.0 * k, 0.0, 102.0), n=256, f=256, baseline=15.0, rng=rng,
+                   timestamp=float(k))
+        )
+    low = ElevationDetector()
+    low_obs = low.process(render(flat, (0.0, 0.0, 5.0), baseline=0.1, rng=rng))
+    assert high_obs and low_obs
+    assert_valid(high_obs + low_obs, high.settings)
+    assert min(o.uncertainty for o in high_obs) > 0.3
+    assert max(o.uncertainty for o in low_obs) < 0.25 * min(o.uncertainty for o in high_obs)
+    assert all(o.observation_altitude > 90 for o in high_obs)
+
+
+def test_a_noisier_map_is_more_uncertain_than_a_cleaner_one():
+    rng = np.random.default_rng(3)
+    levels = []
+    for baseline in (0.5, 2.0):
+        detector = ElevationDetector()
+        observations = detector.process(
+            render(flat, (0.0, 0.0, 7.0), baseline=baseline, rng=rng)
+        )
+        assert observations
+        levels.append(np.median([o.uncertainty for o in observations]))
+    assert levels[0] > 2 * levels[1]
+
+
+# -- bad input ---------------------------------------------------------------------------
+
+
+def test_bad_pixels_are_dropped_and_counted():
+    frame = render(flat, (0.0, 0.0, 12.0))
+    depth = frame.depth.copy()
+    depth[0, :10] = np.nan
+    depth[1, :7] = 0.0
+    depth[2, :5] = -3.0
+    depth[3, :4] = np.inf
+    depth[4, :3] = 1e6  # beyond max_range
+    detector = ElevationDetector()
+    observations = detector.process(dataclasses.replace(frame, depth=depth))
+    c = detector.counters()
+    assert c["pixels_dropped_nonfinite"] == 14
+    assert c["pixels_dropped_nonpositive"] == 12
+    assert c["pixels_dropped_out_of_range"] == 3
+    assert c["points_fused"] + c["points_outside_map"] == depth.size - 29
+    assert observations  # the rest of the frame is still used
+
+
+def test_unusable_frames_are_skipped_with_a_reason():
+    good = render(flat, (0.0, 0.0, 12.0))
+    nan_pose = dataclasses.replace(good, position=np.array([0.0, np.nan, 12.0]))
+    bad_rotation = dataclasses.replace(good, rotation=np.full((3, 3), 0.5))
+    empty = dataclasses.replace(good, depth=np.zeros((0, 0), np.float32), sigma=None)
+    all_nan = dataclasses.replace(good, depth=np.full_like(good.depth, np.nan))
+    wrong_sigma = dataclasses.replace(good, sigma=np.ones((3, 3), np.float32))
+    detector = ElevationDetector()
+    for frame in (nan_pose, bad_rotation, empty, all_nan, wrong_sigma):
+        assert detector.process(frame) == []
+    c = detector.counters()
+    assert c["frames_skipped_bad_pose"] == 2
+    assert c["frames_skipped_empty_frame"] == 1
+    assert c["frames_skipped_no_valid_depth"] == 1
+    assert c["frames_skipped_shape_mismatch"] == 1
+    events = detector.drain_events()
+    assert [e["reason"] for e in events] == [
+        "bad_pose", "bad_pose", "empty_frame", "no_valid_depth", "shape_mismatch"
+    ]
+    assert all(e["event"] == "frame_skipped" for e in events)
+    assert detector.drain_events() == []
+    assert not detector.map.observed.any()  # nothing of them reached the map
+    assert detector.process(good)  # and the detector still works
+
+
+# -- the map -----------------------------------------------------------------------------
+
+
+def test_cells_age_out_after_max_age():
+    settings = ElevationMapSettings(max_age=10.0)
+    detector = ElevationDetector(settings)
+    detector.process(render(flat, (0.0, 0.0, 12.0), timestamp=0.0))
+    # A later look elsewhere (still inside the window) keeps the old cells while young...
+    detector.process(render(flat, (20.0, 0.0, 12.0), timestamp=9.0))
+    assert np.isfinite(detector.map.height_at(-5.0, 0.0))
+    # ...and forgets them once they are older than max_age.
+    detector.process(render(flat, (20.0, 0.0, 12.0), timestamp=10.5))
+    assert np.isnan(detector.map.height_at(-5.0, 0.0))
+    assert np.isfinite(detector.map.height_at(20.0, 0.0))
+    assert detector.counters()["cells_forgotten"] > 0
+
+
+def test_recentring_keeps_heights_at_their_world_positions():
+    emap = ElevationMap(ElevationMapSettings(size=20.0, resolution=0.5))
+    emap.recentre(0.0, 0.0)
+    rng = np.random.default_rng(1)
+    xy = rng.uniform(-9.0, 9.0, size=(500, 2))
+    z = np.sin(xy[:, 0]) + 0.3 * xy[:, 1]
+    emap.fuse(np.column_stack((xy, z)), np.full(len(z), 1e-4), now=0.0)
+    before = emap.height_at(xy[:, 0], xy[:, 1])
+    moved = emap.recentre(6.3, -4.1)
+    assert moved == 12
+    after = emap.height_at(xy[:, 0], xy[:, 1])
+    still_inside = (np.abs(xy[:, 0] - 6.3) < 9.5) & (np.abs(xy[:, 1] + 4.1) < 9.5)
+    np.testing.assert_array_equal(after[still_inside & np.isfinite(after)],
+                                  before[still_inside & np.isfinite(after)])
+    assert np.isfinite(after[still_inside]).mean() > 0.9
+    assert np.isnan(after[~still_inside & (np.abs(xy[:, 0] - 6.3) > 10.5)]).all()
+
+
+def test_sites_stay_put_when_the_vehicle_moves():
+    detector = ElevationDetector()
+    first = detector.process(render(flat, (0.0, 0.0, 12.0), timestamp=0.0))
+    second = ElevationDetector().process(render(flat, (1.7, -0.9, 12.0), timestamp=0.0))
+    a = {(round(o.x, 3), round(o.y, 3)) for o in first}
+    b = {(round(o.x, 3), round(o.y, 3)) for o in second}
+    assert len(a & b) >= 0.5 * min(len(a), len(b))
+
+
+def test_fusion_shrinks_variance_and_a_closer_look_overrides_a_far_one():
+    emap = ElevationMap(ElevationMapSettings(size=10.0, resolution=1.0))
+    emap.recentre(0.0, 0.0)
+    point = np.array([[0.5, 0.5, 1.0]])
+    emap.fuse(point, np.array([1.0]), now=0.0)
+    emap.fuse(point + [0, 0, 1.0], np.array([1.0]), now=1.0)
+    assert emap.height_at(0.5, 0.5) == pytest.approx(1.5)
+    assert emap.variance[emap.cell_of(0.5, 0.5)] == pytest.approx(0.5)
+    # A precise measurement far outside the gate replaces the estimate...
+    emap.fuse(point + [0, 0, 20.0], np.array([1e-4]), now=2.0)
+    assert emap.height_at(0.5, 0.5) == pytest.approx(21.0)
+    # ...and a noisy one far outside it cannot spoil it.
+    emap.fuse(point + [0, 0, -30.0], np.array([4.0]), now=3.0)
+    assert emap.height_at(0.5, 0.5) == pytest.approx(21.0)
+
+
+def test_settings_are_validated_by_field():
+    with pytest.raises(ValidationError, match="resolution"):
+        ElevationMapSettings(resolution=0.0)
+    with pytest.raises(ValidationError, match="max_range"):
+        ElevationMapSettings(min_range=10.0, max_range=5.0)
+    with pytest.raises(ValidationError, match="max_slope"):
+        DetectorSettings(max_slope=95.0)
+    with pytest.raises(ValidationError, match="footprint_radius"):
+        DetectorSettings(footprint_radius=float("nan"))
