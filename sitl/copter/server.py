@@ -420,6 +420,8 @@ class MavlinkServer:
             due = link.next_due
             for msgid, when in due.items():
                 if now + 1e-9 >= when:
+                    if msgid == home_msg and not ap.settled:
+                        continue  # no home until the EKF has a position
                     msg = cache.get(msgid)
                     if msg is None:
                         msg = cache[msgid] = self._build(msgid)
