@@ -501,7 +501,8 @@ class MavlinkVehicle:
         window = self.settings.ack_timeout * self.settings.command_attempts
         requested = asked is not None and now - asked <= window + self.settings.confirm_timeout
         self.mode_changes.append(ModeChange(now, old, new, requested))
-        if not requested and new != modes.guided_mode(self._autopilot):
+        guided = modes.guided_mode(self._autopilot)
+        if not requested and old == guided and new != guided:
             # Someone else took the vehicle (operator, failsafe): stop pushing our targets.
             self._clear_setpoint()
 
@@ -810,6 +811,7 @@ class MavlinkVehicle:
         yield self._arm_step(True)
         assert self._home is not None
         nan = math.nan
+        self._requested_modes["AUTO.TAKEOFF"] = self.clock.now()
         yield self._submit(
             CommandStep(
                 "NAV_TAKEOFF",
