@@ -46,16 +46,19 @@ CLEAR_ALTITUDE = "/landing/clear_altitude"
 OUTCOME_HINT = "/mission/outcome_hint"
 """str | None: why the mission ended the way it did when not at a verified site:
 "no_site" (every landing attempt failed, landed in place), "battery_critical" (landed in
-place on the critical battery level), "battery_reserve" (waypoints skipped on the reserve
-level; the landing phase still ran)."""
+place on the critical battery level), "gps_lost" (landed in place after losing the 3D GPS
+fix), "battery_reserve" (waypoints skipped on the reserve level; the landing phase still
+ran)."""
 
 FAILURE_REASON = "/mission/failure_reason"
 """str | None: why the last behaviour that failed did so (a denied command carries the
-autopilot's reason). Meaningful when the tree's root FAILED; earlier failures the landing
-phase recovered from also leave their reason here until overwritten."""
+autopilot's reason), "<behaviour name>: <reason>". Meaningful when the tree's root FAILED;
+cleared when the vehicle lands and disarms (failures recovered from on the way, e.g. a
+failed verification, are counted in their own keys)."""
 
 FAILSAFE = "/mission/failsafe"
-"""str | None: the failsafe that took over the mission ("battery_critical"), latched."""
+"""str | None: the failsafe that took over the mission ("battery_critical", "gps_lost"),
+latched: the mission branch never resumes once it is set."""
 
 VERIFICATION_ATTEMPTS = "/landing/verification_attempts"
 """int: landing-site verifications started."""

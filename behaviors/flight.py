@@ -230,7 +230,8 @@ class Land(VehicleAction):
     :data:`behaviors.blackboard.OUTCOME_HINT`. If the vehicle sits on the ground still armed
     for ``command_timeout`` seconds it sends a disarm (autopilots usually disarm alone).
 
-    * SUCCESS: disarmed and not in the air (phase becomes "done")
+    * SUCCESS: disarmed and not in the air (phase becomes "done", FAILURE_REASON is cleared:
+      failures recovered from on the way do not make a landed mission a failed one)
     * FAILURE: the land (or disarm) command was denied or not answered
     * RUNNING: descending / waiting for the disarm
     """
@@ -264,6 +265,7 @@ class Land(VehicleAction):
         grounded = state.landed_state in (LandedState.ON_GROUND, LandedState.UNDEFINED)
         if not state.armed and grounded:
             self.blackboard.set(keys.PHASE, "done")
+            self.blackboard.set(keys.FAILURE_REASON, None)
             self.feedback_message = "landed and disarmed"
             return Status.SUCCESS
         problem = self.command_problem()
@@ -315,34 +317,91 @@ class BatteryReserve(MissionBehaviour):
         return Status.SUCCESS
 
 
-class BatteryCritical(MissionBehaviour):
-    """Latched condition: the armed vehicle's battery reached the critical level.
+class LatchedFailsafe(MissionBehaviour):
+    """Base of the failsafe conditions: once :meth:`triggered` holds, write ``kind`` to
+    FAILSAFE and OUTCOME_HINT and the "failsafe" phase, and keep succeeding from then on
+    (FAILSAFE set by any failsafe counts: one failsafe takes over at a time).
 
-    When it first holds it writes "battery_critical" to FAILSAFE and OUTCOME_HINT and the
-    "failsafe" phase; from then on it keeps succeeding whatever the battery reads.
-
-    * SUCCESS: armed with battery <= ``level`` % now or earlier in this mission
+    * SUCCESS: triggered now or earlier in this mission
     * FAILURE: otherwise
     """
 
-    def __init__(self, name: str, vehicle: VehiclePort, level: float) -> None:
+    kind = "failsafe"
+
+    def __init__(self, name: str, vehicle: VehiclePort) -> None:
         super().__init__(name)
         self.vehicle = vehicle
-        self.level = float(level)
         self.blackboard.register_key(key=keys.FAILSAFE, access=Access.WRITE)
         self.blackboard.register_key(key=keys.OUTCOME_HINT, access=Access.WRITE)
 
+    def triggered(self) -> str | None:
+        """Why the failsafe must take over now, or None."""
+        raise NotImplementedError
+
     def update(self) -> Status:
-        if self.blackboard.get(keys.FAILSAFE) == "battery_critical":
+        if self.blackboard.get(keys.FAILSAFE) is not None:
             return Status.SUCCESS
-        if not (self.vehicle.state.armed and battery_below(self.vehicle, self.level)):
-            self.feedback_message = f"battery above {self.level:g} % (or disarmed)"
+        why = self.triggered()
+        if why is None:
             return Status.FAILURE
-        self.blackboard.set(keys.FAILSAFE, "battery_critical")
-        self.blackboard.set(keys.OUTCOME_HINT, "battery_critical")
+        self.blackboard.set(keys.FAILSAFE, self.kind)
+        self.blackboard.set(keys.OUTCOME_HINT, self.kind)
         self.blackboard.set(keys.PHASE, "failsafe")
-        self.feedback_message = f"battery at or below the critical {self.level:g} %"
+        self.feedback_message = why
         return Status.SUCCESS
+
+
+class BatteryCritical(LatchedFailsafe):
+    """Latched condition: the armed vehicle's battery reached ``level`` percent
+    (FAILSAFE / OUTCOME_HINT "battery_critical").
+
+    * SUCCESS: armed with battery <= ``level`` % now, or any failsafe latched earlier
+    * FAILURE: otherwise
+    """
+
+    kind = "battery_critical"
+
+    def __init__(self, name: str, vehicle: VehiclePort, level: float) -> None:
+        super().__init__(name, vehicle)
+        self.level = float(level)
+
+    def triggered(self) -> str | None:
+        if self.vehicle.state.armed and battery_below(self.vehicle, self.level):
+            return f"battery at or below the critical {self.level:g} %"
+        self.feedback_message = f"battery above {self.level:g} % (or disarmed)"
+        return None
+
+
+class GpsLost(LatchedFailsafe):
+    """Latched condition: the armed vehicle has had no 3D GPS fix for ``timeout`` clock
+    seconds (FAILSAFE / OUTCOME_HINT "gps_lost"); short dropouts are ridden out.
+
+    * SUCCESS: armed without a 3D fix for ``timeout`` s, or any failsafe latched earlier
+    * FAILURE: otherwise
+    """
+
+    kind = "gps_lost"
+
+    def __init__(self, name: str, vehicle: VehiclePort, clock: Clock, timeout: float) -> None:
+        super().__init__(name, vehicle)
+        self.clock = clock
+        self.timeout = float(timeout)
+        self.lost_since: float | None = None
+
+    def triggered(self) -> str | None:
+        state = self.vehicle.state
+        if not state.armed or state.gps_fix >= GPS_FIX_3D:
+            self.lost_since = None
+            self.feedback_message = "3D fix (or disarmed)"
+            return None
+        now = self.clock.now()
+        if self.lost_since is None:
+            self.lost_since = now
+        lost_for = now - self.lost_since
+        if lost_for >= self.timeout:
+            return f"no 3D GPS fix for {lost_for:.1f} s"
+        self.feedback_message = f"no 3D GPS fix for {lost_for:.1f} s"
+        return None
 
 
 class NoFailsafe(py_trees.behaviour.Behaviour):

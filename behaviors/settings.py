@@ -60,6 +60,10 @@ class LandingSettings(BaseModel):
     preflight_timeout: float = Field(
         120.0, gt=0, description="s of clock time to wait for link, GPS fix and prearm checks"
     )
+    gps_loss_timeout: float = Field(
+        5.0, gt=0, description="s without a 3D GPS fix in flight after which the vehicle "
+        "lands where it is"
+    )
 
     @model_validator(mode="after")
     def _check(self) -> LandingSettings:

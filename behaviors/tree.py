@@ -3,8 +3,8 @@
 ::
 
     Landing mission (Selector, no memory: the failsafe is checked every tick)
-     ├─ Battery critical failsafe (Sequence)   [latched once it fires]
-     │   ├─ Battery critical?
+     ├─ Failsafe (Sequence, memory)           [latched once it fires]
+     │   ├─ Failsafe? = Selector[Battery critical?, GPS lost?]
      │   └─ Land where it is
      └─ Mission (Sequence, memory)
          ├─ No failsafe?                       [a mission ended by the failsafe never restarts]
@@ -45,6 +45,7 @@ from behaviors.flight import (
     BatteryCritical,
     BatteryReserve,
     ChangeAltitudeLS,
+    GpsLost,
     Land,
     NavigateToSite,
     NavigateToWaypoint,
@@ -97,10 +98,17 @@ def build_mission_tree(
     blackboard.initialise()
 
     failsafe = Sequence(
-        "Battery critical failsafe",
+        "Failsafe",
         memory=True,
         children=[
-            BatteryCritical("Battery critical?", vehicle, s.battery_critical),
+            Selector(
+                "Failsafe?",
+                memory=False,
+                children=[
+                    BatteryCritical("Battery critical?", vehicle, s.battery_critical),
+                    GpsLost("GPS lost?", vehicle, clock, s.gps_loss_timeout),
+                ],
+            ),
             _within(
                 Land("Land where it is", vehicle, clock, phase="failsafe", command_timeout=cmd),
                 clock,

@@ -29,7 +29,8 @@ class FakeVehicle:
     Horizontal speed and climb rate are limited; LAND descends to the ground height and
     disarms on touchdown. ``deny`` maps a command name ("takeoff", "goto", "land", ...) to
     the reason the fake autopilot gives when refusing it; ``silent`` names commands that
-    are never answered (PENDING forever). ``battery`` can be set by the test at any time.
+    are never answered (PENDING forever). ``battery`` and ``gps_fix`` can be set by the test at
+any time.
     """
 
     def __init__(
@@ -59,6 +60,7 @@ class FakeVehicle:
         self.landing = False
         self.commands: list[tuple[str, tuple]] = []
         self.status_text = ""
+        self.gps_fix = 3
 
     # ------------------------------------------------------------------ VehiclePort
     @property
@@ -78,7 +80,7 @@ class FakeVehicle:
             mode=self.mode,
             landed_state=landed,
             battery_percent=self.battery,
-            gps_fix=3,
+            gps_fix=self.gps_fix,
             heartbeat_age=0.0,
             link_lost=False,
             prearm_ok=self.prearm_ok,

@@ -99,6 +99,7 @@ def test_failed_verification_bans_the_site_and_lands_at_the_next_one():
     assert_landed_at(m, flight, second)
     assert m.read(keys.VERIFICATION_ATTEMPTS) == 2
     assert m.read(keys.BANNED_SITES) == 1
+    assert m.read(keys.FAILURE_REASON) is None  # recovered from: not a failed mission
     assert m.lsm.counters()["banned"] == 1
     (bx, by, _), = m.lsm.ban_zones()
     assert (bx, by) == (false_positive.x, false_positive.y)
@@ -297,3 +298,35 @@ def test_critical_battery_during_verification_also_lands_in_place():
     assert m.read(keys.OUTCOME_HINT) == "battery_critical"
     assert m.read(keys.BANNED_SITES) == 0  # the verification was cut short, not failed
     assert xy_distance(m.vehicle.position, (site.x, site.y)) <= 1.0
+
+
+def test_gps_dropout_is_ridden_out_but_a_lasting_loss_lands_in_place():
+    site = ScriptedSite(150.0, 10.0)
+    waypoints = [(0, 0, 100), (100, 0, 100), (200, 0, 100)]
+    m = make_mission(waypoints, [site], landing={"gps_loss_timeout": 5.0})
+    lost_at: list[tuple] = []
+
+    def gps(_tick):
+        x = m.vehicle.position[0]
+        if 40.0 <= x < 60.0:
+            m.vehicle.gps_fix = 1  # under 2 s at 12 m/s: a dropout
+        elif x >= 120.0:
+            if not lost_at:
+                lost_at.append(m.vehicle.position)
+            m.vehicle.gps_fix = 0
+        else:
+            m.vehicle.gps_fix = 3
+
+    flight = m.fly(on_tick=gps)
+
+    assert flight.status == Status.SUCCESS
+    assert m.read(keys.FAILSAFE) == "gps_lost"
+    assert m.read(keys.OUTCOME_HINT) == "gps_lost"
+    assert m.read(keys.PHASE) == "done"
+    assert m.read(keys.VERIFICATION_ATTEMPTS) == 0
+    # Landed where it was once the loss had lasted gps_loss_timeout of clock time.
+    assert [name for name, _ in m.vehicle.commands].count("land") == 1
+    assert m.vehicle.commands[-1][0] == "land"
+    travelled = m.vehicle.position[0] - lost_at[0][0]
+    assert travelled >= m.vehicle.speed * (5.0 - 0.2)
+    assert travelled <= m.vehicle.speed * (5.0 + 0.2)
