@@ -117,7 +117,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--speedup", type=float, default=1.0,
                         help="simulated seconds per wall-clock second (default 1)")
     parser.add_argument("--home", metavar="LAT,LON,ALT",
-                        help="home position: degrees, degrees, metres AMSL")
+                        help="home position: degrees, degrees, metres AMSL "
+                        "(write --home=-35.36,149.16,584 for a negative latitude)")
     parser.add_argument("--autopilot", choices=("ardupilot", "px4"), default="ardupilot",
                         help="personality (default ardupilot)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the wind gusts")
