@@ -9,8 +9,6 @@ size_max the largest size currently retained (the size term is 0 while it is 0).
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from lsm.settings import LossWeights
@@ -59,10 +57,3 @@ def site_loss_scalar(
         - weights.size * size_term
         + weights.ver_alt * verification_altitude / d_norm
     )
-
-
-def horizontal_distance(x: float, y: float, drone: tuple[float, float, float] | None) -> float:
-    """Horizontal distance from (x, y) to the drone; 0 when the drone position is unknown."""
-    if drone is None:
-        return 0.0
-    return math.hypot(x - drone[0], y - drone[1])

@@ -372,7 +372,7 @@ class LandingSiteManager:
             dist = np.zeros(len(slots))
         else:
             d = self._pos[slots, :2] - np.asarray(self._drone[:2])
-            dist = np.hypot(d[:, 0], d[:, 1])
+            dist = np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1])
         return site_loss(dist, self._rough[slots], self._unc[slots], self._size[slots],
                          self._veralt[slots], self._size_max, self.weights)
 
@@ -404,6 +404,7 @@ class LandingSiteManager:
         best, best_d2 = None, r2
         cells = self._cells
         xy = self._xy
+        ids = self._ids
         for ix in (cx - 1, cx, cx + 1):
             for iy in (cy - 1, cy, cy + 1):
                 members = cells.get((ix, iy))
@@ -411,8 +412,10 @@ class LandingSiteManager:
                     continue
                 for slot in members:
                     sx, sy = xy[slot]
-                    d2 = (sx - x) ** 2 + (sy - y) ** 2
-                    if d2 <= best_d2:
+                    d2 = (sx - x) * (sx - x) + (sy - y) * (sy - y)
+                    # Nearest wins; equal distances go to the older (smaller id) site.
+                    if d2 < best_d2 or (d2 == best_d2 and (best is None
+                                                           or ids[slot] < ids[best])):
                         best, best_d2 = slot, d2
         return best
 
@@ -428,12 +431,18 @@ class LandingSiteManager:
         if not members:
             del self._cells[key]
 
+    def _distance(self, x: float, y: float) -> float:
+        """Horizontal distance to the drone, computed exactly as :meth:`_losses` does."""
+        if self._drone is None:
+            return 0.0
+        dx, dy = x - self._drone[0], y - self._drone[1]
+        return math.sqrt(dx * dx + dy * dy)
+
     def _loss_of_slot(self, slot: int) -> float:
         x, y = self._xy[slot]
-        d = 0.0 if self._drone is None else math.hypot(x - self._drone[0], y - self._drone[1])
-        return site_loss_scalar(d, float(self._rough[slot]), float(self._unc[slot]),
-                                float(self._size[slot]), float(self._veralt[slot]),
-                                self._size_max, self.weights)
+        return site_loss_scalar(self._distance(x, y), float(self._rough[slot]),
+                                float(self._unc[slot]), float(self._size[slot]),
+                                float(self._veralt[slot]), self._size_max, self.weights)
 
     def _push(self, slot: int) -> None:
         self._version[slot] += 1
@@ -483,7 +492,8 @@ class LandingSiteManager:
         slots = self._active_slots()
         if self._drone is not None and len(slots):
             d = self._pos[slots, :2] - np.asarray(self._drone[:2])
-            far = slots[np.hypot(d[:, 0], d[:, 1]) > self.settings.max_distance]
+            far = slots[np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1])
+                        > self.settings.max_distance]
             for slot in far.tolist():
                 site_id = int(self._ids[slot])
                 t = float(self._last[slot])
@@ -549,8 +559,8 @@ class LandingSiteManager:
                     reasons[i] = "banned_zone"
             bad |= inside
         if self._drone is not None:
-            far = np.hypot(vals[:, 0] - self._drone[0], vals[:, 1] - self._drone[1])
-            far = far > self.settings.max_distance
+            dx, dy = vals[:, 0] - self._drone[0], vals[:, 1] - self._drone[1]
+            far = np.sqrt(dx * dx + dy * dy) > self.settings.max_distance
             for i in np.flatnonzero(far & ~bad).tolist():
                 if reasons[i] is None:
                     reasons[i] = "beyond_max_distance"
@@ -581,9 +591,8 @@ class LandingSiteManager:
                 # Compare under the size_max that would hold with the newcomer in: exact keys.
                 self._size_max = max(self._size_max, size)
                 self._rekey()
-            d = 0.0 if self._drone is None else math.hypot(x - self._drone[0],
-                                                            y - self._drone[1])
-            loss = site_loss_scalar(d, rough, unc, size, obs_alt, self._size_max, self.weights)
+            loss = site_loss_scalar(self._distance(x, y), rough, unc, size, obs_alt,
+                                    self._size_max, self.weights)
             worst = self._worst_slot()
             if worst is None or loss >= worst[1]:
                 if self._size_max != retained_size_max:
