@@ -91,8 +91,9 @@ class ElevationDetector:
         """
         if not self.integrate(frame):
             return []
-        return self.detect(np.asarray(frame.position, dtype=np.float64), float(frame.timestamp),
-                           frame.source)
+        return self.detect(
+            np.asarray(frame.position, dtype=np.float64), float(frame.timestamp), frame.source
+        )
 
     def integrate(self, frame: DepthFrame) -> bool:
         """Fuse ``frame`` into the map (recentred on the camera); False if it was skipped."""
@@ -143,19 +144,17 @@ class ElevationDetector:
             self.last_analysis = None
             return []
         r = m.resolution
-        fit = fit_planes(m.mean, m.variance, r, s.footprint_radius)
-        safe = safe_mask(fit, s)
+        fit = fit_planes(m.mean, m.variance, r, s.footprint_radius, top=m.top)
+        safe = safe_mask(fit, s, r)
         size = site_size(safe, r)
         origin = (int(m.origin_index[0]), int(m.origin_index[1]))
         self.last_analysis = MapAnalysis(fit, safe, size, origin, r)
         with np.errstate(invalid="ignore"):
-            quality = 1.0 - 0.5 * (
-                fit.roughness / s.max_roughness + fit.sigma / s.max_uncertainty
-            )
+            quality = 1.0 - 0.5 * (fit.roughness / s.max_roughness + fit.sigma / s.max_uncertainty)
         i, j = select_sites(size, np.nan_to_num(quality), origin, r, s)
         if len(i) == 0:
             return []
-        top = obstacle_altitude(m.mean, m.variance, r, s.clearance_radius)[i, j]
+        top = obstacle_altitude(m.top, m.variance, r, s.obstacle_radius)[i, j]
         xs, ys = m.cell_centres()
         z = fit.height[i, j]
         roughness = np.clip(fit.roughness[i, j] / s.max_roughness, 0.0, 1.0)

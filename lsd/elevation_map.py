@@ -36,6 +36,8 @@ class ElevationMap:
     Attributes:
         settings: the :class:`ElevationMapSettings`.
         mean: (n, n) float64 fused height, ENU z metres; NaN where unobserved.
+        top: (n, n) float64 fused highest point of the cell, ENU z metres (NaN where
+            unobserved): catches rocks smaller than a cell, which the mean averages away.
         variance: (n, n) float64 variance of ``mean``, m^2; inf where unobserved.
         last_update: (n, n) float64 clock seconds of the last measurement; -inf if none.
         origin_index: (2,) int64 world cell index (x, y) of cell ``[0, 0]``.
@@ -45,6 +47,7 @@ class ElevationMap:
         self.settings = settings or ElevationMapSettings()
         n = self.settings.cells
         self.mean = np.full((n, n), np.nan)
+        self.top = np.full((n, n), np.nan)
         self.variance = np.full((n, n), np.inf)
         self.last_update = np.full((n, n), -np.inf)
         self.origin_index = np.zeros(2, dtype=np.int64)
@@ -108,6 +111,7 @@ class ElevationMap:
         if di == 0 and dj == 0:
             return 0
         self.mean = _shifted(self.mean, di, dj, np.nan)
+        self.top = _shifted(self.top, di, dj, np.nan)
         self.variance = _shifted(self.variance, di, dj, np.inf)
         self.last_update = _shifted(self.last_update, di, dj, -np.inf)
         self.origin_index = target
@@ -121,7 +125,8 @@ class ElevationMap:
         then updates the cell estimate as a 1-D Kalman filter. A measurement farther than
         ``outlier_gate`` sigmas from the estimate is not averaged in: the cell keeps
         whichever of the two has the smaller variance (a close-range look replaces a
-        far one; a far noisy look cannot spoil a close one).
+        far one; a far noisy look cannot spoil a close one). The cell's highest point is
+        fused with the same gains, less the excess that the noise of its points explains.
 
         Args:
             points: (N, 3) world points, ENU metres.
@@ -142,7 +147,15 @@ class ElevationMap:
         w_sum = np.bincount(flat, weights=weight, minlength=n0 * n1)
         wz_sum = np.bincount(flat, weights=weight * z, minlength=n0 * n1)
         cells = np.flatnonzero(w_sum > 0)
+        highest = np.full(n0 * n1, -np.inf)
+        np.maximum.at(highest, flat, z)
         meas = wz_sum[cells] / w_sum[cells]
+        # The highest of n noisy points overshoots by about sigma * sqrt(2 ln n): remove
+        # that expected excess so that noise alone does not look like a rock.
+        count = np.bincount(flat, minlength=n0 * n1)[cells]
+        point_var = np.bincount(flat, weights=variance[inside], minlength=n0 * n1)[cells] / count
+        excess = np.sqrt(point_var * 2.0 * np.log(count))
+        meas_top = np.maximum(highest[cells] - excess, meas)
         meas_var = np.maximum(1.0 / w_sum[cells], self.settings.min_sigma**2)
 
         mean = self.mean.reshape(-1)
@@ -160,7 +173,12 @@ class ElevationMap:
         keep = outlier & ~replace
         new_mu = np.where(replace, meas, np.where(keep, mu, new_mu))
         new_var = np.where(replace, meas_var, np.where(keep, p, new_var))
+        top = self.top.reshape(-1)
+        old_top = top[cells]
+        new_top = np.where(known, old_top + gain * (meas_top - old_top), meas_top)
+        new_top = np.where(replace, meas_top, np.where(keep, old_top, new_top))
         mean[cells] = new_mu
+        top[cells] = np.maximum(new_top, new_mu)
         var[cells] = new_var
         self.last_update.reshape(-1)[cells] = now
         return int(np.count_nonzero(inside))
@@ -174,6 +192,7 @@ class ElevationMap:
         count = int(np.count_nonzero(stale))
         if count:
             self.mean[stale] = np.nan
+            self.top[stale] = np.nan
             self.variance[stale] = np.inf
             self.last_update[stale] = -np.inf
         return count
@@ -181,5 +200,6 @@ class ElevationMap:
     def clear(self) -> None:
         """Forget everything (the window stays where it is)."""
         self.mean.fill(np.nan)
+        self.top.fill(np.nan)
         self.variance.fill(np.inf)
         self.last_update.fill(-np.inf)

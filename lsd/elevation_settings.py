@@ -65,7 +65,7 @@ class DetectorSettings(BaseModel):
         0.05, gt=0, description="largest RMS residual of the footprint plane fit (m)"
     )
     max_step: float = Field(
-        0.15,
+        0.08,
         gt=0,
         description="largest height of a cell above or below its footprint plane (m): rocks, holes",
     )
@@ -84,7 +84,10 @@ class DetectorSettings(BaseModel):
     site_spacing: float = Field(
         4.0, gt=0, description="side of the world-aligned blocks that hold at most one site (m)"
     )
-    clearance_radius: float = Field(
+    clearance_margin: float = Field(
+        0.5, ge=0, description="rotor clearance: a rock or hole this close (m) makes a cell unsafe"
+    )
+    obstacle_radius: float = Field(
         5.0, ge=0, description="radius around a site searched for the obstacle altitude (m)"
     )
     max_sites: int = Field(50, ge=1, description="most observations emitted per frame")

@@ -26,8 +26,9 @@ class PlaneFit:
             ``sqrt(max(0, residual_var - mean_var))``, metres (NaN if no fit).
         roughness_error: approximate 1-sigma error of ``roughness**2`` from the measurement
             noise, ``mean_var * sqrt(2 / (cells - 3))``, m^2.
-        step: ``|cell height - plane height|`` at the cell itself, metres (NaN where the cell
-            is unobserved): how far the cell sticks out of (or into) its footprint plane.
+        step: ``max(|cell height - plane height|, cell top - plane height)`` at the cell
+            itself, metres (NaN where the cell is unobserved): how far the cell sticks out
+            of (or into) its footprint plane.
         step_error: 1-sigma error of ``step``, metres.
         sigma: RMS 1-sigma height error of the window's observed cells, metres.
         observed_fraction: fraction of the window's cells that are observed, [0, 1].
@@ -45,7 +46,11 @@ class PlaneFit:
 
 
 def fit_planes(
-    height: np.ndarray, variance: np.ndarray, resolution: float, radius: float
+    height: np.ndarray,
+    variance: np.ndarray,
+    resolution: float,
+    radius: float,
+    top: np.ndarray | None = None,
 ) -> PlaneFit:
     """Fit a plane in the square window of half-side ``radius`` around every cell.
 
@@ -54,6 +59,7 @@ def fit_planes(
         variance: (n, m) variance of the heights, m^2 (ignored where ``height`` is NaN).
         resolution: cell side, metres.
         radius: half-side of the window, metres (rounded to whole cells, at least one).
+        top: (n, m) highest point of each cell, metres, or None (only ``step`` uses it).
 
     Returns:
         a :class:`PlaneFit`. A cell gets a fit only when its window holds at least three
@@ -100,6 +106,8 @@ def fit_planes(
         roughness = np.sqrt(np.maximum(residual - mean_var, 0.0))
         roughness_error = mean_var * np.sqrt(2.0 / np.maximum(count - 3.0, 1.0))
         step = np.abs(z - plane)
+        if top is not None:
+            step = np.maximum(step, np.where(observed, top - ref, 0.0) - plane)
         step_error = np.sqrt(np.where(observed, variance, np.inf) + mean_var / count)
         sigma = np.sqrt(mean_var)
     nan = np.nan

@@ -12,26 +12,31 @@ from lsd.elevation_settings import DetectorSettings
 from lsd.plane_fit import PlaneFit
 
 
-def safe_mask(fit: PlaneFit, settings: DetectorSettings) -> np.ndarray:
+def safe_mask(fit: PlaneFit, settings: DetectorSettings, resolution: float) -> np.ndarray:
     """(n, n) bool: cells that are valid landing area.
 
     A cell is safe when its footprint window is observed enough, its plane is no steeper
     than ``max_slope`` and no rougher than ``max_roughness``, its heights are certain to
-    ``max_uncertainty``, and the cell itself sticks out of the plane by at most
-    ``max_step``. Slope, roughness and step limits are widened by ``noise_tolerance``
-    standard errors of their estimates (nothing at close range, much at high altitude).
-    The outermost ring of cells is never safe (beyond it the terrain is unknown).
+    ``max_uncertainty``, and no cell within ``clearance_margin`` of it sticks out of its own
+    plane by more than ``max_step`` (a rock or hole; an unobserved cell has no step and its
+    window's tests stand for it). Slope, roughness and step limits are widened by
+    ``noise_tolerance`` standard errors of their estimates (nothing at close range, much at
+    high altitude). The outermost ring of cells is never safe (beyond it the terrain is
+    unknown).
     """
     k = settings.noise_tolerance
     with np.errstate(invalid="ignore"):
+        hazard = fit.step - k * fit.step_error > settings.max_step
         safe = (
             (fit.observed_fraction >= settings.min_observed_fraction)
             & (fit.slope - k * fit.slope_error <= settings.max_slope_rad)
             & (fit.roughness**2 - k * fit.roughness_error <= settings.max_roughness**2)
             & (fit.sigma <= settings.max_uncertainty)
-            # An unobserved cell has no step of its own; its window's tests stand for it.
-            & ~(fit.step - k * fit.step_error > settings.max_step)
         )
+    margin = int(np.ceil(settings.clearance_margin / resolution - 1e-9))
+    if margin > 0:
+        hazard = ndimage.maximum_filter(hazard, size=2 * margin + 1, mode="constant", cval=False)
+    safe &= ~hazard
     safe[0, :] = safe[-1, :] = False
     safe[:, 0] = safe[:, -1] = False
     return safe
@@ -105,8 +110,10 @@ def select_sites(
     gj = np.arange(n1)[None, :] + lead[1]
     off_centre = ((gi % block) - (block - 1) / 2) ** 2 + ((gj % block) - (block - 1) / 2) ** 2
     # Size dominates (its distinct values differ by far more than the tie-breaks add).
-    key = capped + 1e-3 * resolution * np.clip(quality, 0.0, 1.0) - 1e-6 * resolution * (
-        off_centre / block**2
+    key = (
+        capped
+        + 1e-3 * resolution * np.clip(quality, 0.0, 1.0)
+        - 1e-6 * resolution * (off_centre / block**2)
     )
     key = np.where(eligible, key, -np.inf)
     padded = np.pad(key, (pad0, pad1), constant_values=-np.inf)

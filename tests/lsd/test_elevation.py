@@ -87,8 +87,17 @@ def ramp(angle_deg):
 
 def assert_valid(observations, settings: DetectorSettings):
     for o in observations:
-        values = (o.x, o.y, o.z, o.roughness, o.uncertainty, o.size, o.obstacle_altitude,
-                  o.observation_altitude, o.timestamp)
+        values = (
+            o.x,
+            o.y,
+            o.z,
+            o.roughness,
+            o.uncertainty,
+            o.size,
+            o.obstacle_altitude,
+            o.observation_altitude,
+            o.timestamp,
+        )
         assert all(math.isfinite(v) for v in values)
         assert 0.0 <= o.roughness <= 1.0
         assert 0.0 <= o.uncertainty <= 1.0
@@ -146,8 +155,15 @@ def test_noisy_high_altitude_frames_give_high_uncertainty():
     high = ElevationDetector()
     for k in range(4):  # sideways motion, as structure from motion needs
         high_obs = high.process(
-            render(flat, (3.0 * k, 0.0, 102.0), n=256, f=256, baseline=15.0, rng=rng,
-                   timestamp=float(k))
+            render(
+                flat,
+                (3.0 * k, 0.0, 102.0),
+                n=256,
+                f=256,
+                baseline=15.0,
+                rng=rng,
+                timestamp=float(k),
+            )
         )
     low = ElevationDetector()
     low_obs = low.process(render(flat, (0.0, 0.0, 5.0), baseline=0.1, rng=rng))
@@ -163,9 +179,7 @@ def test_a_noisier_map_is_more_uncertain_than_a_cleaner_one():
     levels = []
     for baseline in (0.5, 2.0):
         detector = ElevationDetector()
-        observations = detector.process(
-            render(flat, (0.0, 0.0, 7.0), baseline=baseline, rng=rng)
-        )
+        observations = detector.process(render(flat, (0.0, 0.0, 7.0), baseline=baseline, rng=rng))
         assert observations
         levels.append(np.median([o.uncertainty for o in observations]))
     assert levels[0] > 2 * levels[1]
@@ -209,7 +223,11 @@ def test_unusable_frames_are_skipped_with_a_reason():
     assert c["frames_skipped_shape_mismatch"] == 1
     events = detector.drain_events()
     assert [e["reason"] for e in events] == [
-        "bad_pose", "bad_pose", "empty_frame", "no_valid_depth", "shape_mismatch"
+        "bad_pose",
+        "bad_pose",
+        "empty_frame",
+        "no_valid_depth",
+        "shape_mismatch",
     ]
     assert all(e["event"] == "frame_skipped" for e in events)
     assert detector.drain_events() == []
@@ -246,8 +264,9 @@ def test_recentring_keeps_heights_at_their_world_positions():
     assert moved == 12
     after = emap.height_at(xy[:, 0], xy[:, 1])
     still_inside = (np.abs(xy[:, 0] - 6.3) < 9.5) & (np.abs(xy[:, 1] + 4.1) < 9.5)
-    np.testing.assert_array_equal(after[still_inside & np.isfinite(after)],
-                                  before[still_inside & np.isfinite(after)])
+    np.testing.assert_array_equal(
+        after[still_inside & np.isfinite(after)], before[still_inside & np.isfinite(after)]
+    )
     assert np.isfinite(after[still_inside]).mean() > 0.9
     assert np.isnan(after[~still_inside & (np.abs(xy[:, 0] - 6.3) > 10.5)]).all()
 
