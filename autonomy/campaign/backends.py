@@ -1,0 +1,214 @@
+"""Where campaign runs are flown: a local process pool or a Dask distributed cluster.
+
+Both backends take the same :class:`~autonomy.campaign.plan.RunTask` objects and yield run
+records as runs finish (in completion order). The flights are deterministic functions of
+(mission, seed), so the records are the same whichever backend flew them, apart from the
+wall time.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+import traceback
+import uuid
+from collections import deque
+from collections.abc import Iterator, Sequence
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from concurrent.futures.process import BrokenProcessPool
+from typing import Any, Protocol
+
+from autonomy.campaign.plan import RunTask
+from autonomy.campaign.worker import error_record, fly_run
+from autonomy.errors import UserError
+
+WORKER_DIED = "worker process died while flying this run"
+
+
+class Backend(Protocol):
+    """Flies tasks and yields their run records as they finish."""
+
+    workers: int
+
+    def run(self, tasks: Sequence[RunTask]) -> Iterator[dict[str, Any]]: ...
+
+    def close(self) -> None: ...
+
+
+def default_workers() -> int:
+    """One worker per core this process may use."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # pragma: no cover - not Linux
+        return os.cpu_count() or 1
+
+
+def _start_context(preload: Sequence[str]) -> multiprocessing.context.BaseContext:
+    """Fork-server workers where the platform has them, else spawned ones.
+
+    Either way workers start from a clean interpreter (never a fork of this process and its
+    threads), so flights only see what they are sent. The fork server imports ``preload``
+    once, so each new worker starts without re-importing the flight stack.
+    """
+    if "forkserver" in multiprocessing.get_all_start_methods():
+        context = multiprocessing.get_context("forkserver")
+        context.set_forkserver_preload(list(preload))
+        return context
+    return multiprocessing.get_context("spawn")  # pragma: no cover - Windows
+
+
+class LocalPool:
+    """A ``concurrent.futures.ProcessPoolExecutor`` of fresh worker processes.
+
+    At most ``workers`` runs are in flight. If a worker process dies (a crash, the OOM
+    killer), the pool breaks and every run in flight fails with it; those runs are then
+    flown again one at a time in a fresh single-worker pool, so only the run that kills its
+    worker again is recorded as ``error``, and the campaign goes on with a new pool.
+    """
+
+    def __init__(self, workers: int | None = None) -> None:
+        self.workers = max(1, int(workers or default_workers()))
+        self._context: multiprocessing.context.BaseContext | None = None
+
+    def _pool(self, workers: int) -> ProcessPoolExecutor:
+        return ProcessPoolExecutor(max_workers=workers, mp_context=self._context)
+
+    def run(self, tasks: Sequence[RunTask]) -> Iterator[dict[str, Any]]:
+        pending = deque(tasks)
+        if self._context is None and tasks:
+            flight_module = getattr(tasks[0].flight, "__module__", None)
+            preload = ["autonomy.campaign.worker"] + ([flight_module] if flight_module else [])
+            self._context = _start_context(preload)
+        while pending:
+            suspects: list[RunTask] = []
+            pool = self._pool(min(self.workers, len(pending)))
+            try:
+                in_flight: dict[Future, RunTask] = {}
+                while (pending or in_flight) and not suspects:
+                    while pending and len(in_flight) < self.workers:
+                        task = pending.popleft()
+                        in_flight[pool.submit(fly_run, task)] = task
+                    done, _ = wait(in_flight, return_when=FIRST_COMPLETED)
+                    if any(isinstance(f.exception(), BrokenProcessPool) for f in done):
+                        # Every other run in flight fails with the broken pool too.
+                        done, _ = wait(in_flight)
+                    for future in done:
+                        task = in_flight.pop(future)
+                        error = future.exception()
+                        if isinstance(error, BrokenProcessPool):
+                            suspects.append(task)
+                        elif error is not None:
+                            yield error_record(task, _format(error))
+                        else:
+                            yield future.result()
+            finally:
+                pool.shutdown(wait=True, cancel_futures=True)
+            for task in suspects:
+                yield self._isolated(task)
+
+    def _isolated(self, task: RunTask) -> dict[str, Any]:
+        """Fly one run alone in its own worker, to tell which run killed the pool."""
+        with self._pool(1) as pool:
+            future = pool.submit(fly_run, task)
+            try:
+                return future.result()
+            except BrokenProcessPool:
+                return error_record(task, f"{WORKER_DIED} (twice, alone the second time)")
+            except Exception as exc:
+                return error_record(task, _format(exc))
+
+    def close(self) -> None:
+        """Nothing to release: each :meth:`run` shuts its pools down."""
+
+
+def _format(exc: BaseException) -> str:
+    return "".join(traceback.format_exception(type(exc), exc, exc.__traceback__))
+
+
+class DaskCluster:
+    """Runs on a Dask distributed cluster: an existing scheduler (``tcp://HOST:PORT``) or
+    ``"local"``, a ``LocalCluster`` of ``workers`` single-threaded processes on 127.0.0.1.
+
+    Needs the optional ``distributed`` package (``pip install 'landing-autonomy[cluster]'``)
+    on this machine and, for a remote cluster, this package on every worker. A run whose
+    worker keeps dying is given up by Dask (``KilledWorker``) and recorded as ``error``.
+    """
+
+    def __init__(
+        self, scheduler: str, workers: int | None = None, connect_timeout: float = 10.0
+    ) -> None:
+        if connect_timeout <= 0:
+            raise UserError(f"--connect-timeout {connect_timeout}: must be positive")
+        try:
+            import distributed
+        except ImportError:
+            raise UserError(
+                "--scheduler: needs the 'distributed' package; "
+                "install it with: pip install 'landing-autonomy[cluster]'"
+            ) from None
+        self._cluster = None
+        if scheduler == "local":
+            self._cluster = distributed.LocalCluster(
+                n_workers=max(1, int(workers or default_workers())),
+                threads_per_worker=1,
+                processes=True,
+                host="127.0.0.1",
+                dashboard_address=None,
+            )
+            address: Any = self._cluster
+        else:
+            if "://" not in scheduler or not scheduler.split("://", 1)[1]:
+                raise UserError(
+                    f"--scheduler {scheduler!r}: expected tcp://HOST:PORT or 'local'"
+                )
+            address = scheduler
+        try:
+            self._client = distributed.Client(
+                address, timeout=f"{connect_timeout}s", set_as_default=False
+            )
+        except (OSError, TimeoutError, ValueError) as exc:
+            self.close()
+            raise UserError(
+                f"--scheduler {scheduler}: cannot reach the scheduler ({exc})"
+            ) from None
+        threads = self._client.nthreads()
+        self.workers = max(1, sum(threads.values()))
+
+    def run(self, tasks: Sequence[RunTask]) -> Iterator[dict[str, Any]]:
+        from distributed import as_completed
+
+        token = uuid.uuid4().hex[:8]
+        futures = {
+            self._client.submit(fly_run, task, pure=False, key=f"lander-{token}-{task.run_id}"): (
+                task
+            )
+            for task in tasks
+        }
+        try:
+            for future in as_completed(list(futures), loop=self._client.loop):
+                task = futures[future]
+                try:
+                    yield future.result()
+                except Exception as exc:  # KilledWorker, lost data, unpicklable result
+                    yield error_record(task, _format(exc))
+        finally:
+            self._client.cancel(list(futures))
+
+    def close(self) -> None:
+        client, cluster = getattr(self, "_client", None), self._cluster
+        if client is not None:
+            client.close()
+        if cluster is not None:
+            cluster.close()
+
+
+def make_backend(
+    workers: int | None = None, scheduler: str | None = None, connect_timeout: float = 10.0
+) -> Backend:
+    """The local pool, or a Dask cluster when ``scheduler`` is given (connecting within
+    ``connect_timeout`` seconds)."""
+    if workers is not None and workers < 1:
+        raise UserError(f"--workers {workers}: must be at least 1")
+    if scheduler:
+        return DaskCluster(scheduler, workers, connect_timeout)
+    return LocalPool(workers)

@@ -1,0 +1,291 @@
+"""Running a campaign: plan, skip what is recorded, fly the rest, summarise, plot.
+
+    from autonomy.config import load_mission
+    from autonomy.campaign import run_campaign
+    result = run_campaign(load_mission("missions/demo.yaml"), runs=20, seed=1,
+                          vary=["landing.verification_altitude=2.5,5"], out_dir="out/demo")
+    print(result.table())
+
+Output directory: ``runs.jsonl`` (one record per finished run, appended as runs finish),
+``summary.json`` (per-variant table) and ``campaign.png``.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, TextIO
+
+from autonomy.campaign.backends import Backend, make_backend
+from autonomy.campaign.plan import (
+    FlightFunction,
+    OverrideFunction,
+    RunTask,
+    mission_digest,
+    plan,
+)
+from autonomy.campaign.plot import plot_campaign, representative_terrain
+from autonomy.campaign.progress import Progress
+from autonomy.campaign.spec import Variant, Vary, parse_vary, variants
+from autonomy.campaign.store import RunLog
+from autonomy.campaign.summary import (
+    compare_missions,
+    format_comparison,
+    format_table,
+    summarise_variants,
+)
+from autonomy.errors import UserError
+
+SUMMARY_FILE = "summary.json"
+PLOT_FILE = "campaign.png"
+COMPARE_FILE = "compare.json"
+
+
+@dataclass
+class CampaignResult:
+    """What a campaign produced.
+
+    ``records`` holds one run record per planned run, in plan order (variant-major), whether
+    flown now or found in ``runs.jsonl``; ``rows`` one summary row per variant.
+    """
+
+    out_dir: Path
+    variants: list[Variant]
+    records: list[dict[str, Any]]
+    rows: list[dict[str, Any]]
+    flown: int
+    skipped: int
+    meta: dict[str, Any] = field(default_factory=dict)
+
+    def table(self) -> str:
+        """The per-variant summary table as text."""
+        return format_table(self.rows)
+
+
+def _default_flight() -> FlightFunction:
+    from autonomy.runner import fly
+
+    return fly
+
+
+def _default_apply() -> OverrideFunction:
+    from autonomy.config import apply_overrides
+
+    return apply_overrides
+
+
+def prepare(
+    mission: Any,
+    *,
+    runs: int,
+    seed: int = 0,
+    vary: Sequence[str | Vary] = (),
+    flight: FlightFunction | None = None,
+    apply_overrides: OverrideFunction | None = None,
+) -> tuple[list[Variant], list[RunTask]]:
+    """Validate the options and plan every run; raises :class:`UserError` on bad input
+    (a malformed SPEC, a key the mission schema lacks, a value it rejects)."""
+    if runs < 1:
+        raise UserError(f"--runs {runs}: must be at least 1")
+    if seed < 0:
+        raise UserError(f"--seed {seed}: must be >= 0")
+    parsed = [v if isinstance(v, Vary) else parse_vary(v) for v in vary]
+    chosen = variants(parsed)
+    if parsed and apply_overrides is None:
+        apply_overrides = _default_apply()
+    if parsed:
+        # Check each key alone first, so that the message names the key at fault.
+        for v in parsed:
+            _apply(apply_overrides, mission, {v.key: v.values[0]})
+    tasks = plan(
+        mission,
+        chosen,
+        runs,
+        seed,
+        flight or _default_flight(),
+        (lambda m, o: _apply(apply_overrides, m, o)) if parsed else None,
+    )
+    return chosen, tasks
+
+
+def _apply(apply_overrides: OverrideFunction, mission: Any, overrides: dict[str, Any]) -> Any:
+    try:
+        return apply_overrides(mission, overrides)
+    except UserError as exc:
+        raise UserError(f"--vary: {exc}") from None
+    except ValueError as exc:  # pydantic's ValidationError is a ValueError
+        shown = ", ".join(f"{k}={v}" for k, v in overrides.items())
+        raise UserError(f"--vary {shown}: {exc}".splitlines()[0]) from None
+
+
+def run_campaign(
+    mission: Any,
+    *,
+    runs: int,
+    out_dir: str | os.PathLike[str],
+    seed: int = 0,
+    vary: Sequence[str | Vary] = (),
+    workers: int | None = None,
+    scheduler: str | None = None,
+    connect_timeout: float = 10.0,
+    backend: Backend | None = None,
+    flight: FlightFunction | None = None,
+    apply_overrides: OverrideFunction | None = None,
+    retry_errors: bool = False,
+    progress: TextIO | None = None,
+    quiet: bool = False,
+    name: str = "",
+) -> CampaignResult:
+    """Fly ``runs`` seeded flights of ``mission`` per variant and write the results.
+
+    Args:
+        mission: an :class:`autonomy.config.Mission`.
+        runs: flights per variant; run ``i`` of every variant uses the same seed.
+        out_dir: where ``runs.jsonl``, ``summary.json`` and ``campaign.png`` go.
+        seed: campaign seed the per-run seeds derive from (see :func:`plan.run_seed`).
+        vary: ``KEY=SPEC`` strings (see :mod:`autonomy.campaign.spec`) or :class:`Vary`.
+        workers: local pool size (default: the cores), or workers of ``scheduler="local"``.
+        scheduler: ``tcp://HOST:PORT`` of a Dask scheduler, or ``"local"``; None: local pool.
+        connect_timeout: seconds to wait for the scheduler before giving up.
+        backend: an already made backend (overrides ``workers`` and ``scheduler``).
+        flight: the flight function (default :func:`autonomy.runner.fly`); a top-level
+            function, since worker processes unpickle it by reference.
+        apply_overrides: default :func:`autonomy.config.apply_overrides`.
+        retry_errors: fly again the runs recorded as ``error`` (default: skip them too).
+        progress: stream for the progress line (default stderr); ``quiet`` silences it.
+        name: title of the plot.
+
+    Raises:
+        UserError: bad options, an output directory holding another mission's runs, or an
+            unreachable scheduler, all before any run starts.
+    """
+    chosen, tasks = prepare(
+        mission, runs=runs, seed=seed, vary=vary, flight=flight, apply_overrides=apply_overrides
+    )
+    out = Path(out_dir)
+    if out.exists() and not out.is_dir():
+        raise UserError(f"--out {out}: exists and is not a directory")
+    log = RunLog(out)
+    log.check_mission(mission_digest(mission))
+    recorded = log.latest()
+    todo = [
+        t for t in tasks
+        if t.identity not in recorded
+        or (retry_errors and recorded[t.identity].get("outcome") == "error")
+    ]
+    out.mkdir(parents=True, exist_ok=True)
+    if todo:
+        own_backend = backend is None
+        backend = backend or make_backend(workers, scheduler, connect_timeout)
+        meter = None if quiet else Progress(len(todo), progress, label=name or "campaign")
+        try:
+            for record in backend.run(todo):
+                log.append(record)
+                recorded[(record["mission"], record["variant_key"], record["seed"])] = record
+                if meter is not None:
+                    meter.update(record)
+        finally:
+            if own_backend:
+                backend.close()
+    records = [recorded[t.identity] for t in tasks]
+    rows = summarise_variants(records, chosen)
+    meta = {
+        "name": name,
+        "mission": mission_digest(mission),
+        "seed": seed,
+        "runs": runs,
+        "vary": {k: list(v) for k, v in _varied(chosen).items()},
+        "seeds": [t.seed for t in tasks[:runs]],
+    }
+    result = CampaignResult(out, chosen, records, rows, len(todo), len(tasks) - len(todo), meta)
+    write_outputs(result, mission)
+    return result
+
+
+def _varied(chosen: Sequence[Variant]) -> dict[str, list[Any]]:
+    values: dict[str, list[Any]] = {}
+    for v in chosen:
+        for key, value in v.overrides.items():
+            if value not in values.setdefault(key, []):
+                values[key].append(value)
+    return values
+
+
+def write_outputs(result: CampaignResult, mission: Any) -> None:
+    """Write ``summary.json`` and ``campaign.png`` of a campaign."""
+    summary = {**result.meta, "variants": result.rows}
+    text = json.dumps(summary, indent=2, allow_nan=False)
+    (result.out_dir / SUMMARY_FILE).write_text(text + "\n", encoding="utf-8")
+    seeds = result.meta.get("seeds") or [0]
+    plot_campaign(
+        result.out_dir / PLOT_FILE,
+        result.records,
+        result.variants,
+        terrain=representative_terrain(mission, seeds[0]),
+        title=result.meta.get("name", ""),
+    )
+
+
+@dataclass
+class ComparisonResult:
+    """Campaigns of several missions over the same seeds, and their paired comparison."""
+
+    out_dir: Path
+    names: list[str]
+    campaigns: list[CampaignResult]
+    rows: list[dict[str, Any]]
+
+    def table(self) -> str:
+        """The comparison table as text (first mission = baseline)."""
+        return format_comparison(self.rows)
+
+
+def compare_campaigns(
+    missions: Sequence[tuple[str, Any]],
+    *,
+    runs: int,
+    out_dir: str | os.PathLike[str],
+    seed: int = 0,
+    workers: int | None = None,
+    scheduler: str | None = None,
+    connect_timeout: float = 10.0,
+    backend: Backend | None = None,
+    flight: FlightFunction | None = None,
+    retry_errors: bool = False,
+    progress: TextIO | None = None,
+    quiet: bool = False,
+) -> ComparisonResult:
+    """Fly the same seeds through each ``(name, mission)`` and compare success rates.
+
+    Each mission's campaign goes to ``out_dir/<name>/``; ``out_dir/compare.json`` holds the
+    comparison rows (see :func:`autonomy.campaign.summary.compare_missions`).
+    """
+    if len(missions) < 2:
+        raise UserError("--compare: needs at least two mission files")
+    names = [n for n, _ in missions]
+    if len(set(names)) != len(names):
+        raise UserError("--compare: mission names must differ")
+    out = Path(out_dir)
+    for name, mission in missions:  # validate everything before the first run
+        prepare(mission, runs=runs, seed=seed, flight=flight)
+        RunLog(out / name).check_mission(mission_digest(mission))
+    own_backend = backend is None
+    backend = backend or make_backend(workers, scheduler, connect_timeout)
+    try:
+        campaigns = [
+            run_campaign(mission, runs=runs, out_dir=out / name, seed=seed, backend=backend,
+                         flight=flight, retry_errors=retry_errors, progress=progress,
+                         quiet=quiet, name=name)
+            for name, mission in missions
+        ]
+    finally:
+        if own_backend:
+            backend.close()
+    rows = compare_missions(names, [c.records for c in campaigns])
+    doc = {"seed": seed, "runs": runs, "baseline": names[0], "missions": rows}
+    out.mkdir(parents=True, exist_ok=True)
+    (out / COMPARE_FILE).write_text(json.dumps(doc, indent=2, allow_nan=False) + "\n")
+    return ComparisonResult(out, names, campaigns, rows)

@@ -1,0 +1,172 @@
+"""Per-variant tables of campaign outcomes, and paired comparisons of missions.
+
+Outcome classes: ``landed`` (safe touchdown), ``landed_unsafe``, ``crashed``, ``no_site``,
+``aborted``, and ``error`` (the run raised or its worker died). The success rate is
+landed-safe runs over runs that flew (errors excluded: they say nothing about the landing
+procedure), with its Wilson 95 % interval; time-to-land statistics are over landed runs.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Sequence
+from typing import Any
+
+import numpy as np
+
+from autonomy.campaign.spec import Variant
+from autonomy.campaign.stats import newcombe_paired_interval, wilson_interval
+
+OUTCOMES: tuple[str, ...] = ("landed", "landed_unsafe", "crashed", "no_site", "aborted", "error")
+OUTCOME_TITLES: dict[str, str] = {
+    "landed": "landed safe",
+    "landed_unsafe": "landed unsafe",
+    "crashed": "crashed",
+    "no_site": "no site",
+    "aborted": "aborted",
+    "error": "error",
+}
+
+
+def outcome_class(record: dict[str, Any]) -> str:
+    """The outcome column a run counts in (a ``landed`` run judged unsafe is unsafe)."""
+    outcome = record.get("outcome")
+    if outcome == "landed" and record.get("touchdown_safe") is False:
+        return "landed_unsafe"
+    return outcome if outcome in OUTCOMES else "aborted"
+
+
+def is_success(record: dict[str, Any]) -> bool:
+    """A safe landing."""
+    return outcome_class(record) == "landed"
+
+
+def _none_if_nan(x: float) -> float | None:
+    return None if x is None or math.isnan(x) else float(x)
+
+
+def summarise(records: Iterable[dict[str, Any]], variant: Variant | None = None) -> dict:
+    """Counts, success rate with Wilson 95 % interval, median and p90 time to land."""
+    records = list(records)
+    counts = dict.fromkeys(OUTCOMES, 0)
+    for record in records:
+        counts[outcome_class(record)] += 1
+    flown = len(records) - counts["error"]
+    low, high = wilson_interval(counts["landed"], flown)
+    times = np.array(
+        [r["time_to_land"] for r in records
+         if outcome_class(r) in ("landed", "landed_unsafe") and r.get("time_to_land") is not None],
+        dtype=float,
+    )
+    median, p90 = (np.percentile(times, [50, 90]) if times.size else (math.nan, math.nan))
+    row: dict[str, Any] = {}
+    if variant is not None:
+        row.update(variant=variant.index, label=variant.label, values=dict(variant.overrides))
+    row.update(
+        runs=len(records),
+        **counts,
+        success_rate=_none_if_nan(counts["landed"] / flown if flown else math.nan),
+        success_low=_none_if_nan(low),
+        success_high=_none_if_nan(high),
+        time_to_land_median=_none_if_nan(median),
+        time_to_land_p90=_none_if_nan(p90),
+    )
+    return row
+
+
+def summarise_variants(
+    records: Sequence[dict[str, Any]], variants: Sequence[Variant]
+) -> list[dict[str, Any]]:
+    """One :func:`summarise` row per variant, in variant order."""
+    by_key: dict[str, list[dict[str, Any]]] = {v.key: [] for v in variants}
+    for record in records:
+        by_key.setdefault(record["variant_key"], []).append(record)
+    return [summarise(by_key[v.key], v) for v in variants]
+
+
+def _pct(x: float | None) -> str:
+    return "-" if x is None else f"{100 * x:.1f}"
+
+
+def _sec(x: float | None) -> str:
+    return "-" if x is None else f"{x:.1f}"
+
+
+def format_table(rows: Sequence[dict[str, Any]]) -> str:
+    """A fixed-width text table of :func:`summarise` rows."""
+    head = ["variant", "runs", *(OUTCOME_TITLES[o] for o in OUTCOMES),
+            "success %", "95% CI", "TTL median s", "TTL p90 s"]
+    lines = [
+        [row.get("label", "all"), str(row["runs"]), *(str(row[o]) for o in OUTCOMES),
+         _pct(row["success_rate"]),
+         f"[{_pct(row['success_low'])}, {_pct(row['success_high'])}]",
+         _sec(row["time_to_land_median"]), _sec(row["time_to_land_p90"])]
+        for row in rows
+    ]
+    widths = [max(len(h), *(len(line[i]) for line in lines)) for i, h in enumerate(head)]
+    fmt = [str.ljust] + [str.rjust] * (len(head) - 1)
+    out = ["  ".join(f(h, w) for f, h, w in zip(fmt, head, widths, strict=True))]
+    out += ["  ".join(f(c, w) for f, c, w in zip(fmt, line, widths, strict=True))
+            for line in lines]
+    return "\n".join(out)
+
+
+def compare_missions(
+    names: Sequence[str], records: Sequence[Sequence[dict[str, Any]]]
+) -> list[dict[str, Any]]:
+    """Each mission against the first one, paired by seed.
+
+    Pairs where either run is an ``error`` are left out. ``difference`` is
+    ``success(mission) - success(baseline)`` over the pairs, with Newcombe's paired hybrid
+    score 95 % interval; ``unsafe`` counts unsafe touchdowns over all runs of the mission.
+    """
+    base = {r["seed"]: r for r in records[0]}
+    rows = []
+    for name, mission_records in zip(names, records, strict=True):
+        table = {"both": 0, "only_mission": 0, "only_baseline": 0, "neither": 0}
+        for record in mission_records:
+            other = base.get(record["seed"])
+            if other is None or "error" in (outcome_class(record), outcome_class(other)):
+                continue
+            mine, theirs = is_success(record), is_success(other)
+            key = ("both" if theirs else "only_mission") if mine else (
+                "only_baseline" if theirs else "neither")
+            table[key] += 1
+        pairs = sum(table.values())
+        low, high = newcombe_paired_interval(
+            table["both"], table["only_mission"], table["only_baseline"], table["neither"]
+        )
+        rows.append({
+            "mission": name,
+            **summarise(mission_records),
+            "unsafe": sum(outcome_class(r) == "landed_unsafe" for r in mission_records),
+            "pairs": pairs,
+            **table,
+            "difference": (table["only_mission"] - table["only_baseline"]) / pairs
+            if pairs else None,
+            "difference_low": _none_if_nan(low),
+            "difference_high": _none_if_nan(high),
+        })
+    return rows
+
+
+def format_comparison(rows: Sequence[dict[str, Any]]) -> str:
+    """A text table of :func:`compare_missions` rows (the first row is the baseline)."""
+    head = ["mission", "runs", "success %", "95% CI", "unsafe", "error",
+            "diff vs " + rows[0]["mission"] + " (pp)", "95% CI (pp)"]
+    lines = []
+    for i, row in enumerate(rows):
+        diff = "baseline" if i == 0 else (
+            "-" if row["difference"] is None else f"{100 * row['difference']:+.1f}")
+        ci = "" if i == 0 else (
+            f"[{100 * row['difference_low']:+.1f}, {100 * row['difference_high']:+.1f}]"
+            if row["difference_low"] is not None else "-")
+        lines.append([row["mission"], str(row["runs"]), _pct(row["success_rate"]),
+                      f"[{_pct(row['success_low'])}, {_pct(row['success_high'])}]",
+                      str(row["unsafe"]), str(row["error"]), diff, ci])
+    widths = [max(len(h), *(len(line[i]) for line in lines)) for i, h in enumerate(head)]
+    fmt = [str.ljust] + [str.rjust] * (len(head) - 1)
+    out = ["  ".join(f(h, w) for f, h, w in zip(fmt, head, widths, strict=True))]
+    out += ["  ".join(f(c, w) for f, c, w in zip(fmt, line, widths, strict=True))
+            for line in lines]
+    return "\n".join(out)

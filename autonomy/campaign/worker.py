@@ -1,0 +1,111 @@
+"""Flying one campaign run in whatever process a backend chose, and recording it.
+
+:func:`fly_run` is a top-level function so that spawned pool workers and Dask workers can
+unpickle it; it never raises for a failing flight: the run is recorded as ``error`` with its
+traceback instead.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+import time
+import traceback
+from collections.abc import Mapping
+from typing import Any
+
+from autonomy.campaign.plan import RunTask
+
+#: Flight summary fields copied into every run record (``None`` when a flight lacks one).
+SUMMARY_FIELDS: tuple[str, ...] = (
+    "outcome",
+    "touchdown_safe",
+    "time_to_land",
+    "distance",
+    "energy",
+    "sites_received",
+    "sites_verified",
+    "sites_banned",
+    "verification_attempts",
+    "search_patterns",
+    "mission_time",
+)
+#: Summary keys that may hold the touchdown point (ENU metres), first match wins.
+TOUCHDOWN_KEYS: tuple[str, ...] = (
+    "touchdown",
+    "touchdown_position",
+    "touchdown_xy",
+    "touchdown_enu",
+    "landing_position",
+)
+#: Record fields that are not the same when a run is repeated (left out of comparisons).
+NONDETERMINISTIC_FIELDS: frozenset[str] = frozenset({"wall_time", "worker"})
+
+# The flight stack keeps process-wide state (py_trees' blackboard), so a worker process with
+# several threads (a Dask worker with --nthreads > 1) flies one run at a time.
+_ONE_FLIGHT_AT_A_TIME = threading.Lock()
+
+
+def _jsonable(value: Any) -> Any:
+    """Plain JSON value of a summary field (numpy scalars and arrays included)."""
+    if hasattr(value, "tolist"):
+        value = value.tolist()
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if isinstance(value, (list, tuple)):
+        return [_jsonable(v) for v in value]
+    if isinstance(value, Mapping):
+        return {str(k): _jsonable(v) for k, v in value.items()}
+    if value is None or isinstance(value, (bool, int, float, str)):
+        return value
+    return str(value)
+
+
+def base_record(task: RunTask) -> dict[str, Any]:
+    """Fields of a run record that come from its task."""
+    return {
+        "run_id": task.run_id,
+        "mission": task.mission_id,
+        "variant": task.variant,
+        "variant_key": task.variant_key,
+        "variant_label": task.variant_label,
+        "values": _jsonable(task.values),
+        "seed_index": task.seed_index,
+        "seed": task.seed,
+    }
+
+
+def error_record(task: RunTask, message: str, wall_time: float | None = None) -> dict[str, Any]:
+    """Record of a run that raised or whose worker died; ``message`` is the traceback."""
+    record = base_record(task)
+    record.update({field: None for field in SUMMARY_FIELDS})
+    record.update({"outcome": "error", "touchdown": None, "error": message})
+    record["wall_time"] = wall_time
+    return record
+
+
+def summary_record(task: RunTask, summary: Mapping[str, Any], wall_time: float) -> dict:
+    """Record of a finished flight from its summary dict."""
+    record = base_record(task)
+    for field in SUMMARY_FIELDS:
+        record[field] = _jsonable(summary.get(field))
+    touchdown = next((summary[k] for k in TOUCHDOWN_KEYS if summary.get(k) is not None), None)
+    touchdown = _jsonable(touchdown)
+    record["touchdown"] = touchdown[:2] if isinstance(touchdown, list) else None
+    record["error"] = None
+    record["wall_time"] = wall_time
+    return record
+
+
+def fly_run(task: RunTask) -> dict[str, Any]:
+    """Fly one task and return its run record (an ``error`` record if the flight raised)."""
+    with _ONE_FLIGHT_AT_A_TIME:
+        start = time.perf_counter()
+        try:
+            result = task.flight(task.mission, seed=task.seed, out_dir=None)
+            summary = getattr(result, "summary", result)
+            if not isinstance(summary, Mapping) or "outcome" not in summary:
+                raise TypeError(f"the flight returned no summary with an outcome: {result!r}")
+            return summary_record(task, summary, time.perf_counter() - start)
+        except Exception:
+            return error_record(task, traceback.format_exc(), time.perf_counter() - start)

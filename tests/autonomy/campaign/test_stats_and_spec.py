@@ -1,0 +1,92 @@
+import numpy as np
+import pytest
+
+from autonomy.campaign import (
+    newcombe_interval,
+    newcombe_paired_interval,
+    parse_vary,
+    run_seed,
+    variants,
+    wilson_interval,
+)
+from autonomy.errors import UserError
+
+
+def test_wilson_interval_matches_published_values():
+    assert wilson_interval(8, 10) == pytest.approx((0.4902, 0.9433), abs=5e-4)
+    low, high = wilson_interval(0, 10)
+    assert low == 0.0 and high == pytest.approx(0.2775, abs=5e-4)
+
+
+def test_wilson_interval_of_no_runs_is_undefined():
+    assert all(np.isnan(wilson_interval(0, 0)))
+
+
+def test_newcombe_independent_matches_newcombe_1998_example():
+    # Newcombe (1998) Stat Med 17:873, 56/70 - 48/80, method 10.
+    assert newcombe_interval(56, 70, 48, 80) == pytest.approx((0.0524, 0.3339), abs=5e-4)
+
+
+def test_newcombe_paired_matches_published_example():
+    # Paired 2x2 table [[59, 6], [16, 80]] (Fagerland et al., Statistical analysis of
+    # contingency tables, ch. 8): estimate -0.0621, 95 % CI -0.1186 to -0.0046.
+    assert newcombe_paired_interval(59, 6, 16, 80) == pytest.approx(
+        (-0.1186, -0.0046), abs=5e-4
+    )
+
+
+def test_paired_interval_is_narrower_than_independent_for_correlated_runs():
+    paired = newcombe_paired_interval(40, 5, 2, 13)
+    independent = newcombe_interval(45, 60, 42, 60)
+    assert paired[1] - paired[0] < independent[1] - independent[0]
+
+
+@pytest.mark.parametrize(
+    ("option", "key", "values"),
+    [
+        ("landing.verification_altitude=2.5,5,10", "landing.verification_altitude",
+         (2.5, 5, 10)),
+        ("sitl.wind.speed=0:8", "sitl.wind.speed", tuple(range(9))),
+        ("sitl.wind.speed=0:8:5", "sitl.wind.speed", (0, 2, 4, 6, 8)),
+        ("weights.size=0:1:3", "weights.size", (0.0, 0.5, 1.0)),
+        ("world.kind=mars,flat", "world.kind", ("mars", "flat")),
+        ("landing.enabled=true", "landing.enabled", (True,)),
+        ("a.b=-2:2:3", "a.b", (-2, 0, 2)),
+    ],
+)
+def test_spec_grammar(option, key, values):
+    vary = parse_vary(option)
+    assert vary.key == key
+    assert vary.values == values
+    assert [type(v) for v in vary.values] == [type(v) for v in values]
+
+
+@pytest.mark.parametrize(
+    "option",
+    ["landing.verification_altitude", "=1,2", "a b=1", "x=", "x=1,,2", "x=8:0", "x=0:8:1",
+     "x=0:8:two", "x=a:b", "x=0.5:2", "x=1:2:3:4", "x=1,1", "x=nan:1:3"],
+)
+def test_malformed_specs_are_user_errors(option):
+    with pytest.raises(UserError):
+        parse_vary(option)
+
+
+def test_variants_are_the_cartesian_product_in_option_order():
+    chosen = variants([parse_vary("a=1,2"), parse_vary("b=x,y,z")])
+    assert [v.overrides for v in chosen][:4] == [
+        {"a": 1, "b": "x"}, {"a": 1, "b": "y"}, {"a": 1, "b": "z"}, {"a": 2, "b": "x"}]
+    assert len(chosen) == 6
+    assert len({v.key for v in chosen}) == 6
+    assert [v.index for v in chosen] == list(range(6))
+
+
+def test_a_key_varied_twice_is_a_user_error():
+    with pytest.raises(UserError, match="more than once"):
+        variants([parse_vary("a=1,2"), parse_vary("a=3")])
+
+
+def test_run_seeds_are_spawned_children_of_the_campaign_seed():
+    children = np.random.SeedSequence(42).spawn(5)
+    expected = [int(c.generate_state(1)[0]) for c in children]
+    assert [run_seed(42, i) for i in range(5)] == expected
+    assert run_seed(43, 0) != run_seed(42, 0)
