@@ -48,4 +48,5 @@ class Battery:
             current = s.idle_current
         self.current = current
         self.consumed_mah += current * dt / 3.6
-        self.energy_j += current * self.voltage * dt
+        # Energy at the nominal voltage: close enough, and cheap (this runs every step).
+        self.energy_j += current * s.cells * 3.7 * dt

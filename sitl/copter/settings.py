@@ -89,7 +89,7 @@ class SitlSettings(BaseModel):
     max_vertical_acceleration: float = Field(2.5, gt=0, description="m/s^2")
     max_yaw_rate: float = Field(90.0, gt=0, description="deg/s")
     drag: float = Field(0.25, ge=0, description="air drag coefficient pulling toward wind, 1/s")
-    physics_step: float = Field(0.02, gt=0, le=0.1, description="largest integration step, s")
+    physics_step: float = Field(0.05, gt=0, le=0.1, description="largest integration step, s")
 
     # Landing (ArduPilot LAND_SPEED 0.5 m/s below LAND_ALT_LOW 10 m; PX4 MPC_LAND_SPEED 0.7).
     land_speed: float = Field(0.5, gt=0, description="final descent speed in LAND, m/s")
