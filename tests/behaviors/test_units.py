@@ -7,6 +7,8 @@ import numpy as np
 import py_trees
 import pytest
 from behaviors_fakes import FakeVehicle
+from hypothesis import given
+from hypothesis import strategies as st
 from py_trees.common import Access, Status
 from pydantic import ValidationError
 
@@ -55,6 +57,23 @@ def test_clear_altitude_grows_with_distance_until_the_cap():
     values = [clear_altitude(site(), (d, 0, 0), 5.0, 100.0) for d in range(0, 200, 10)]
     assert values == sorted(values)
     assert values[0] == 25.0 and values[-1] == 100.0
+
+
+@given(
+    obstacle=st.floats(-50, 200),
+    buffer=st.floats(0, 50),
+    cap=st.floats(1, 300),
+    dx=st.floats(-500, 500),
+    dy=st.floats(-500, 500),
+)
+def test_clear_altitude_never_exceeds_the_cap_and_clears_the_obstacle_when_it_can(
+    obstacle, buffer, cap, dx, dy
+):
+    z = clear_altitude(site(obstacle_altitude=obstacle), (dx, dy, 0.0), buffer, cap)
+    assert z <= cap
+    assert z >= min(obstacle + buffer, cap)
+    closer = clear_altitude(site(obstacle_altitude=obstacle), (dx / 2, dy / 2, 0.0), buffer, cap)
+    assert closer <= z + 1e-9
 
 
 def test_get_clear_altitude_behaviour_writes_the_blackboard():
@@ -198,6 +217,22 @@ def test_build_writes_every_key_start_value():
     assert {key: reader().get(key) for key in keys.KEYS} == dict(keys.DEFAULTS)
     keys.reset()
     assert all(value is None for value in keys.read_all().values())
+
+
+def test_retry_counts_come_from_the_landing_settings():
+    clock = SimClock()
+    plan = MissionPlan(
+        waypoints=[(0, 0, 50)], landing=LandingSettings(landing_retries=4, pattern_retries=2)
+    )
+    tree = build_mission_tree(
+        plan, FakeVehicle(clock), LandingSiteManager(), clock, np.random.default_rng(0)
+    )
+    retries = {
+        node.name: node.num_failures
+        for node in tree.root.iterate()
+        if isinstance(node, py_trees.decorators.Retry)
+    }
+    assert retries == {"Landing phase": 4, "Pattern retries": 2}
 
 
 def test_render_ascii_and_write_dot_show_every_node(tmp_path):
