@@ -41,15 +41,12 @@ from py_trees.decorators import Retry
 
 from behaviors import blackboard
 from behaviors.decorators import ClockTimeout
+from behaviors.failsafe import BatteryCritical, BatteryReserve, GpsLost, NoFailsafe
 from behaviors.flight import (
-    BatteryCritical,
-    BatteryReserve,
     ChangeAltitudeLS,
-    GpsLost,
     Land,
     NavigateToSite,
     NavigateToWaypoint,
-    NoFailsafe,
     Preflight,
     Takeoff,
 )
