@@ -410,8 +410,9 @@ class DepthCostmapDetector:
         return self._observations(np.arange(int(self.labels.max()) + 1))
 
     def _observations(self, which: np.ndarray) -> list[SiteObservation]:
-        """Cluster centroids (eq. 8) with aggregated properties: mean roughness, uncertainty
-        and size, highest obstacle, lowest observation altitude, latest time. A centroid
+        """Cluster centroids (eq. 8) with aggregated properties: mean roughness and
+        uncertainty, the size of the member nearest the centroid, highest obstacle, lowest
+        observation altitude, latest time. A centroid
         farther than ``cluster_distance`` from every member (a chained, non-convex cluster)
         is replaced by the member nearest to it, so the site stays on detected ground."""
         if len(which) == 0:
@@ -436,7 +437,8 @@ class DepthCostmapDetector:
         np.minimum.at(obs_alt, labels, sites.observation_altitude)
         stamp = np.full(n, -np.inf)
         np.maximum.at(stamp, labels, self.site_list.timestamp)
-        rough, unc, size = mean(sites.roughness), mean(sites.uncertainty), mean(sites.size)
+        rough, unc = mean(sites.roughness), mean(sites.uncertainty)
+        size = sites.size[nearest]  # the inscribed circle at the member nearest the centre
         rows = zip(
             centre[which].tolist(),
             rough[which].tolist(),

@@ -21,6 +21,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "autonomy.cli.demo",
     "autonomy.cli.validate",
     "autonomy.cli.tree",
+    "autonomy.cli.detect",
 )
 
 

@@ -1,0 +1,337 @@
+"""``lander detect``: run a landing-site detector offline on recorded data.
+
+    lander detect --lidar CLOUD.{npy,ply,las,laz} [--seeding grid] [--out DIR]
+    lander detect --depth DEPTH.{npy,png} --fx F --fy F --cx C --cy C [--pose x,y,z,yaw]
+
+Prints a table of sites (best first) and writes ``sites.csv`` and ``overlay.png`` (points or
+depth coloured by height, sites drawn with their radii) into ``--out``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import math
+from pathlib import Path
+
+import numpy as np
+from pydantic import ValidationError
+from scipy.spatial import cKDTree
+
+from autonomy.errors import UserError
+from lsd.depth_costmap import DepthCostmapDetector, DepthCostmapSettings
+from lsd.frames import DepthFrame, Intrinsics
+from lsd.io import DataFileError, class_name, read_depth_image, read_point_cloud
+from lsd.lidar_pca import LidarPcaDetector, LidarPcaSettings, spot_grades
+from lsd.pointcloud import clean_points
+from lsm.records import SiteObservation
+
+NADIR = np.array([[1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, -1.0]])
+CSV_FIELDS = (
+    "rank", "x", "y", "z", "size", "roughness", "uncertainty", "obstacle_altitude", "score",
+    "class",
+)  # fmt: skip
+MAX_PLOTTED_POINTS = 200_000
+
+
+def _settings(model: type, values: dict, flag_of: dict[str, str]):
+    """Build a settings model from the flags that were given; a bad value names its flag."""
+    try:
+        return model(**{k: v for k, v in values.items() if v is not None})
+    except ValidationError as exc:
+        err = exc.errors()[0]
+        field = str(err["loc"][0]) if err["loc"] else ""
+        raise UserError(f"{flag_of.get(field, field)}: {err['msg']}") from None
+
+
+def parse_pose(text: str | None) -> tuple[np.ndarray, np.ndarray]:
+    """``x,y,z,yaw`` (m, m, m, degrees: heading of the image x axis, counter-clockwise from
+    east, camera looking straight down) or a 4x4 camera->world ``.npy``; default: camera at
+    the origin looking down. Returns (position (3,), rotation (3, 3))."""
+    if text is None:
+        return np.zeros(3), NADIR.copy()
+    if text.lower().endswith(".npy"):
+        try:
+            m = np.load(text, allow_pickle=False)
+        except (OSError, ValueError, EOFError) as exc:
+            raise UserError(f"--pose {text}: not a readable .npy ({exc})") from None
+        if m.shape != (4, 4) or not np.isfinite(m).all():
+            raise UserError(f"--pose {text}: expected a finite 4x4 matrix, got shape {m.shape}")
+        rot = m[:3, :3].astype(np.float64)
+        if not np.allclose(rot @ rot.T, np.eye(3), atol=1e-4) or np.linalg.det(rot) < 0:
+            raise UserError(f"--pose {text}: the 3x3 block is not a rotation")
+        return m[:3, 3].astype(np.float64), rot
+    try:
+        x, y, z, yaw = (float(v) for v in text.split(","))
+    except ValueError:
+        raise UserError(f"--pose: expected x,y,z,yaw or a 4x4 .npy, got {text!r}") from None
+    if not all(math.isfinite(v) for v in (x, y, z, yaw)):
+        raise UserError("--pose: values must be finite")
+    c, s = math.cos(math.radians(yaw)), math.sin(math.radians(yaw))
+    rz = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    return np.array([x, y, z]), rz @ NADIR
+
+
+def _classes(raw: np.ndarray, codes: np.ndarray, obs: list[SiteObservation]) -> list[str]:
+    """Majority class of the raw points within each site's radius (horizontal), with share."""
+    if not obs:
+        return []
+    tree = cKDTree(raw[:, :2])
+    centres = np.array([[o.x, o.y] for o in obs])
+    radii = np.array([max(o.size, 1e-6) for o in obs])
+    out = []
+    for members in tree.query_ball_point(centres, radii):  # one query per site, not per point
+        if not members:
+            out.append("")
+            continue
+        counts = np.bincount(codes[members])
+        top = int(np.argmax(counts))
+        out.append(f"{class_name(top)} {100.0 * counts[top] / len(members):.0f}%")
+    return out
+
+
+def _write_outputs(
+    out_dir: Path, obs: list[SiteObservation], scores: np.ndarray, classes: list[str]
+) -> list[dict]:
+    rows = []
+    for i, (o, sc) in enumerate(zip(obs, scores, strict=True)):
+        rows.append(
+            {
+                "rank": i + 1, "x": round(o.x, 3), "y": round(o.y, 3), "z": round(o.z, 3),
+                "size": round(o.size, 3), "roughness": round(o.roughness, 4),
+                "uncertainty": round(o.uncertainty, 4),
+                "obstacle_altitude": round(o.obstacle_altitude, 3),
+                "score": round(float(sc), 4), "class": classes[i] if classes else "",
+            }
+        )  # fmt: skip
+    with open(out_dir / "sites.csv", "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=CSV_FIELDS)
+        writer.writeheader()
+        writer.writerows(rows)
+    return rows
+
+
+def _print_table(rows: list[dict], limit: int) -> None:
+    with_class = any(r["class"] for r in rows)
+    head = f"{'#':>4} {'x':>10} {'y':>10} {'z':>8} {'size':>6} {'rough':>6} {'unc':>6} "
+    head += f"{'obst_z':>8} {'score':>6}" + ("  class" if with_class else "")
+    print(head)
+    for r in rows[:limit]:
+        line = (
+            f"{r['rank']:>4} {r['x']:>10.2f} {r['y']:>10.2f} {r['z']:>8.2f} {r['size']:>6.2f} "
+            f"{r['roughness']:>6.3f} {r['uncertainty']:>6.3f} {r['obstacle_altitude']:>8.2f} "
+            f"{r['score']:>6.3f}"
+        )
+        print(line + (f"  {r['class']}" if with_class else ""))
+    if len(rows) > limit:
+        print(f"... {len(rows) - limit} more in sites.csv")
+
+
+def _figure():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _overlay_cloud(path: Path, cloud: np.ndarray, obs: list[SiteObservation], seed: int) -> None:
+    plt = _figure()
+    from matplotlib.patches import Circle
+
+    pts = cloud
+    if len(pts) > MAX_PLOTTED_POINTS:
+        keep = np.random.default_rng(seed).choice(len(pts), MAX_PLOTTED_POINTS, replace=False)
+        pts = pts[keep]
+    fig, ax = plt.subplots(figsize=(8, 8))
+    sc = ax.scatter(pts[:, 0], pts[:, 1], c=pts[:, 2], s=0.5, cmap="terrain", linewidths=0)
+    fig.colorbar(sc, ax=ax, label="z (m)", shrink=0.8)
+    for i, o in enumerate(obs):
+        ax.add_patch(Circle((o.x, o.y), o.size, fill=False, ec="red", lw=1.2))
+        if i < 20:
+            ax.annotate(str(i + 1), (o.x, o.y), color="red", fontsize=7, ha="center")
+    ax.set_aspect("equal")
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    ax.set_title(f"{len(obs)} landing sites (red: radius)")
+    fig.savefig(path, dpi=110, bbox_inches="tight")
+    plt.close(fig)
+
+
+def _overlay_depth(path: Path, frame: DepthFrame, obs: list[SiteObservation]) -> None:
+    plt = _figure()
+    from matplotlib.patches import Circle
+
+    k = frame.intrinsics
+    world_z = np.full(frame.depth.shape, np.nan)
+    points, _ = frame.to_points()
+    valid = np.isfinite(frame.depth) & (frame.depth > 0)
+    world_z[valid] = points[:, 2]
+    fig, ax = plt.subplots(figsize=(9, 7))
+    im = ax.imshow(world_z, cmap="terrain")
+    fig.colorbar(im, ax=ax, label="world z (m)", shrink=0.8)
+    rot, pos = np.asarray(frame.rotation), np.asarray(frame.position)
+    for i, o in enumerate(obs):
+        cam = rot.T @ (np.array(o.position) - pos)
+        if cam[2] <= 0:
+            continue
+        u, v = k.fx * cam[0] / cam[2] + k.cx, k.fy * cam[1] / cam[2] + k.cy
+        ax.add_patch(Circle((u, v), k.fx * o.size / cam[2], fill=False, ec="red", lw=1.2))
+        if i < 20:
+            ax.annotate(str(i + 1), (u, v), color="red", fontsize=7, ha="center")
+    ax.set_title(f"{len(obs)} landing sites (red: radius)")
+    fig.savefig(path, dpi=110, bbox_inches="tight")
+    plt.close(fig)
+
+
+def run_lidar(args: argparse.Namespace, out_dir: Path) -> int:
+    settings = _settings(
+        LidarPcaSettings,
+        {
+            "voxel_size": args.voxel, "seeding": args.seeding, "n_points": args.n_points,
+            "r_min": args.r_min, "r_max": args.r_max, "r_step": args.r_step,
+            "sigma_max": args.sigma_max, "theta_max_deg": args.theta_max,
+        },
+        {
+            "voxel_size": "--voxel", "seeding": "--seeding", "n_points": "--n-points",
+            "r_min": "--r-min", "r_max": "--r-max", "r_step": "--r-step",
+            "sigma_max": "--sigma-max", "theta_max_deg": "--theta-max",
+        },
+    )  # fmt: skip
+    try:
+        data = read_point_cloud(args.lidar)
+    except DataFileError as exc:
+        raise UserError(str(exc)) from None
+    raw = np.asarray(data.points)
+    cloud, dropped = clean_points(raw)
+    if len(cloud) < settings.n_min:
+        raise UserError(
+            f"{args.lidar}: only {len(cloud)} valid points ({dropped} with NaN/inf dropped); "
+            f"need at least {settings.n_min}"
+        )
+    det = LidarPcaDetector(settings, rng=args.seed)
+    det.process(cloud)
+    obs = det.observations()
+    scores = np.sort(spot_grades(det.spots, settings))[::-1]
+    classes = []
+    if data.classification is not None:
+        finite = np.isfinite(raw).all(axis=1)
+        classes = _classes(cloud, data.classification[finite], obs)
+    search = det.last_search
+    print(
+        f"{args.lidar}: {len(raw)} points ({dropped} with NaN/inf dropped); voxel "
+        f"{settings.voxel_size:g} m; {settings.seeding} seeding, "
+        f"{len(search.seeds) if search else 0} search points: "
+        f"{search.n_accepted if search else 0} planes accepted, "
+        f"{search.n_rejected if search else 0} rejected"
+        + (
+            f" (slope {search.rejected_slope}, too few points {search.rejected_points}, "
+            f"off-plane {search.rejected_step}, obstacle {search.rejected_clearance}, "
+            f"sigma {search.rejected_sigma})"
+            if search
+            else ""
+        )
+    )
+    rows = _write_outputs(out_dir, obs, scores, classes)
+    _overlay_cloud(out_dir / "overlay.png", cloud, obs, args.seed)
+    print(f"{len(obs)} sites (score = spot grade, eq. 6)")
+    _print_table(rows, args.limit)
+    print(f"wrote {out_dir / 'sites.csv'} and {out_dir / 'overlay.png'}")
+    return 0
+
+
+def run_depth(args: argparse.Namespace, out_dir: Path) -> int:
+    for flag in ("fx", "fy", "cx", "cy"):
+        value = getattr(args, flag)
+        if value is None:
+            raise UserError(f"--{flag}: required with --depth")
+        if not math.isfinite(value) or (flag in ("fx", "fy") and value <= 0):
+            raise UserError(f"--{flag}: must be {'positive' if flag in ('fx', 'fy') else 'finite'}"
+                            f", got {value}")
+    settings = _settings(
+        DepthCostmapSettings,
+        {"vehicle_radius": args.vehicle_radius, "threshold": args.threshold, "d_max": args.d_max},
+        {"vehicle_radius": "--vehicle-radius", "threshold": "--threshold", "d_max": "--d-max"},
+    )
+    try:
+        depth = read_depth_image(args.depth)
+    except DataFileError as exc:
+        raise UserError(str(exc)) from None
+    h, w = depth.shape
+    with np.errstate(invalid="ignore"):
+        usable = np.isfinite(depth) & (depth > 0)
+    if not usable.any():
+        raise UserError(f"{args.depth}: no valid depth (every pixel is zero, negative or NaN)")
+    position, rotation = parse_pose(args.pose)
+    k = Intrinsics(args.fx, args.fy, args.cx, args.cy, w, h)
+    frame = DepthFrame(depth, None, k, position, rotation)
+    det = DepthCostmapDetector(settings)
+    det.process(frame)
+    if det.last_problem:
+        raise UserError(f"{args.depth}: {det.last_problem}")
+    obs = det.clusters()
+    n = len(obs)
+    score = np.bincount(det.labels, det.site_list.sites.score, minlength=n) / np.maximum(
+        np.bincount(det.labels, minlength=n), 1
+    )
+    order = np.argsort(-score, kind="stable")
+    obs = [obs[i] for i in order]
+    print(
+        f"{args.depth}: {w}x{h} depth image, {int((~usable).sum())} pixels without depth; "
+        f"{len(det.last_sites)} dense sites, {len(det.site_list)} after de-duplication, "
+        f"{n} clusters"
+    )
+    rows = _write_outputs(out_dir, obs, score[order], [])
+    _overlay_depth(out_dir / "overlay.png", frame, obs)
+    print(f"{n} sites (score = mean decision-map value J, eq. 7)")
+    _print_table(rows, args.limit)
+    print(f"wrote {out_dir / 'sites.csv'} and {out_dir / 'overlay.png'}")
+    return 0
+
+
+def run(args: argparse.Namespace) -> int:
+    if (args.lidar is None) == (args.depth is None):
+        raise UserError("give exactly one of --lidar FILE or --depth FILE")
+    out_dir = Path(args.out)
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise UserError(f"--out {out_dir}: cannot create ({exc.strerror})") from None
+    if args.lidar is not None:
+        return run_lidar(args, out_dir)
+    return run_depth(args, out_dir)
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    parser = subparsers.add_parser(
+        "detect",
+        help="find landing sites in a recorded point cloud or depth image",
+        description="Run the LiDAR PCA detector on a point cloud (.npy Nx3, .ply, .las/.laz "
+        "with the 'las' extra) or the depth-costmap detector on a depth image (.npy metres, "
+        "16-bit .png millimetres). Prints the sites and writes sites.csv and overlay.png.",
+    )
+    src = parser.add_argument_group("input (one of)")
+    src.add_argument("--lidar", metavar="FILE", help="point cloud in the world frame")
+    src.add_argument("--depth", metavar="FILE", help="depth image")
+    parser.add_argument("--out", default="lander-detect", metavar="DIR",
+                        help="output directory (default: %(default)s)")
+    parser.add_argument("--limit", type=int, default=20, help="table rows printed")
+    parser.add_argument("--seed", type=int, default=0, help="random seed (search points)")
+    lidar = parser.add_argument_group("LiDAR PCA detector")
+    lidar.add_argument("--voxel", type=float, help="voxel size (m), default 0.05")
+    lidar.add_argument("--seeding", choices=("random", "grid"), help="search points")
+    lidar.add_argument("--n-points", type=int, help="random search points, default 20")
+    lidar.add_argument("--r-min", type=float, help="first radius (m), default 1")
+    lidar.add_argument("--r-max", type=float, help="largest radius (m), default 3")
+    lidar.add_argument("--r-step", type=float, help="radius step (m), default 0.5")
+    lidar.add_argument("--sigma-max", type=float, help="largest z std (m), default 0.2")
+    lidar.add_argument("--theta-max", type=float, help="steepest slope (deg), default 15")
+    depth = parser.add_argument_group("depth costmap detector")
+    for flag in ("fx", "fy", "cx", "cy"):
+        depth.add_argument(f"--{flag}", type=float, help="intrinsics (pixels)")
+    depth.add_argument("--pose", help="camera pose: x,y,z,yaw (deg, looking down) or 4x4 .npy")
+    depth.add_argument("--vehicle-radius", type=float, help="footprint radius (m), default 0.5")
+    depth.add_argument("--threshold", type=float, help="decision threshold, default 0.72")
+    depth.add_argument("--d-max", type=float, help="farthest valid depth (m), default 200")
+    parser.set_defaults(func=run)

@@ -1,0 +1,265 @@
+"""Readers for recorded sensor data: point clouds (.npy, PLY ascii/binary, LAS/LAZ) and depth
+images (.npy metres, 16-bit PNG millimetres).
+
+Every reader raises :class:`DataFileError` with a one-line reason naming the file when the
+file is not what its extension says; the command line turns it into a user error.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+# ASPRS LAS 1.4 standard classification codes (the ones a landing decision cares about).
+LAS_CLASSES: dict[int, str] = {
+    0: "never classified",
+    1: "unclassified",
+    2: "ground",
+    3: "low vegetation",
+    4: "medium vegetation",
+    5: "high vegetation",
+    6: "building",
+    7: "noise",
+    8: "model key point",
+    9: "water",
+    10: "rail",
+    11: "road surface",
+    13: "wire guard",
+    14: "wire conductor",
+    15: "transmission tower",
+    17: "bridge deck",
+    18: "high noise",
+}
+
+_PLY_TYPES = {
+    "char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1",
+    "short": "i2", "int16": "i2", "ushort": "u2", "uint16": "u2",
+    "int": "i4", "int32": "i4", "uint": "u4", "uint32": "u4",
+    "float": "f4", "float32": "f4", "double": "f8", "float64": "f8",
+}  # fmt: skip
+_CLASS_NAMES = ("classification", "class", "scalar_classification", "label")
+
+
+class DataFileError(ValueError):
+    """A data file that cannot be read as what its extension says (message names it)."""
+
+
+@dataclass
+class CloudData:
+    """A point cloud read from a file.
+
+    Attributes:
+        points: (N, 3) float64 x, y, z (file units, metres expected; rows may hold NaN).
+        classification: (N,) int64 class codes, or None when the file has none.
+    """
+
+    points: np.ndarray
+    classification: np.ndarray | None = None
+
+
+def class_name(code: int) -> str:
+    """ASPRS name of a LAS class code ("class N" when unknown)."""
+    return LAS_CLASSES.get(int(code), f"class {int(code)}")
+
+
+def read_point_cloud(path: str | Path) -> CloudData:
+    """Read a cloud by extension: ``.npy`` (N, >=3), ``.ply``, ``.las``/``.laz``."""
+    p = Path(path)
+    if not p.is_file():
+        raise DataFileError(f"{p}: no such file")
+    ext = p.suffix.lower()
+    if ext == ".npy":
+        return _read_npy_cloud(p)
+    if ext == ".ply":
+        return read_ply(p)
+    if ext in (".las", ".laz"):
+        return read_las(p)
+    raise DataFileError(f"{p}: unknown point-cloud extension {ext!r} (use .npy, .ply, .las, .laz)")
+
+
+def _load_npy(p: Path) -> np.ndarray:
+    try:
+        arr = np.load(p, allow_pickle=False)
+    except (ValueError, OSError, EOFError) as exc:
+        raise DataFileError(f"{p}: not a NumPy .npy array ({exc})") from None
+    if not isinstance(arr, np.ndarray) or arr.dtype.kind not in "fiu":
+        raise DataFileError(f"{p}: expected a numeric array, got dtype {arr.dtype}")
+    return arr
+
+
+def _read_npy_cloud(p: Path) -> CloudData:
+    arr = _load_npy(p)
+    if arr.ndim != 2 or arr.shape[1] < 3:
+        raise DataFileError(f"{p}: expected an (N, 3) array of x, y, z, got shape {arr.shape}")
+    return CloudData(np.asarray(arr[:, :3], dtype=np.float64))
+
+
+def read_ply(path: str | Path) -> CloudData:
+    """Read the ``vertex`` element of a PLY file (ascii, binary little or big endian).
+
+    x, y, z are required; a ``classification`` (or ``class``/``label``) property is returned
+    when present. Elements before ``vertex`` may be skipped only if they have no list
+    properties.
+    """
+    p = Path(path)
+    with open(p, "rb") as f:
+        if f.readline().strip() != b"ply":
+            raise DataFileError(f"{p}: not a PLY file (no 'ply' magic line)")
+        fmt = None
+        elements: list[tuple[str, int, list[tuple[str, str | None]]]] = []
+        while True:
+            raw = f.readline()
+            if not raw:
+                raise DataFileError(f"{p}: PLY header has no end_header")
+            words = raw.decode("ascii", errors="replace").split()
+            if not words or words[0] in ("comment", "obj_info"):
+                continue
+            if words[0] == "end_header":
+                break
+            if words[0] == "format" and len(words) >= 2:
+                fmt = words[1]
+            elif words[0] == "element" and len(words) == 3:
+                elements.append((words[1], _int(words[2], p), []))
+            elif words[0] == "property" and elements:
+                if words[1] == "list":
+                    elements[-1][2].append((words[-1], None))
+                elif len(words) == 3 and words[1] in _PLY_TYPES:
+                    elements[-1][2].append((words[2], _PLY_TYPES[words[1]]))
+                else:
+                    raise DataFileError(f"{p}: bad PLY property line {' '.join(words)!r}")
+        if fmt not in ("ascii", "binary_little_endian", "binary_big_endian"):
+            raise DataFileError(f"{p}: unsupported PLY format {fmt!r}")
+        names = [e[0] for e in elements]
+        if "vertex" not in names:
+            raise DataFileError(f"{p}: PLY file has no vertex element")
+        vi = names.index("vertex")
+        for name, _count, props in elements[: vi + 1]:
+            if any(t is None for _, t in props):
+                raise DataFileError(f"{p}: PLY element {name!r} has list properties")
+        _, count, props = elements[vi]
+        prop_names = [n for n, _ in props]
+        if not {"x", "y", "z"} <= set(prop_names):
+            raise DataFileError(f"{p}: PLY vertex element lacks x, y, z")
+        if fmt == "ascii":
+            skip = sum(c for _, c, _ in elements[:vi])
+            for _ in range(skip):
+                f.readline()
+            try:
+                table = np.loadtxt(f, max_rows=count, ndmin=2, dtype=np.float64)
+            except ValueError as exc:
+                raise DataFileError(f"{p}: bad PLY ascii data ({exc})") from None
+            if table.shape != (count, len(props)):
+                raise DataFileError(
+                    f"{p}: PLY ascii vertex data has shape {table.shape}, header says "
+                    f"({count}, {len(props)})"
+                )
+            col = {n: table[:, i] for i, n in enumerate(prop_names)}
+        else:
+            order = "<" if fmt == "binary_little_endian" else ">"
+            skip = sum(c * np.dtype([(n, order + t) for n, t in pr]).itemsize
+                       for _, c, pr in elements[:vi])
+            f.seek(skip, 1)
+            dtype = np.dtype([(n, order + t) for n, t in props])
+            buf = f.read(dtype.itemsize * count)
+            if len(buf) < dtype.itemsize * count:
+                raise DataFileError(
+                    f"{p}: PLY binary data truncated ({len(buf)} of "
+                    f"{dtype.itemsize * count} bytes)"
+                )
+            table = np.frombuffer(buf, dtype=dtype, count=count)
+            col = {n: table[n] for n in prop_names}
+    points = np.stack([col[k].astype(np.float64) for k in ("x", "y", "z")], axis=1)
+    cls = next((col[n] for n in prop_names if n.lower() in _CLASS_NAMES), None)
+    return CloudData(points, None if cls is None else np.asarray(cls).astype(np.int64))
+
+
+def _int(word: str, p: Path) -> int:
+    try:
+        value = int(word)
+    except ValueError:
+        raise DataFileError(f"{p}: bad PLY element count {word!r}") from None
+    if value < 0:
+        raise DataFileError(f"{p}: negative PLY element count {value}")
+    return value
+
+
+def read_las(path: str | Path) -> CloudData:
+    """Read a LAS/LAZ file with laspy (optional extra ``las``), scaled x, y, z and the
+    classification codes."""
+    p = Path(path)
+    try:
+        import laspy  # optional: pip install 'landing-autonomy[las]'
+    except ImportError:
+        raise DataFileError(
+            f"{p}: reading LAS/LAZ needs laspy: pip install 'landing-autonomy[las]'"
+        ) from None
+    try:
+        las = laspy.read(p)
+    except Exception as exc:  # laspy raises several types for a bad file
+        reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise DataFileError(f"{p}: not a readable LAS/LAZ file ({reason})") from None
+    points = np.stack([np.asarray(las.x), np.asarray(las.y), np.asarray(las.z)], axis=1)
+    try:
+        cls = np.asarray(las.classification).astype(np.int64)
+    except Exception:  # pragma: no cover - a point format without classification
+        cls = None
+    return CloudData(points.astype(np.float64), cls)
+
+
+def read_depth_image(path: str | Path) -> np.ndarray:
+    """Read a depth image: ``.npy`` (H, W) metres, or a 16-bit single-channel ``.png`` in
+    millimetres. Returns (H, W) float32 metres; 0, negative or NaN = no depth."""
+    p = Path(path)
+    if not p.is_file():
+        raise DataFileError(f"{p}: no such file")
+    ext = p.suffix.lower()
+    if ext == ".npy":
+        depth = _load_npy(p)
+        if depth.ndim == 3 and depth.shape[2] == 1:
+            depth = depth[:, :, 0]
+        if depth.ndim != 2:
+            raise DataFileError(f"{p}: expected an (H, W) depth array, got shape {depth.shape}")
+        return depth.astype(np.float32)
+    if ext == ".png":
+        img = cv2.imread(str(p), cv2.IMREAD_UNCHANGED)
+        if img is None:
+            raise DataFileError(f"{p}: not a readable PNG image")
+        if img.dtype != np.uint16 or img.ndim != 2:
+            raise DataFileError(
+                f"{p}: expected a 16-bit single-channel PNG (millimetres), got "
+                f"{img.dtype} with shape {img.shape}"
+            )
+        return img.astype(np.float32) / 1000.0
+    raise DataFileError(f"{p}: unknown depth-image extension {ext!r} (use .npy or .png)")
+
+
+def write_ply(path: str | Path, points: np.ndarray, binary: bool = True) -> None:
+    """Write an (N, 3) cloud as a PLY file (float64 x, y, z), ascii or binary little endian."""
+    pts = np.asarray(points, dtype=np.float64)
+    fmt = "binary_little_endian" if binary else "ascii"
+    header = (
+        f"ply\nformat {fmt} 1.0\nelement vertex {len(pts)}\n"
+        "property double x\nproperty double y\nproperty double z\nend_header\n"
+    )
+    with open(path, "wb") as f:
+        f.write(header.encode("ascii"))
+        if binary:
+            f.write(pts.astype("<f8").tobytes())
+        else:
+            np.savetxt(f, pts, fmt="%.17g")  # exact round trip
+
+
+__all__ = [
+    "LAS_CLASSES",
+    "CloudData",
+    "DataFileError",
+    "class_name",
+    "read_depth_image",
+    "read_las",
+    "read_ply",
+    "read_point_cloud",
+    "write_ply",
+]

@@ -1,0 +1,196 @@
+"""``lander detect`` on recorded clouds and depth images, and its one-line errors."""
+
+from __future__ import annotations
+
+import csv
+
+import cv2
+import numpy as np
+import pytest
+
+import autonomy.cli as cli
+from lsd.io import read_ply, write_ply
+
+
+@pytest.fixture(autouse=True)
+def only_detect(monkeypatch):
+    # Isolate from other subcommands: the real main() with just this one registered.
+    monkeypatch.setattr(cli, "COMMAND_MODULES", ("autonomy.cli.detect",))
+
+
+def lander(*argv):
+    return cli.main(["detect", *map(str, argv)])
+
+
+def box_cloud(seed=0):
+    """20 m square at z=0 with a 3 x 3 x 2 m box at (3, 0), 0.1 m spacing, 1 cm noise."""
+    rng = np.random.default_rng(seed)
+    g = np.mgrid[-10:10:0.1, -10:10:0.1].reshape(2, -1).T
+    inside = (np.abs(g[:, 0] - 3) < 1.5) & (np.abs(g[:, 1]) < 1.5)
+    z = np.where(inside, 2.0, 0.0) + rng.normal(0, 0.01, len(g))
+    return np.c_[g, z], inside
+
+
+def read_sites(out):
+    with open(out / "sites.csv") as f:
+        return list(csv.DictReader(f))
+
+
+def assert_png(path):
+    assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def box_distance(rows):
+    xy = np.array([[float(r["x"]), float(r["y"])] for r in rows])
+    dx = np.maximum(np.abs(xy[:, 0] - 3) - 1.5, 0)
+    dy = np.maximum(np.abs(xy[:, 1]) - 1.5, 0)
+    return np.hypot(dx, dy)
+
+
+def test_npy_cloud_prints_sites_and_writes_csv_and_overlay(tmp_path, capsys):
+    cloud, _ = box_cloud()
+    np.save(tmp_path / "cloud.npy", cloud)
+    out = tmp_path / "out"
+    assert lander("--lidar", tmp_path / "cloud.npy", "--voxel", 0.1, "--seeding", "grid",
+                  "--out", out) == 0
+    text = capsys.readouterr().out
+    assert "40000 points" in text and "sites.csv" in text
+    rows = read_sites(out)
+    assert len(rows) >= 10
+    assert int(rows[0]["rank"]) == 1
+    scores = [float(r["score"]) for r in rows]
+    assert scores == sorted(scores, reverse=True)
+    assert box_distance(rows).min() >= 1.0 - 0.1  # r_min clear of the box
+    assert_png(out / "overlay.png")
+
+
+@pytest.mark.parametrize("binary", [True, False])
+def test_ply_cloud_gives_the_same_sites_as_npy(tmp_path, binary):
+    cloud, _ = box_cloud()
+    np.save(tmp_path / "cloud.npy", cloud)
+    write_ply(tmp_path / "cloud.ply", cloud, binary=binary)
+    np.testing.assert_allclose(read_ply(tmp_path / "cloud.ply").points, cloud, atol=1e-6)
+    args = ("--voxel", 0.2, "--seeding", "random", "--n-points", 30, "--seed", 4)
+    assert lander("--lidar", tmp_path / "cloud.npy", "--out", tmp_path / "a", *args) == 0
+    assert lander("--lidar", tmp_path / "cloud.ply", "--out", tmp_path / "b", *args) == 0
+    a, b = read_sites(tmp_path / "a"), read_sites(tmp_path / "b")
+    assert a and [(r["x"], r["y"]) for r in a] == [(r["x"], r["y"]) for r in b]
+
+
+def test_ply_classification_is_reported_beside_each_site(tmp_path, capsys):
+    cloud, inside = box_cloud()
+    cls = np.where(inside, 6, 2)  # building on ground
+    header = (
+        f"ply\nformat ascii 1.0\ncomment made by a test\nelement vertex {len(cloud)}\n"
+        "property float x\nproperty float y\nproperty float z\nproperty uchar classification\n"
+        "end_header\n"
+    )
+    with open(tmp_path / "c.ply", "w") as f:
+        f.write(header)
+        np.savetxt(f, np.c_[cloud, cls], fmt=["%.4f", "%.4f", "%.4f", "%d"])
+    assert lander("--lidar", tmp_path / "c.ply", "--voxel", 0.2, "--seeding", "grid",
+                  "--out", tmp_path / "o") == 0
+    rows = read_sites(tmp_path / "o")
+    assert rows and all(r["class"].startswith("ground") for r in rows)
+    assert "ground" in capsys.readouterr().out
+
+
+def test_nan_rows_are_dropped_and_counted(tmp_path, capsys):
+    cloud, _ = box_cloud()
+    cloud[::100] = np.nan
+    np.save(tmp_path / "c.npy", cloud)
+    assert lander("--lidar", tmp_path / "c.npy", "--voxel", 0.2, "--out", tmp_path / "o") == 0
+    assert f"({len(cloud[::100])} with NaN/inf dropped)" in capsys.readouterr().out
+
+
+def nadir_depth():
+    """640 x 480 depth from 20 m straight down at flat ground with a 2 m box."""
+    depth = np.full((480, 640), 20.0, dtype=np.float32)
+    depth[200:260, 300:380] = 18.0
+    return depth
+
+
+INTRINSICS = ("--fx", 320, "--fy", 320, "--cx", 319.5, "--cy", 239.5)
+
+
+def test_depth_npy_and_16bit_png_give_the_same_sites(tmp_path, capsys):
+    depth = nadir_depth()
+    np.save(tmp_path / "d.npy", depth)
+    assert cv2.imwrite(str(tmp_path / "d.png"), np.round(depth * 1000).astype(np.uint16))
+    pose = ("--pose", "10,5,20,0")
+    assert lander("--depth", tmp_path / "d.npy", *INTRINSICS, *pose, "--out", tmp_path / "a") == 0
+    assert lander("--depth", tmp_path / "d.png", *INTRINSICS, *pose, "--out", tmp_path / "b") == 0
+    a, b = read_sites(tmp_path / "a"), read_sites(tmp_path / "b")
+    assert a and a == b
+    for r in a:  # ground is at z = 0 under a camera at 20 m
+        assert float(r["z"]) == pytest.approx(0.0, abs=1e-3)
+    assert_png(tmp_path / "a" / "overlay.png")
+    assert "640x480 depth image" in capsys.readouterr().out
+
+
+def test_depth_pose_as_4x4_matrix(tmp_path):
+    depth = nadir_depth()
+    np.save(tmp_path / "d.npy", depth)
+    m = np.eye(4)
+    m[:3, :3] = [[1, 0, 0], [0, -1, 0], [0, 0, -1]]
+    m[:3, 3] = [10, 5, 20]
+    np.save(tmp_path / "pose.npy", m)
+    assert lander("--depth", tmp_path / "d.npy", *INTRINSICS, "--pose", "10,5,20,0",
+                  "--out", tmp_path / "a") == 0
+    assert lander("--depth", tmp_path / "d.npy", *INTRINSICS, "--pose", tmp_path / "pose.npy",
+                  "--out", tmp_path / "b") == 0
+    assert read_sites(tmp_path / "a") == read_sites(tmp_path / "b")
+
+
+def make_bad(tmp_path):
+    """Name -> (argv, expected words in the one error line)."""
+    (tmp_path / "text.ply").write_text("hello, not a cloud\n")
+    (tmp_path / "text.npy").write_text("not numpy either\n")
+    (tmp_path / "trunc.ply").write_bytes(
+        b"ply\nformat binary_little_endian 1.0\nelement vertex 100\nproperty float x\n"
+        b"property float y\nproperty float z\nend_header\n" + b"\0" * 40
+    )
+    np.save(tmp_path / "flat.npy", np.arange(10.0))
+    np.save(tmp_path / "empty.npy", np.empty((0, 3)))
+    np.save(tmp_path / "tiny.npy", np.zeros((4, 3)))
+    np.save(tmp_path / "nan.npy", np.full((500, 3), np.nan))
+    np.save(tmp_path / "zeros.npy", np.zeros((48, 64), dtype=np.float32))
+    np.save(tmp_path / "depth.npy", nadir_depth())
+    cv2.imwrite(str(tmp_path / "eight.png"), np.zeros((48, 64), dtype=np.uint8))
+    (tmp_path / "fake.png").write_text("not an image")
+    depth = tmp_path / "depth.npy"
+    return {
+        "ply magic": (["--lidar", tmp_path / "text.ply"], "not a PLY file"),
+        "npy text": (["--lidar", tmp_path / "text.npy"], "not a NumPy"),
+        "ply truncated": (["--lidar", tmp_path / "trunc.ply"], "truncated"),
+        "npy shape": (["--lidar", tmp_path / "flat.npy"], "(N, 3)"),
+        "empty": (["--lidar", tmp_path / "empty.npy"], "only 0 valid points"),
+        "tiny": (["--lidar", tmp_path / "tiny.npy"], "only 4 valid points"),
+        "all nan": (["--lidar", tmp_path / "nan.npy"], "500 with NaN/inf dropped"),
+        "missing": (["--lidar", tmp_path / "nope.npy"], "no such file"),
+        "extension": (["--lidar", tmp_path / "zeros.txt"], "no such file"),
+        "las": (["--lidar", tmp_path / "x.las"], "x.las"),
+        "zero depth": (["--depth", tmp_path / "zeros.npy", *INTRINSICS], "no valid depth"),
+        "8-bit png": (["--depth", tmp_path / "eight.png", *INTRINSICS], "16-bit"),
+        "fake png": (["--depth", tmp_path / "fake.png", *INTRINSICS], "not a readable PNG"),
+        "fx zero": (["--depth", depth, "--fx", 0, "--fy", 1, "--cx", 1, "--cy", 1], "--fx"),
+        "fy negative": (["--depth", depth, "--fx", 1, "--fy", -3, "--cx", 1, "--cy", 1],
+                        "--fy"),
+        "no intrinsics": (["--depth", depth], "--fx: required"),
+        "bad pose": (["--depth", depth, *INTRINSICS, "--pose", "1,2"], "--pose"),
+        "both": (["--depth", depth, "--lidar", tmp_path / "empty.npy"], "exactly one"),
+        "neither": ([], "exactly one"),
+        "bad voxel": (["--lidar", tmp_path / "tiny.npy", "--voxel", -1], "--voxel"),
+    }
+
+
+def test_bad_inputs_exit_2_with_one_line(tmp_path, capsys):
+    for name, (argv, words) in make_bad(tmp_path).items():
+        code = lander(*argv, "--out", tmp_path / "o")
+        captured = capsys.readouterr()
+        lines = captured.err.strip().splitlines()
+        assert code == 2, name
+        assert len(lines) == 1, (name, captured.err)
+        assert lines[0].startswith("lander detect: error:"), name
+        assert words in lines[0], (name, lines[0])
+        assert "Traceback" not in captured.err
