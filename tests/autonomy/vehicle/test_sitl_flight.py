@@ -4,7 +4,6 @@
 from __future__ import annotations
 
 import math
-import socket
 
 import numpy as np
 import pytest
@@ -18,6 +17,7 @@ from autonomy.vehicle.tlog import SIM_EPOCH
 from behaviors.ports import CommandStatus, LandedState
 from sitl import Sitl
 from sitl.link import MemoryLink
+from sitl.transports import TcpServer, UdpEndpoint
 
 DT = 0.05
 
@@ -173,43 +173,21 @@ def test_corrupt_bytes_on_the_link_are_survived():
         vehicle.close()
 
 
-class UdpEndpoint:
-    """The simulator's side of a UDP link on 127.0.0.1 (an ephemeral port)."""
-
-    def __init__(self) -> None:
-        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        self.sock.bind(("127.0.0.1", 0))
-        self.sock.setblocking(False)
-        self.port = self.sock.getsockname()[1]
-        self.peer = None
-
-    def read(self) -> bytes:
-        chunks = []
-        while True:
-            try:
-                data, self.peer = self.sock.recvfrom(65536)
-            except BlockingIOError:
-                return b"".join(chunks)
-            chunks.append(data)
-
-    def write(self, data: bytes) -> None:
-        if self.peer is not None:
-            self.sock.sendto(data, self.peer)
-
-    def close(self) -> None:
-        self.sock.close()
-
-
-def test_flight_over_udp_with_a_telemetry_log(tmp_path):
+@pytest.mark.parametrize("scheme", ["udpout", "tcp"])
+def test_flight_over_a_socket_with_a_telemetry_log(tmp_path, scheme):
     clock = SimClock()
     sitl = Sitl(autopilot="ardupilot")
-    endpoint = UdpEndpoint()
-    sitl.attach(endpoint)
+    server = UdpEndpoint() if scheme == "udpout" else TcpServer()
+    host, port = server.address
     tlog = tmp_path / "flight.tlog"
-    vehicle = connect(f"udpout:127.0.0.1:{endpoint.port}", clock, tlog_path=tlog)
+    vehicle = connect(f"{scheme}:{host}:{port}", clock, tlog_path=tlog)
     flight = Lockstep(vehicle, sitl, clock)
+    if scheme == "udpout":
+        sitl.attach(server)
+    else:
+        flight.on_tick = lambda: [sitl.attach(c) for c in server.accept()]
     try:
-        flight.until(lambda s: s.prearm_ok, 30, "prearm checks over UDP")
+        flight.until(lambda s: s.prearm_ok, 30, f"prearm checks over {scheme}")
         flight.done(vehicle.takeoff(5.0))
         flight.until(lambda s: s.position[2] > 4.6, 30, "climb")
         flight.done(vehicle.land())
@@ -217,7 +195,7 @@ def test_flight_over_udp_with_a_telemetry_log(tmp_path):
     finally:
         vehicle.close()
         sitl.close()
-        endpoint.close()
+        server.close()
 
     log = mavutil.mavlink_connection(str(tlog))
     seen, stamps = set(), []
