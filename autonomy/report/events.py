@@ -47,13 +47,16 @@ class EventLog:
     def __init__(self, now: Callable[[], float], path: Path | None = None) -> None:
         self._now = now
         self.events: list[dict[str, Any]] = []
-        self._file: IO[str] | None = path.open("w", encoding="utf-8") if path else None
+        self._path = path
+        self._file: IO[str] | None = None  # opened at the first event: no empty files
 
     def add(self, kind: str, **fields: Any) -> dict[str, Any]:
         """Record one event of ``kind`` now; returns it."""
         event = _clean({"t": self._now(), "kind": kind, **fields})
         self.events.append(event)
-        if self._file is not None:
+        if self._path is not None:
+            if self._file is None:
+                self._file = self._path.open("w", encoding="utf-8")
             self._file.write(json.dumps(event, separators=(",", ":")) + "\n")
         return event
 
@@ -61,6 +64,7 @@ class EventLog:
         if self._file is not None:
             self._file.close()
             self._file = None
+        self._path = None
 
 
 def read_events(path: str | Path) -> list[dict[str, Any]]:
@@ -82,6 +86,8 @@ class TreeStatusRecorder:
         self._log = log
         self._status: dict[int, py_trees.common.Status] = {}
         self._paths: dict[int, str] = {}
+        self._root: py_trees.behaviour.Behaviour | None = None
+        self._nodes: list[py_trees.behaviour.Behaviour] = []
 
     def _path(self, node: py_trees.behaviour.Behaviour) -> str:
         key = id(node)
@@ -97,7 +103,10 @@ class TreeStatusRecorder:
 
     def __call__(self, tree: py_trees.trees.BehaviourTree) -> None:
         invalid = py_trees.common.Status.INVALID
-        for node in tree.root.iterate():
+        if tree.root is not self._root:  # the tree's shape is fixed: flatten it once
+            self._root = tree.root
+            self._nodes = list(tree.root.iterate())
+        for node in self._nodes:
             old = self._status.get(id(node), invalid)
             if node.status != old:
                 self._status[id(node)] = node.status

@@ -82,6 +82,7 @@ class Flight:
         self.touchdown_speed: float | None = None
         self._airborne = False
         self._last_touchdown: Any = None
+        self._truth: Any = None  # ground truth of this tick
         self._reader = py_trees.blackboard.Client(name="runner")
         for key in (bb.PHASE, bb.LANDING_SITE, bb.OUTCOME_HINT, bb.FAILURE_REASON,
                     bb.VERIFICATION_ATTEMPTS, bb.SEARCH_PATTERNS):
@@ -105,9 +106,10 @@ class Flight:
         return self.status in (Status.SUCCESS, Status.FAILURE)
 
     def crashed(self) -> tuple[bool, str | None]:
+        """Whether the simulator flagged a crash, and why."""
         if self.truth is None:
             return False, None
-        truth = self.truth()
+        truth = self._truth if self._truth is not None else self.truth()
         if not getattr(truth, "crashed", False):
             return False, None
         return True, getattr(truth, "crash_reason", None) or "crash"
@@ -130,8 +132,14 @@ class Flight:
         self.ticks += 1
         self._record(now, state)
 
+    def follow(self) -> None:
+        """Poll and record without ticking the tree (the vehicle is flown by someone else,
+        e.g. landing after Ctrl-C)."""
+        self.vehicle.poll()
+        self._record(self.now(), self.vehicle.state)
+
     def _record(self, now: float, state: Any) -> None:
-        truth = self.truth() if self.truth is not None else None
+        truth = self._truth = self.truth() if self.truth is not None else None
         if truth is not None:
             xyz = tuple(float(v) for v in truth.position)
             battery = getattr(truth, "battery_percent", None)

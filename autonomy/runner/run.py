@@ -200,7 +200,7 @@ def _interrupted(flight: Flight, on_interrupt: str) -> str:
           "(Ctrl-C again to leave at once)", flush=True)
     try:
         while time.monotonic() < deadline:
-            vehicle.poll()
+            flight.follow()
             state = vehicle.state
             if on_interrupt == "hold" and handle.status.done:
                 break

@@ -78,3 +78,12 @@ def test_lander_fly_writes_the_report(tmp_path, capsys):
     assert main(["fly", str(DEMO), "--out", str(out), "--quiet"]) == 0
     assert f"landed: report {out / 'report.png'}" in capsys.readouterr().out
     assert all((out / name).exists() for name in REPORT_FILES)
+
+
+def test_demo_lands_with_the_px4_personality():
+    from autonomy.config import apply_overrides
+
+    mission = apply_overrides(load_mission(DEMO), {"vehicle.autopilot": "px4"})
+    summary = fly(mission).summary
+    assert summary["autopilot"] == "px4"
+    assert summary["outcome"] == "landed" and summary["touchdown_error"] <= 1.0

@@ -1,0 +1,100 @@
+"""`lander validate`, `lander tree`, `lander fly` (bad input) and `lander demo` from the CLI."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from autonomy.cli import main
+from autonomy.cli.demo import demo_mission_path
+
+BAD = """\
+waypoints:
+  - [0, 50, -30]
+landing:
+  verification_duration: 0
+  typo_field: 1
+seed: -4
+"""
+
+
+def test_validate_ok(capsys):
+    assert main(["validate", str(demo_mission_path())]) == 0
+    assert capsys.readouterr().out.startswith("ok: ")
+
+
+def test_validate_prints_one_line_per_problem_and_exits_2(tmp_path, capsys):
+    path = tmp_path / "bad.yaml"
+    path.write_text(BAD)
+    assert main(["validate", str(path)]) == 2
+    captured = capsys.readouterr()
+    lines = captured.err.strip().splitlines()
+    assert captured.out == ""
+    expected = [(2, "waypoints.0"), (4, "landing.verification_duration"),
+                (5, "landing.typo_field"), (6, "seed")]
+    assert len(lines) == len(expected)
+    for line, (number, field) in zip(lines, expected, strict=True):
+        assert line.startswith(f"lander validate: error: {path}:{number}: {field}: "), line
+    assert "Traceback" not in captured.err
+
+
+def test_validate_yaml_syntax_error(tmp_path, capsys):
+    path = tmp_path / "broken.yaml"
+    path.write_text("waypoints:\n  - [1, 2, 3\nseed: 1\n")
+    assert main(["validate", str(path)]) == 2
+    (line,) = capsys.readouterr().err.strip().splitlines()
+    assert f"{path}:3: YAML syntax error" in line
+
+
+def test_validate_missing_file(tmp_path, capsys):
+    assert main(["validate", str(tmp_path / "nope.yaml")]) == 2
+    (line,) = capsys.readouterr().err.strip().splitlines()
+    assert "cannot read mission file" in line
+
+
+@pytest.mark.parametrize("url", ["bogus://x", "udp:not-an-address", "tcp:127.0.0.1:99999"])
+def test_fly_bad_connection_exits_2_with_one_line(tmp_path, capsys, url):
+    out = tmp_path / "out"
+    assert main(["fly", str(demo_mission_path()), "--connect", url, "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("lander fly: error: "), err
+
+
+def test_fly_bad_mission_exits_2(tmp_path, capsys):
+    path = tmp_path / "bad.yaml"
+    path.write_text(BAD)
+    assert main(["fly", str(path), "--out", str(tmp_path / "out")]) == 2
+    assert len(capsys.readouterr().err.strip().splitlines()) == 4
+    assert not (tmp_path / "out").exists()
+
+
+def test_tree_prints_ascii_and_writes_dot(tmp_path, capsys):
+    dot = tmp_path / "mission.dot"
+    assert main(["tree", str(demo_mission_path()), "--dot", str(dot)]) == 0
+    out = capsys.readouterr().out
+    for name in ("Preflight", "Takeoff", "Waypoint 3", "LandingSiteVerification", "Land"):
+        assert name in out
+    text = dot.read_text()
+    assert text.startswith("digraph") and "LandingSiteVerification" in text
+
+
+def test_tree_unwritable_dot_exits_2(tmp_path, capsys):
+    assert main(["tree", str(demo_mission_path()), "--dot",
+                 str(tmp_path / "missing-dir" / "x.dot")]) == 2
+    assert capsys.readouterr().err.startswith("lander tree: error: --dot")
+
+
+def test_demo_mission_is_found_from_anywhere(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    path = demo_mission_path()
+    assert path.name == "demo.yaml" and Path(path).is_file()
+
+
+def test_demo_flies_and_prints_where_the_report_is(tmp_path, capsys):
+    out = tmp_path / "demo"
+    assert main(["demo", "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "outcome: landed" in text
+    assert f"report: {out / 'report.png'}" in text
+    assert (out / "report.png").exists()
