@@ -158,17 +158,21 @@ def fly(
 
 def _run_lockstep(flight: Flight, sitl: Any, clock: SimClock, mission: Mission) -> str:
     dt = 1.0 / mission.tick_rate
-    limit_ticks = math.ceil(mission.time_limit * mission.tick_rate)
-    for _ in range(limit_ticks):
+
+    def advance() -> None:
         sitl.step(dt)
         clock.advance(dt)
+
+    for _ in range(math.ceil(mission.time_limit * mission.tick_rate)):
+        advance()
         flight.tick()
-        if flight.done:
-            return "landed" if flight.status == Status.SUCCESS else "mission failed"
-        crashed, _ = flight.crashed()
-        if crashed:
+        if flight.crashed()[0]:
             return "crashed"
-    return "time limit"
+        if flight.status == Status.SUCCESS:
+            return "landed"
+        if flight.status == Status.FAILURE:
+            return _bring_down(flight, "mission failed", "land", advance)
+    return _bring_down(flight, "time limit", "land", advance)
 
 
 def _run_live(flight: Flight, lsm: LandingSiteManager, mission: Mission,
@@ -177,40 +181,56 @@ def _run_live(flight: Flight, lsm: LandingSiteManager, mission: Mission,
     lsm.start()
     start = time.monotonic()
     next_tick = start
+
+    def advance() -> None:
+        time.sleep(0.05)
+
     try:
         while True:
             flight.tick()
-            if flight.done:
-                return "landed" if flight.status == Status.SUCCESS else "mission failed"
+            if flight.status == Status.SUCCESS:
+                return "landed"
+            if flight.status == Status.FAILURE:
+                return _bring_down(flight, "mission failed", "land", advance)
             if time.monotonic() - start >= mission.time_limit:
-                return "time limit"
+                return _bring_down(flight, "time limit", "land", advance)
             next_tick += period
             time.sleep(max(0.0, next_tick - time.monotonic()))
     except KeyboardInterrupt:
-        return _interrupted(flight, on_interrupt)
+        print(f"interrupted: {'landing' if on_interrupt == 'land' else 'holding'} "
+              "(Ctrl-C again to leave at once)", flush=True)
+        try:
+            return _bring_down(flight, "interrupted", on_interrupt, advance)
+        except KeyboardInterrupt:
+            return "interrupted twice"
 
 
-def _interrupted(flight: Flight, on_interrupt: str) -> str:
-    """Ctrl-C in live mode: land (or hold) the vehicle, then give the loop back."""
-    flight.log.add("flight", event="interrupt", action=on_interrupt)
+def _bring_down(flight: Flight, reason: str, action: str, advance: Any,
+                budget: float = 180.0) -> str:
+    """The tree has stopped: land (or hold) the vehicle with a direct command and follow it
+    until it is down and disarmed (or holding), at most ``budget`` clock seconds.
+
+    Returns the stop reason, e.g. ``"mission failed (land: accepted)"``.
+    """
     vehicle = flight.vehicle
-    handle = vehicle.land() if on_interrupt == "land" else vehicle.hold()
-    deadline = time.monotonic() + (120.0 if on_interrupt == "land" else 10.0)
-    print(f"interrupted: {'landing' if on_interrupt == 'land' else 'holding'} "
-          "(Ctrl-C again to leave at once)", flush=True)
-    try:
-        while time.monotonic() < deadline:
-            flight.follow()
-            state = vehicle.state
-            if on_interrupt == "hold" and handle.status.done:
-                break
-            if (on_interrupt == "land" and not state.armed
-                    and state.landed_state == LandedState.ON_GROUND):
-                break
-            time.sleep(0.05)
-    except KeyboardInterrupt:
-        pass
-    return f"interrupted ({on_interrupt}: {handle.status.value})"
+    state = vehicle.state
+    if action == "land" and not state.armed:
+        return reason  # already down: nothing to do
+    flight.log.add("flight", event=action, reason=reason)
+    handle = vehicle.land() if action == "land" else vehicle.hold()
+    end = flight.now() + budget
+    while flight.now() < end:
+        advance()
+        flight.follow()
+        state = vehicle.state
+        if flight.crashed()[0]:
+            break
+        if action == "hold" and handle.status.done:
+            break
+        if (action == "land" and not state.armed
+                and state.landed_state in (LandedState.ON_GROUND, LandedState.UNDEFINED)):
+            break
+    return f"{reason} ({action}: {handle.status.value})"
 
 
 def _flight_data(mission: Mission, seed: int, flight: Flight, terrain: Any,

@@ -67,4 +67,4 @@ def test_ctrl_c_in_live_mode_lands_the_vehicle(served_sitl, tmp_path):
     assert truth.landed and not truth.armed and not truth.crashed
     assert summary["touchdown"] is not None  # seen from the autopilot's landed state
     kinds = [e.get("event") for e in result.events if e["kind"] == "flight"]
-    assert "interrupt" in kinds and "touchdown" in kinds
+    assert "land" in kinds and "touchdown" in kinds
