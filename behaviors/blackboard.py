@@ -64,7 +64,8 @@ VERIFICATION_ATTEMPTS = "/landing/verification_attempts"
 """int: landing-site verifications started."""
 
 SEARCH_PATTERNS = "/landing/search_patterns"
-"""int: search patterns started."""
+"""int: search patterns flown (begun; a search that finds a site already known on entry,
+or is refused at the battery reserve, flies none)."""
 
 PATTERN_CENTER = "/landing/pattern_center"
 """tuple[float, float] | None: ENU x, y (m) of the centre of the next search pattern; None

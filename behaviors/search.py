@@ -11,6 +11,7 @@ from py_trees.common import Access, Status
 
 from behaviors import blackboard as keys
 from behaviors.base import Point, RouteAction
+from behaviors.failsafe import battery_below
 from behaviors.ports import Clock, VehiclePort
 
 if TYPE_CHECKING:
@@ -62,15 +63,25 @@ def _climb_first(position: Point, altitude: float, radius: float) -> list[Point]
     return []
 
 
+def _battery_problem(vehicle: VehiclePort, reserve: float | None) -> str | None:
+    """Why searching must stop: the battery reached the reserve (searching only goes on
+    while the battery allows; the reserve is kept for landing)."""
+    if reserve is not None and battery_below(vehicle, reserve):
+        return f"battery at or below the reserve {reserve:g} %: no further search"
+    return None
+
+
 class LandingSiteSearch(RouteAction):
     """Fly a rectangle of waypoints at ``altitude`` so that the detector sees new ground.
 
     The centre is PATTERN_CENTER when ``use_pattern_center`` (set by
     :class:`GetNextPatternCenterWP`), else where the vehicle is on entry. A vehicle below
-    ``altitude`` climbs vertically first. Each entry adds one to SEARCH_PATTERNS.
+    ``altitude`` climbs vertically first. Each pattern started adds one to SEARCH_PATTERNS.
+    With ``battery_reserve`` set, no search flies (or goes on) at or below that level.
 
     * SUCCESS: the LSM holds a site (checked every tick; the rest of the pattern is dropped)
-    * FAILURE: the pattern was flown and the LSM is still empty, or a goto denied / unanswered
+    * FAILURE: the pattern was flown and the LSM is still empty, the battery reached the
+      reserve, or a goto denied / unanswered
     * RUNNING: flying the pattern
     """
 
@@ -84,6 +95,7 @@ class LandingSiteSearch(RouteAction):
         size: tuple[float, float],
         altitude: float,
         use_pattern_center: bool = False,
+        battery_reserve: float | None = None,
         acceptance_radius: float = 1.0,
         command_timeout: float = 5.0,
     ) -> None:
@@ -99,20 +111,21 @@ class LandingSiteSearch(RouteAction):
         self.size = (float(size[0]), float(size[1]))
         self.altitude = float(altitude)
         self.use_pattern_center = use_pattern_center
+        self.battery_reserve = battery_reserve
         self.blackboard.register_key(key=keys.SEARCH_PATTERNS, access=Access.WRITE)
         self.blackboard.register_key(key=keys.PATTERN_CENTER, access=Access.READ)
-
-    def initialise(self) -> None:
-        super().initialise()
-        self.blackboard.set(keys.SEARCH_PATTERNS, self.blackboard.get(keys.SEARCH_PATTERNS) + 1)
 
     def check(self, position: Point) -> Status | None:
         if len(self.lsm):
             self.feedback_message = "site found"
             return Status.SUCCESS
+        problem = _battery_problem(self.vehicle, self.battery_reserve)
+        if problem is not None:
+            return self.fail(problem)
         return None
 
     def plan_route(self, position: Point) -> list[Point] | str:
+        self.blackboard.set(keys.SEARCH_PATTERNS, self.blackboard.get(keys.SEARCH_PATTERNS) + 1)
         center = self.blackboard.get(keys.PATTERN_CENTER) if self.use_pattern_center else None
         if center is None:
             center = (position[0], position[1])
@@ -127,10 +140,12 @@ class GetNextPatternCenterWP(RouteAction):
     """Draw a new search-pattern centre uniformly within ``radius`` of ``anchor`` (the last
     mission waypoint) with the seeded generator, write it to PATTERN_CENTER, fly there at
     ``altitude`` (climbing vertically first when below it). Meant to run under py_trees'
-    ``Retry`` with :class:`LandingSiteSearch`: every entry draws a new centre.
+    ``Retry`` with :class:`LandingSiteSearch`: every entry draws a new centre. With
+    ``battery_reserve`` set, it does not start (or go on) at or below that level, which ends
+    the retries "while the battery allows" (thesis 3.3.1).
 
     * SUCCESS: at the new centre
-    * FAILURE: a goto denied or unanswered
+    * FAILURE: the battery reached the reserve, or a goto denied or unanswered
     * RUNNING: flying
     """
 
@@ -144,6 +159,7 @@ class GetNextPatternCenterWP(RouteAction):
         anchor: tuple[float, float],
         radius: float,
         altitude: float,
+        battery_reserve: float | None = None,
         acceptance_radius: float = 1.0,
         command_timeout: float = 5.0,
     ) -> None:
@@ -159,6 +175,7 @@ class GetNextPatternCenterWP(RouteAction):
         self.anchor = (float(anchor[0]), float(anchor[1]))
         self.radius = float(radius)
         self.altitude = float(altitude)
+        self.battery_reserve = battery_reserve
         self.center: tuple[float, float] | None = None
         self.blackboard.register_key(key=keys.PATTERN_CENTER, access=Access.WRITE)
 
@@ -166,6 +183,10 @@ class GetNextPatternCenterWP(RouteAction):
         super().initialise()
         self.center = random_point_in_disc(self.rng, self.anchor, self.radius)
         self.blackboard.set(keys.PATTERN_CENTER, self.center)
+
+    def check(self, position: Point) -> Status | None:
+        problem = _battery_problem(self.vehicle, self.battery_reserve)
+        return None if problem is None else self.fail(problem)
 
     def plan_route(self, position: Point) -> list[Point] | str:
         assert self.center is not None

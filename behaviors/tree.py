@@ -18,6 +18,7 @@
              │   ├─ Ensure sites = Selector[CheckLandingSite, LandingSiteSearch,
              │   │                          Retry(M) ─ Sequence[GetNextPatternCenterWP,
              │   │                                              LandingSiteSearch]]
+             │   │                 [searching stops at the battery reserve]
              │   ├─ GetLandingSite
              │   ├─ NavigateToSite             [clear altitude, over the site]
              │   ├─ ChangeAltitudeLS           [verification altitude above the site]
@@ -144,6 +145,7 @@ def build_mission_tree(
                 size=s.search_rectangle,
                 altitude=plan.cruise_altitude,
                 use_pattern_center=use_pattern_center,
+                battery_reserve=s.battery_reserve,
                 acceptance_radius=radius,
                 command_timeout=cmd,
             ),
@@ -167,6 +169,7 @@ def build_mission_tree(
                         anchor=(last_x, last_y),
                         radius=s.pattern_center_radius,
                         altitude=plan.cruise_altitude,
+                        battery_reserve=s.battery_reserve,
                         acceptance_radius=radius,
                         command_timeout=cmd,
                     ),

@@ -171,8 +171,11 @@ def test_empty_search_moves_to_a_new_pattern_centre_and_finds_a_site_there():
     flight = m.fly()
 
     assert_landed_at(m, flight, site)
-    assert m.read(keys.SEARCH_PATTERNS) == 2
+    # One empty pattern; the site was seen on arriving at the new centre, so the second
+    # pattern had nothing left to do.
+    assert m.read(keys.SEARCH_PATTERNS) == 1
     assert m.read(keys.PATTERN_CENTER) == pytest.approx(center)
+    assert m.vehicle.gotos().count((*center, m.plan.cruise_altitude)) == 1
 
 
 def test_every_landing_retry_exhausted_lands_in_place_with_no_site_hint():
@@ -330,3 +333,35 @@ def test_gps_dropout_is_ridden_out_but_a_lasting_loss_lands_in_place():
     travelled = m.vehicle.position[0] - lost_at[0][0]
     assert travelled >= m.vehicle.speed * (5.0 - 0.2)
     assert travelled <= m.vehicle.speed * (5.0 + 0.2)
+
+
+def test_at_the_battery_reserve_no_search_flies_and_it_lands_in_place():
+    waypoints = [(0, 0, 100), (100, 0, 100), (200, 0, 100)]
+    m = make_mission(waypoints, [], landing={"landing_retries": 3, "pattern_retries": 2})
+
+    def drain(_tick):
+        if m.vehicle.position[0] >= 50.0:
+            m.vehicle.battery = 25.0
+
+    flight = m.fly(on_tick=drain)
+
+    assert flight.status == Status.SUCCESS
+    assert m.read(keys.SEARCH_PATTERNS) == 0
+    assert m.read(keys.OUTCOME_HINT) == "no_site"
+    assert m.read(keys.PHASE) == "done"
+    assert max(p[0] for p in flight.track) < 100.0
+    assert [name for name, _ in m.vehicle.commands][-1] == "land"
+
+
+def test_searching_stops_when_the_battery_reaches_the_reserve_mid_pattern():
+    m = make_mission([(0, 0, 60), (50, 0, 60)], [], landing={"pattern_retries": 5})
+
+    def drain(_tick):
+        if m.read(keys.SEARCH_PATTERNS) >= 2:
+            m.vehicle.battery = 29.0
+
+    flight = m.fly(on_tick=drain)
+
+    assert flight.status == Status.SUCCESS
+    assert m.read(keys.SEARCH_PATTERNS) == 2
+    assert m.read(keys.OUTCOME_HINT) == "no_site"
