@@ -1,0 +1,253 @@
+"""Downward pinhole depth camera rendered from the terrain, with the thesis' depth error
+model (eq. 3.2) and the structure-from-motion / stereo source switch."""
+
+from __future__ import annotations
+
+from collections import Counter, deque
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from sitl.sensors.rangefinder import RangeFinder
+from sitl.sensors.raycast import BlockMax, cast_rays
+from sitl.sensors.settings import DepthCameraSettings
+from sitl.terrain import Terrain
+
+STEREO = "stereo"
+SFM = "sfm"
+
+
+@dataclass(frozen=True)
+class RenderedDepth:
+    """One depth image as the simulator renders it (converted to ``lsd.frames.DepthFrame``
+    by the composition root).
+
+    Attributes:
+        depth: (height, width) float32, metres along the optical axis; NaN = no depth.
+        sigma: (height, width) float32, 1-sigma depth error (m) of each pixel (eq. 3.2);
+            NaN where there is no depth.
+        fx, fy, cx, cy: pinhole intrinsics (px); pixel (u, v) = (column, row).
+        width, height: image size (px).
+        position: (3,) camera centre, ENU metres.
+        rotation: (3, 3) rotation camera frame (x right, y down, z optical axis) -> ENU.
+        timestamp: clock seconds of the pose.
+        source: ``"sfm"`` or ``"stereo"``.
+        baseline: the baseline b (m) the error model used.
+    """
+
+    depth: np.ndarray
+    sigma: np.ndarray
+    fx: float
+    fy: float
+    cx: float
+    cy: float
+    width: int
+    height: int
+    position: np.ndarray
+    rotation: np.ndarray
+    timestamp: float
+    source: str
+    baseline: float = 0.0
+
+
+def nadir_rotation(yaw: float) -> np.ndarray:
+    """Rotation camera -> ENU of a camera looking straight down from a vehicle with heading
+    ``yaw`` (rad, ENU, counter-clockwise from east): image right = vehicle right, image up
+    = vehicle forward, optical axis = down. Returns (3, 3)."""
+    c, s = np.cos(yaw), np.sin(yaw)
+    forward = np.array([c, s, 0.0])
+    right = np.array([s, -c, 0.0])
+    return np.column_stack((right, -forward, np.array([0.0, 0.0, -1.0])))
+
+
+def depth_sigma(depth: np.ndarray, focal_px: float, baseline: float, disparity_sigma: float):
+    """Thesis eq. 3.2: sigma_z = z^2 / (f b) * sigma_d (same shape as ``depth``)."""
+    return np.square(depth) / (focal_px * baseline) * disparity_sigma
+
+
+class DepthSourceSelector:
+    """Chooses the depth source from the range finder's AGL, with hysteresis: stereo
+    below ``stereo_below``, SfM above ``sfm_above``, unchanged in between. No AGL (beyond
+    the range finder's range) counts as high. The first reading picks stereo unless it is
+    above ``sfm_above``."""
+
+    def __init__(self, stereo_below: float, sfm_above: float) -> None:
+        self.stereo_below = stereo_below
+        self.sfm_above = sfm_above
+        self.source: str | None = None
+
+    def update(self, agl: float | None) -> bool:
+        """Feed one AGL reading (m or None); returns True when the source changed."""
+        high = agl is None or agl > self.sfm_above
+        if self.source is None:
+            new = SFM if high else STEREO
+        elif self.source == STEREO and high:
+            new = SFM
+        elif self.source == SFM and agl is not None and agl < self.stereo_below:
+            new = STEREO
+        else:
+            new = self.source
+        changed = new != self.source
+        self.source = new
+        return changed
+
+
+class DepthCamera:
+    """Nadir depth camera over a terrain.
+
+    Call :meth:`render` with the vehicle pose at the perception rate (and optionally
+    :meth:`observe_pose` more often, so the SfM baseline sees the motion in between). It
+    returns a :class:`RenderedDepth` or None when there is no depth (bad pose, camera under
+    ground, SfM without enough lateral motion); the reasons are counted in
+    :attr:`skipped` and reported as events, never raised.
+
+    Args:
+        terrain: the world.
+        settings: camera and error model.
+        rangefinder: the AGL source for the stereo/SfM switch (default: a
+            :class:`RangeFinder` sharing ``rng``).
+        rng: noise source; default: seeded with 0.
+    """
+
+    def __init__(
+        self,
+        terrain: Terrain,
+        settings: DepthCameraSettings | None = None,
+        rangefinder: RangeFinder | None = None,
+        rng: np.random.Generator | None = None,
+    ) -> None:
+        self.terrain = terrain
+        self.settings = s = settings or DepthCameraSettings()
+        self.rng = rng if rng is not None else np.random.default_rng(0)
+        self.rangefinder = rangefinder or RangeFinder(terrain, rng=self.rng)
+        self.selector = DepthSourceSelector(s.stereo_below, s.sfm_above)
+        self.skipped: Counter[str] = Counter()
+        self._events: list[dict[str, Any]] = []
+        self._history: deque[tuple[float, float, float]] = deque()
+        self._last_skip: str | None = None
+        self._block_max: BlockMax | None = None
+        self.fx = self.fy = float(s.focal_px)
+        self.cx = (s.width - 1) / 2.0
+        self.cy = (s.height - 1) / 2.0
+        v, u = np.mgrid[0 : s.height, 0 : s.width]
+        # Ray directions in the camera frame with unit z: the ray parameter is the depth.
+        self._rays_cam = np.stack(
+            ((u.ravel() - self.cx) / self.fx, (v.ravel() - self.cy) / self.fy, np.ones(u.size)),
+            axis=1,
+        )
+
+    @property
+    def source(self) -> str | None:
+        """Current depth source ("stereo", "sfm"), None before the first frame."""
+        return self.selector.source
+
+    def drain_events(self) -> list[dict[str, Any]]:
+        """Events since the last call: ``{"event": "depth_source", "source", "agl"}`` on
+        each switch, ``{"event": "depth_skipped", "reason", ...}`` when frames start being
+        skipped for a reason."""
+        events, self._events = self._events, []
+        return events
+
+    def observe_pose(self, position, yaw: float, timestamp: float) -> None:
+        """Record a pose for the SfM baseline (non-finite poses are ignored)."""
+        p = np.asarray(position, dtype=np.float64).reshape(-1)
+        if p.size != 3 or not (np.all(np.isfinite(p)) and np.isfinite(timestamp)):
+            return
+        if self._history and timestamp < self._history[-1][0]:
+            self._history.clear()  # time went backwards (a new run): start over
+        self._history.append((float(timestamp), float(p[0]), float(p[1])))
+        while self._history and self._history[0][0] < timestamp - self.settings.sfm_window:
+            self._history.popleft()
+
+    def sfm_baseline(self) -> float:
+        """Lateral distance (m) between the newest pose and the oldest within the window,
+        capped at ``sfm_max_baseline``."""
+        if len(self._history) < 2:
+            return 0.0
+        _, x0, y0 = self._history[0]
+        _, x1, y1 = self._history[-1]
+        return min(float(np.hypot(x1 - x0, y1 - y0)), self.settings.sfm_max_baseline)
+
+    def render(
+        self, position, yaw: float, timestamp: float, agl: float | None = None
+    ) -> RenderedDepth | None:
+        """Render the depth image seen from ``position`` (3,) ENU m with heading ``yaw``.
+
+        Args:
+            position: camera centre, ENU metres.
+            yaw: heading, rad ENU.
+            timestamp: clock seconds.
+            agl: the range finder's reading if the caller has one (e.g. from the
+                autopilot's DISTANCE_SENSOR); default: measured by :attr:`rangefinder`.
+
+        Returns:
+            the frame, or None (see :attr:`skipped` and :meth:`drain_events`).
+        """
+        s = self.settings
+        p = np.asarray(position, dtype=np.float64).reshape(-1)
+        if p.size != 3 or not (
+            np.all(np.isfinite(p)) and np.isfinite(yaw) and np.isfinite(timestamp)
+        ):
+            return self._skip("invalid_pose")
+        self.observe_pose(p, yaw, timestamp)
+        if agl is None or not np.isfinite(agl):
+            agl = self.rangefinder.measure(p, yaw)
+        if self.selector.update(agl):
+            self._events.append(
+                {
+                    "event": "depth_source",
+                    "source": self.selector.source,
+                    "agl": None if agl is None else round(float(agl), 2),
+                }
+            )
+        if self.rangefinder.true_agl(p) <= 0:
+            return self._skip("camera_below_ground")
+        if self.selector.source == SFM:
+            baseline = self.sfm_baseline()
+            if baseline < s.sfm_min_baseline:
+                return self._skip("sfm_baseline", baseline=round(baseline, 2))
+            max_range = s.max_depth
+        else:
+            baseline = s.stereo_baseline
+            max_range = min(s.stereo_max_range, s.max_depth)
+        rotation = nadir_rotation(yaw)
+        if self._block_max is None:
+            self._block_max = BlockMax(self.terrain)
+        depth = cast_rays(
+            self.terrain,
+            p,
+            self._rays_cam @ rotation.T,
+            t_max=max_range,
+            step=s.march_step,
+            block_max=self._block_max,
+        )
+        sigma = depth_sigma(depth, s.focal_px, baseline, s.disparity_sigma_px)
+        if s.noise:
+            depth = depth + sigma * self.rng.standard_normal(depth.shape)
+            depth[depth <= 0] = np.nan
+        self._last_skip = None
+        shape = (s.height, s.width)
+        return RenderedDepth(
+            depth=depth.reshape(shape).astype(np.float32),
+            sigma=sigma.reshape(shape).astype(np.float32),
+            fx=self.fx,
+            fy=self.fy,
+            cx=self.cx,
+            cy=self.cy,
+            width=s.width,
+            height=s.height,
+            position=p.copy(),
+            rotation=rotation,
+            timestamp=float(timestamp),
+            source=self.selector.source or "",
+            baseline=float(baseline),
+        )
+
+    def _skip(self, reason: str, **details: Any) -> None:
+        self.skipped[reason] += 1
+        # One event when skipping starts (or its reason changes), not one per frame.
+        if reason != self._last_skip:
+            self._events.append({"event": "depth_skipped", "reason": reason, **details})
+        self._last_skip = reason
+        return None

@@ -1,0 +1,47 @@
+"""Downward laser range finder over the terrain."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from sitl.sensors.settings import RangeFinderSettings
+from sitl.terrain import Terrain
+
+
+class RangeFinder:
+    """Measures the distance to the ground along the body -z axis (straight down: the pose
+    carries no tilt), with Gaussian noise, within [min_range, max_range].
+
+    Args:
+        terrain: the world.
+        settings: range limits and noise.
+        rng: noise source (``numpy.random.Generator``); default: seeded with 0.
+    """
+
+    def __init__(
+        self,
+        terrain: Terrain,
+        settings: RangeFinderSettings | None = None,
+        rng: np.random.Generator | None = None,
+    ) -> None:
+        self.terrain = terrain
+        self.settings = settings or RangeFinderSettings()
+        self.rng = rng if rng is not None else np.random.default_rng(0)
+
+    def true_agl(self, position) -> float:
+        """Noise-free height above the ground below ``position`` (ENU m), any sign."""
+        x, y, z = (float(v) for v in position)
+        return z - float(self.terrain.height(x, y))
+
+    def measure(self, position, yaw: float = 0.0) -> float | None:
+        """Measured AGL (m) at ``position`` (3,) ENU, or None when there is no valid
+        return: beyond ``max_range``, below ``min_range``, or a non-finite pose."""
+        p = np.asarray(position, dtype=np.float64).reshape(-1)
+        if p.size != 3 or not np.all(np.isfinite(p)) or not np.isfinite(yaw):
+            return None
+        agl = self.true_agl(p)
+        if self.settings.noise_std > 0:
+            agl += self.settings.noise_std * float(self.rng.standard_normal())
+        if not (self.settings.min_range <= agl <= self.settings.max_range):
+            return None
+        return agl

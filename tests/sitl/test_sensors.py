@@ -1,0 +1,247 @@
+"""Simulated depth camera and range finder over constructed terrains."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from pydantic import ValidationError
+
+from sitl.sensors import (
+    DepthCamera,
+    DepthCameraSettings,
+    RangeFinder,
+    RangeFinderSettings,
+    depth_sigma,
+    nadir_rotation,
+)
+from sitl.terrain import Terrain, make_terrain
+
+CELL = 0.2
+AXIS = np.arange(-160.0, 160.0 + CELL / 2, CELL)
+X, Y = np.meshgrid(AXIS, AXIS)
+EXACT_RANGE = RangeFinderSettings(noise_std=0.0, max_range=200.0)
+
+
+def terrain_of(heights: np.ndarray) -> Terrain:
+    return Terrain(heights, CELL, origin=(AXIS[0], AXIS[0]))
+
+
+def camera(terrain: Terrain, seed: int = 0, **settings) -> DepthCamera:
+    rng = np.random.default_rng(seed)
+    return DepthCamera(
+        terrain,
+        DepthCameraSettings(**settings),
+        rangefinder=RangeFinder(terrain, EXACT_RANGE, rng=rng),
+        rng=rng,
+    )
+
+
+def analytic_plane_depth(frame, a: float, b: float, c: float) -> np.ndarray:
+    """Depth along the optical axis of the plane z = a x + b y + c for every pixel."""
+    v, u = np.mgrid[0 : frame.height, 0 : frame.width]
+    rays = (
+        np.stack(((u - frame.cx) / frame.fx, (v - frame.cy) / frame.fy, np.ones(u.shape)), axis=-1)
+        @ np.asarray(frame.rotation).T
+    )
+    px, py, pz = frame.position
+    return (a * px + b * py + c - pz) / (rays[..., 2] - a * rays[..., 0] - b * rays[..., 1])
+
+
+def fly_sideways(cam: DepthCamera, start, distance: float, yaw: float = 0.0, duration=1.0):
+    """Feed poses moving ``distance`` metres east over ``duration`` seconds; returns the
+    end position and time."""
+    start = np.asarray(start, dtype=float)
+    for k in range(11):
+        cam.observe_pose(start + [distance * k / 10, 0.0, 0.0], yaw, duration * k / 10)
+    return start + [distance, 0.0, 0.0], duration
+
+
+def test_nadir_rotation_looks_down_with_image_up_forward():
+    rot = nadir_rotation(np.pi / 2)  # heading north
+    np.testing.assert_allclose(rot @ [0, 0, 1], [0, 0, -1], atol=1e-12)  # optical axis down
+    np.testing.assert_allclose(rot @ [0, -1, 0], [0, 1, 0], atol=1e-12)  # image up = north
+    np.testing.assert_allclose(rot @ [1, 0, 0], [1, 0, 0], atol=1e-12)  # right = east
+    np.testing.assert_allclose(rot.T @ rot, np.eye(3), atol=1e-12)
+    assert np.linalg.det(rot) == pytest.approx(1.0)
+
+
+@pytest.mark.parametrize("altitude, yaw", [(12.0, 0.4), (100.0, -2.0)])
+def test_depth_over_a_tilted_plane_matches_the_analytic_depth(altitude, yaw):
+    a, b, c = 0.15, -0.25, 3.0
+    cam = camera(terrain_of(a * X + b * Y + c), noise=False)
+    start = [-20.0, 10.0, altitude + a * -20.0 + b * 10.0 + c]
+    end, now = fly_sideways(cam, start, 15.0, yaw)
+    frame = cam.render(end, yaw, now)
+    assert frame is not None and frame.depth.shape == (256, 256)
+    assert frame.source == ("stereo" if altitude < 15 else "sfm")
+    expected = analytic_plane_depth(frame, a, b, c)
+    assert np.all(np.isfinite(frame.depth))
+    np.testing.assert_allclose(frame.depth, expected, atol=2e-3 * altitude)
+
+
+def test_depth_error_model_gives_1_3_m_at_100_m_with_15_m_baseline():
+    assert depth_sigma(100.0, 256.0, 15.0, 0.5) == pytest.approx(1.302, abs=1e-3)
+    cam = camera(terrain_of(np.zeros_like(X)))
+    end, now = fly_sideways(cam, [-20.0, 0.0, 100.0], 20.0)  # capped at the 15 m keyframe
+    frame = cam.render(end, 0.0, now)
+    assert frame.source == "sfm" and frame.baseline == pytest.approx(15.0)
+    centre = frame.sigma[127:129, 127:129]
+    np.testing.assert_allclose(centre, 1.302, atol=0.01)
+    # a level plane is at the same depth along the optical axis in every pixel
+    assert np.allclose(frame.sigma, frame.sigma[128, 128], rtol=1e-3)
+
+
+def test_noise_follows_the_per_pixel_sigma_and_is_seeded():
+    terrain = terrain_of(np.zeros_like(X))
+    frames = []
+    for seed in (7, 7, 8):
+        cam = camera(terrain, seed=seed)
+        end, now = fly_sideways(cam, [-20.0, 0.0, 60.0], 10.0)
+        frames.append(cam.render(end, 0.0, now))
+    a, b, c = frames
+    np.testing.assert_array_equal(a.depth, b.depth)
+    assert not np.array_equal(a.depth, c.depth)
+    z = (a.depth - 60.0) / a.sigma
+    assert abs(float(np.mean(z))) < 0.05
+    assert float(np.std(z)) == pytest.approx(1.0, abs=0.05)
+
+
+def test_no_sfm_depth_when_only_climbing_or_hovering():
+    cam = camera(terrain_of(np.zeros_like(X)))
+    frames = [cam.render([5.0, 5.0, 40.0 + 2.0 * k], 0.3, 0.5 * k) for k in range(10)]
+    assert all(f is None for f in frames)
+    assert cam.source == "sfm"
+    assert cam.skipped["sfm_baseline"] == 10
+    events = cam.drain_events()
+    assert events[0] == {"event": "depth_source", "source": "sfm", "agl": 40.0}
+    skips = [e for e in events if e["event"] == "depth_skipped"]
+    assert len(skips) == 1 and skips[0]["reason"] == "sfm_baseline"
+    # moving sideways brings the depth back
+    for k in range(5):
+        cam.observe_pose([5.0 + 2.0 * k, 5.0, 60.0], 0.3, 10.0 + 0.25 * k)
+    assert cam.render([13.0, 5.0, 60.0], 0.3, 11.0) is not None
+
+
+def test_stereo_gives_depth_without_motion_at_low_altitude():
+    cam = camera(terrain_of(np.zeros_like(X)))
+    frame = cam.render([0.0, 0.0, 2.5], 0.0, 0.0)
+    assert frame is not None and frame.source == "stereo"
+    assert frame.baseline == pytest.approx(0.2)
+    expected_sigma = 2.5**2 / (256 * 0.2) * 0.5
+    np.testing.assert_allclose(frame.sigma, expected_sigma, rtol=1e-3)
+
+
+def test_stereo_range_is_limited():
+    cam = camera(terrain_of(np.zeros_like(X)), stereo_max_range=12.0, noise=False)
+    frame = cam.render([0.0, 0.0, 11.0], 0.0, 0.0)
+    # the axis sees 11 m; the image corners' depth is 11 m too on a level plane
+    assert np.all(np.isfinite(frame.depth))
+    cam = camera(terrain_of(np.zeros_like(X)), stereo_max_range=10.0, noise=False)
+    assert np.all(np.isnan(cam.render([0.0, 0.0, 11.0], 0.0, 0.0).depth))
+
+
+def test_source_switches_on_range_finder_agl_with_hysteresis():
+    terrain = terrain_of(np.zeros_like(X))
+    cam = camera(terrain)
+    altitudes = [30.0, 18.0, 16.0, 14.0, 17.0, 19.5, 21.0, 16.0, 14.5]
+    sources = []
+    for k, z in enumerate(altitudes):
+        # lateral motion so that SfM frames exist
+        cam.render([3.0 * k, 0.0, z], 0.0, 0.5 * k)
+        sources.append(cam.source)
+    assert sources == ["sfm", "sfm", "sfm", "stereo", "stereo", "stereo", "sfm", "sfm", "stereo"]
+    switches = [e for e in cam.drain_events() if e["event"] == "depth_source"]
+    assert [(e["source"], e["agl"]) for e in switches] == [
+        ("sfm", 30.0),
+        ("stereo", 14.0),
+        ("sfm", 21.0),
+        ("stereo", 14.5),
+    ]
+
+
+def test_beyond_the_range_finder_range_counts_as_high():
+    terrain = terrain_of(np.zeros_like(X))
+    cam = DepthCamera(terrain, rangefinder=RangeFinder(terrain, RangeFinderSettings()))
+    cam.render([0.0, 0.0, 90.0], 0.0, 0.0)  # default range finder: 40 m
+    assert cam.source == "sfm"
+    assert cam.drain_events()[0]["agl"] is None
+
+
+def test_range_finder_measures_agl_over_a_raised_box():
+    box = (np.abs(X - 10.0) <= 3.0) & (np.abs(Y) <= 3.0)
+    terrain = terrain_of(np.where(box, 2.0, 0.0))
+    finder = RangeFinder(terrain, RangeFinderSettings(noise_std=0.0, max_range=40.0))
+    assert finder.measure([10.0, 0.0, 10.0]) == pytest.approx(8.0)
+    assert finder.measure([-10.0, 0.0, 10.0]) == pytest.approx(10.0)
+    assert finder.measure([10.0, 0.0, 50.0]) is None  # beyond max range
+    assert finder.measure([10.0, 0.0, 2.1]) is None  # below min range
+    assert finder.measure([np.nan, 0.0, 10.0]) is None
+    noisy = RangeFinder(terrain, RangeFinderSettings(noise_std=0.05), np.random.default_rng(1))
+    readings = np.array([noisy.measure([10.0, 0.0, 10.0]) for _ in range(400)])
+    assert readings.mean() == pytest.approx(8.0, abs=0.01)
+    assert readings.std() == pytest.approx(0.05, rel=0.2)
+
+
+def test_depth_sees_a_raised_box():
+    box = (np.abs(X - 1.0) <= 2.0) & (np.abs(Y) <= 2.0)
+    cam = camera(terrain_of(np.where(box, 3.0, 0.0)), noise=False)
+    frame = cam.render([0.0, 0.0, 10.0], 0.0, 0.0)
+    assert frame.depth[128, 128] == pytest.approx(7.0, abs=1e-3)  # box top under the camera
+    assert np.nanmax(frame.depth) == pytest.approx(10.0, abs=1e-3)  # ground beside it
+
+
+@pytest.mark.parametrize(
+    "pose",
+    [([np.nan, 0.0, 50.0], 0.0, 1.0), ([0.0, 0.0, 50.0], np.inf, 1.0), ([0.0, 0.0], 0.0, 1.0)],
+)
+def test_invalid_pose_skips_the_frame_with_an_event(pose):
+    cam = camera(terrain_of(np.zeros_like(X)))
+    assert cam.render(*pose) is None
+    assert cam.skipped["invalid_pose"] == 1
+    assert cam.drain_events() == [{"event": "depth_skipped", "reason": "invalid_pose"}]
+    assert cam.drain_events() == []
+
+
+def test_camera_under_the_ground_is_skipped():
+    cam = camera(terrain_of(np.full_like(X, 5.0)))
+    assert cam.render([0.0, 0.0, 3.0], 0.0, 0.0) is None
+    assert cam.skipped["camera_below_ground"] == 1
+
+
+def test_rendering_a_generated_world_lands_on_its_surface():
+    terrain = make_terrain({"kind": "urban", "size": (160.0, 160.0)}, seed=2)
+    cam = camera(terrain, noise=False)
+    end, now = fly_sideways(cam, [-30.0, -20.0, 80.0], 15.0, yaw=0.7)
+    frame = cam.render(end, 0.7, now)
+    v, u = np.mgrid[0:256, 0:256]
+    cam_pts = (
+        np.stack(((u - frame.cx) / frame.fx, (v - frame.cy) / frame.fy, np.ones(u.shape)), axis=-1)
+        * frame.depth[..., None]
+    )
+    world = cam_pts @ frame.rotation.T + frame.position
+    gap = world[..., 2] - terrain.height(world[..., 0], world[..., 1])
+    # rays meeting a wall head-on may land within a cell of its foot; nearly all are exact
+    assert np.mean(np.abs(gap) < 0.01) > 0.99
+
+
+def test_bad_sensor_settings_name_the_field():
+    with pytest.raises(ValidationError, match="sfm_above"):
+        DepthCameraSettings(stereo_below=20.0, sfm_above=15.0)
+    with pytest.raises(ValidationError, match="max_range"):
+        RangeFinderSettings(min_range=5.0, max_range=1.0)
+    with pytest.raises(ValidationError, match="width"):
+        DepthCameraSettings(width=0)
+
+
+def test_rendered_depth_converts_to_a_detector_frame_on_the_terrain():
+    from autonomy.perception.camera import to_depth_frame
+
+    slope = terrain_of(0.1 * X)
+    cam = camera(slope, noise=False)
+    rendered = cam.render([4.0, -3.0, 9.0], 1.1, 2.5)
+    frame = to_depth_frame(rendered)
+    assert frame.source == "stereo" and frame.timestamp == 2.5
+    assert frame.intrinsics.width == 256 and frame.intrinsics.fx == 256.0
+    points, sigma = frame.to_points()
+    assert points.shape == (256 * 256, 3) and sigma.shape == (256 * 256,)
+    np.testing.assert_allclose(points[:, 2], 0.1 * points[:, 0], atol=2e-3)
