@@ -34,10 +34,11 @@ _UDP_CHUNKS_PER_READ = 256  # datagrams drained per read(); the rest wait for th
 class MemoryTransport:
     """The driver's side of a :class:`sitl.link.MemoryLink` (``read``/``write`` bytes)."""
 
-    def __init__(self, endpoint: Any, description: str = "sim://") -> None:
+    def __init__(self, endpoint: Any, description: str = "sim://", on_close: Any = None) -> None:
         self._endpoint = endpoint
         self.description = description
         self.closed = False
+        self._on_close = on_close  # e.g. detach the endpoint from the simulator
 
     def read(self) -> bytes:
         return b"" if self.closed else self._endpoint.read()
@@ -47,6 +48,8 @@ class MemoryTransport:
             self._endpoint.write(data)
 
     def close(self) -> None:
+        if not self.closed and self._on_close is not None:
+            self._on_close()
         self.closed = True
 
 
@@ -165,7 +168,9 @@ def _open_sim(url: str, sitl: Any) -> tuple[MemoryTransport, Any, bool]:
         sitl = Sitl(autopilot=autopilot, seed=seed)
     link = MemoryLink()
     sitl.attach(link.vehicle)
-    return MemoryTransport(link.gcs, url), sitl, owns
+    # A simulator that outlives the vehicle must stop writing into a link nobody reads.
+    detach = None if owns else (lambda: sitl.detach(link.vehicle))
+    return MemoryTransport(link.gcs, url, on_close=detach), sitl, owns
 
 
 def connect(

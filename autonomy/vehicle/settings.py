@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, field_validator
+from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 # Telemetry the driver asks for with MAV_CMD_SET_MESSAGE_INTERVAL, in Hz.
 DEFAULT_STREAMS: dict[str, float] = {
@@ -43,3 +44,13 @@ class VehicleLinkSettings(BaseModel):
     streams: dict[str, float] = Field(default_factory=lambda: dict(DEFAULT_STREAMS))
     source_system: int = Field(255, ge=1, le=255, description="our MAVLink system id")
     source_component: int = Field(190, ge=1, le=255, description="our component id (GCS)")
+
+    @field_validator("streams")
+    @classmethod
+    def _known_messages(cls, streams: dict[str, float]) -> dict[str, float]:
+        for name, rate in streams.items():
+            if not hasattr(mavlink, f"MAVLINK_MSG_ID_{name}"):
+                raise ValueError(f"unknown MAVLink message {name!r}")
+            if not rate >= 0 or rate == float("inf"):
+                raise ValueError(f"{name}: rate must be a finite number of Hz >= 0 (0 = off)")
+        return streams

@@ -4,6 +4,7 @@ how it tracks commands. Flights against the embedded SITL are in test_sitl_fligh
 import math
 
 import pytest
+from pydantic import ValidationError
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from autonomy.vehicle import VehicleLinkSettings
@@ -239,3 +240,22 @@ def test_unknown_mode_is_denied(rig):
     rig.tick()
     handle = rig.vehicle.set_mode("WARP_DRIVE")
     assert handle.status is CommandStatus.DENIED and "WARP_DRIVE" in handle.reason
+
+
+def test_px4_takes_either_familys_mode_names(rig):
+    rig.peer.heartbeat(custom_mode=PX4_LOITER, autopilot=PX4)
+    rig.tick()
+    rig.vehicle.set_mode("RTL")  # ArduPilot's word for AUTO.RTL
+    rig.tick()
+    sent = rig.peer.commands(mavlink.MAV_CMD_DO_SET_MODE)[-1]
+    assert (sent.param1, sent.param2, sent.param3) == (1, 4, 5)
+    rig.peer.ack(mavlink.MAV_CMD_DO_SET_MODE)
+    rig.peer.heartbeat(custom_mode=0x05040000, autopilot=PX4)
+    assert rig.tick().mode == "AUTO.RTL"
+
+
+def test_stream_settings_name_real_messages():
+    with pytest.raises(ValidationError, match="streams"):
+        VehicleLinkSettings(streams={"LOCAL_POSITION_NEDD": 10.0})
+    with pytest.raises(ValidationError, match="link_timeout"):
+        VehicleLinkSettings(link_timeout=0)

@@ -223,3 +223,18 @@ def test_sim_link_log_is_stamped_in_simulated_time(tmp_path):
         stamps.append(msg._timestamp)
     assert stamps[0] == SIM_EPOCH
     assert stamps[-1] == pytest.approx(SIM_EPOCH + 2.0)
+
+
+def test_closing_the_vehicle_detaches_it_from_a_shared_simulator():
+    clock = SimClock()
+    sitl = Sitl(autopilot="px4")
+    first = connect("sim://", clock, sitl=sitl)
+    first.close()
+    second = connect("sim://", clock, sitl=sitl)
+    flight = Lockstep(second, sitl, clock)
+    try:
+        flight.until(lambda s: not s.link_lost, 5, "second vehicle hears the simulator")
+        assert len(sitl.server.links) == 1
+    finally:
+        second.close()
+        sitl.close()
