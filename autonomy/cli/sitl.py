@@ -80,12 +80,12 @@ def run(args: argparse.Namespace) -> int:
     served = [f"udp {h}:{p}" for h, p in (e.address for e in udp)]
     served += [f"tcp {h}:{p}" for h, p in (s.address for s in tcp)]
     home = settings.home
-    print(
-        f"SITL ({args.autopilot}) home {home.lat:.6f},{home.lon:.6f},{home.alt:g} m; "
-        f"serving {', '.join(served)}; speedup {args.speedup:g}x; Ctrl-C to stop",
-        flush=True,
-    )
     try:
+        print(
+            f"SITL ({args.autopilot}) home {home.lat:.6f},{home.lon:.6f},{home.alt:g} m; "
+            f"serving {', '.join(served)}; speedup {args.speedup:g}x; Ctrl-C to stop",
+            flush=True,
+        )
         runner.run(duration=args.duration)
     except KeyboardInterrupt:
         pass

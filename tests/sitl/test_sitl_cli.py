@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import signal
 import socket
+import subprocess
+import sys
 
 import pytest
 
@@ -50,3 +53,25 @@ def test_short_run_serves_and_exits_0(capsys):
     out = capsys.readouterr().out
     assert "px4" in out and "-35.360000,149.160000" in out
     assert "stopped at t=2.0 s" in out
+
+
+def test_ctrl_c_stops_cleanly():
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "autonomy", "sitl", "--udp", "127.0.0.1:0"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        # A shell's background jobs ignore SIGINT; give the child the normal Ctrl-C handler.
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+    )
+    try:
+        assert "Ctrl-C to stop" in proc.stdout.readline()
+        proc.send_signal(signal.SIGINT)
+        out, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+    assert proc.returncode == 0
+    assert "SITL stopped" in out
+    assert "Traceback" not in err
