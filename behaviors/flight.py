@@ -46,7 +46,7 @@ class Preflight(MissionBehaviour):
             missing.append("position")
         if state.gps_fix < GPS_FIX_3D:
             missing.append(f"3D GPS fix (fix type {state.gps_fix})")
-        if not state.prearm_ok:
+        if not (state.prearm_ok or state.armed):  # armed already: the checks were passed
             text = f" ({state.last_status_text})" if state.last_status_text else ""
             missing.append(f"prearm checks{text}")
         if missing:
@@ -58,6 +58,9 @@ class Preflight(MissionBehaviour):
 
 class Takeoff(VehicleAction):
     """Take off vertically to ``altitude`` m above home (the vehicle arms as needed).
+
+    A vehicle already flying (armed, in the air: a mission started in flight) climbs with a
+    goto instead, since autopilots refuse a take-off in the air.
 
     * SUCCESS: within ``acceptance_radius`` below (or above) the altitude
     * FAILURE: the takeoff command was denied or not answered (the autopilot's reason)
@@ -80,7 +83,12 @@ class Takeoff(VehicleAction):
 
     def initialise(self) -> None:
         super().initialise()
-        self.command(self.vehicle.takeoff(self.altitude))
+        state = self.vehicle.state
+        if state.armed and state.landed_state is LandedState.IN_AIR and state.position:
+            x, y, _ = state.position
+            self.command(self.vehicle.goto(x, y, self.altitude))
+        else:
+            self.command(self.vehicle.takeoff(self.altitude))
 
     def update(self) -> Status:
         position = self.vehicle.state.position

@@ -365,3 +365,16 @@ def test_searching_stops_when_the_battery_reaches_the_reserve_mid_pattern():
     assert flight.status == Status.SUCCESS
     assert m.read(keys.SEARCH_PATTERNS) == 2
     assert m.read(keys.OUTCOME_HINT) == "no_site"
+
+
+def test_a_mission_started_in_flight_climbs_without_a_takeoff_command():
+    site = ScriptedSite(60.0, 10.0)
+    m = make_mission([(0, 0, 80), (80, 0, 80)], [site], vehicle={"deny": {"takeoff": "flying"}})
+    m.vehicle.armed, m.vehicle.position, m.vehicle.target = True, (0.0, 0.0, 30.0), (0, 0, 30)
+    m.vehicle.prearm_ok = False  # autopilots report prearm checks only on the ground
+
+    flight = m.fly()
+
+    assert_landed_at(m, flight, site)
+    assert m.vehicle.gotos()[0] == (0.0, 0.0, 80.0)
+    assert "takeoff" not in [name for name, _ in m.vehicle.commands]
