@@ -21,7 +21,10 @@ COMMAND_MODULES: tuple[str, ...] = (
     "autonomy.cli.demo",
     "autonomy.cli.validate",
     "autonomy.cli.tree",
+    "autonomy.cli.campaign",
+    "autonomy.cli.sitl",
     "autonomy.cli.detect",
+    "autonomy.cli.link",
 )
 
 
