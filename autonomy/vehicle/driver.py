@@ -39,6 +39,7 @@ from behaviors.ports import Clock, CommandStatus, LandedState, VehicleState
 # Longest MAVLink 2 packet (header 10 + payload 255 + crc 2 + signature 13).
 _MAX_PACKET = 280
 _CHUNK = 4096
+_COMPACT_AT = 1 << 16  # bytes consumed in pymavlink's parse buffer before it is compacted
 _PREARM_BIT = mavlink.MAV_SYS_STATUS_PREARM_CHECK
 _ARMED_FLAG = mavlink.MAV_MODE_FLAG_SAFETY_ARMED
 _POSITION_ONLY = 0x0DF8  # ignore velocity, acceleration, yaw, yaw rate
@@ -464,6 +465,11 @@ class MavlinkVehicle:
         if self._backlog_pos >= len(backlog):
             backlog.clear()
             self._backlog_pos = 0
+        if mav.buf_index > _COMPACT_AT:
+            # pymavlink only frees its buffer when it is empty; on a stream link (TCP,
+            # serial) a packet often straddles two reads, so drop the consumed part here.
+            mav.buf = mav.buf[mav.buf_index :]
+            mav.buf_index = 0
 
     def _adopt(self, hb: Any) -> bool:
         """Take the first autopilot HEARTBEAT (of ``target_system``, if given) as our vehicle."""

@@ -259,3 +259,22 @@ def test_stream_settings_name_real_messages():
         VehicleLinkSettings(streams={"LOCAL_POSITION_NEDD": 10.0})
     with pytest.raises(ValidationError, match="link_timeout"):
         VehicleLinkSettings(link_timeout=0)
+
+
+def test_packets_split_across_reads_are_reassembled(rig):
+    peer = rig.peer
+    peer.heartbeat(custom_mode=GUIDED)
+    rig.tick()
+    stream = b"".join(
+        peer.mav.local_position_ned_encode(0, float(i), 0, 0, 0, 0, 0).pack(peer.mav)
+        for i in range(3000)
+    )
+    before = rig.vehicle.stats.messages
+    cut = 0
+    while cut < len(stream):  # 50 bytes per read: most packets arrive in two pieces
+        rig.link.vehicle.write(stream[cut : cut + 50])
+        cut += 50
+        state = rig.tick(0.001)
+    assert rig.vehicle.stats.messages - before == 3000
+    assert rig.vehicle.stats.corrupt_bytes == 0
+    assert state.position == (0.0, 2999.0, -0.0)
