@@ -26,6 +26,10 @@
              │   └─ Land
              └─ Land in place                  [OUTCOME_HINT "no_site"]
 
+Every action that flies or waits runs under a :class:`~behaviors.decorators.ClockTimeout`
+(``navigation_timeout``; ``preflight_timeout`` for Preflight); a denied or unanswered
+command fails its action at once.
+
 The root returns SUCCESS once the vehicle has landed and disarmed (at a site or in place),
 FAILURE when the mission failed (FAILURE_REASON says why, e.g. a denied command with the
 autopilot's reason), RUNNING otherwise. Stop ticking once it is no longer RUNNING.
