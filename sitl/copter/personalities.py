@@ -56,6 +56,7 @@ class ArduCopter(Autopilot):
     # Modes this simulator cannot fly (no mission, no pilot sticks): changing to them fails.
     _unflyable = frozenset({"ACRO", "AUTO", "CIRCLE"})
     _not_armable = frozenset({"LAND", "RTL", "SMART_RTL", "AUTO", "CIRCLE"})
+    _needs_position = frozenset({"GUIDED", "LOITER", "RTL", "SMART_RTL", "POSHOLD", "BRAKE"})
 
     @property
     def base_mode(self) -> int:
@@ -92,6 +93,9 @@ class ArduCopter(Autopilot):
     def set_mode(self, name: str) -> int:
         if name not in self.modes or name in self._unflyable:
             self.text(_WARNING, "Flight mode change failed")
+            return FAILED
+        if name in self._needs_position and not self.settled:
+            self.text(_WARNING, f"Flight mode change failed: {name} requires position")
             return FAILED
         if name != self.mode:
             self._enter(name)
@@ -189,6 +193,9 @@ class Px4Copter(Autopilot):
     land_modes = frozenset({"AUTO.LAND"})
     rtl_modes = frozenset({"AUTO.RTL"})
     _unflyable = frozenset({"ACRO", "AUTO.MISSION"})
+    _needs_position = frozenset(
+        {"POSCTL", "AUTO.LOITER", "AUTO.TAKEOFF", "AUTO.RTL", "OFFBOARD"}
+    )
 
     def __init__(self, *args, **kwargs) -> None:
         super().__init__(*args, **kwargs)
@@ -243,6 +250,9 @@ class Px4Copter(Autopilot):
 
     def set_mode(self, name: str) -> int:
         if name not in self.modes or name in self._unflyable:
+            self.text(_CRITICAL, f"Switching to {name} is currently not possible")
+            return TEMPORARILY_REJECTED
+        if name in self._needs_position and not self.settled:
             self.text(_CRITICAL, f"Switching to {name} is currently not possible")
             return TEMPORARILY_REJECTED
         if name == "OFFBOARD":

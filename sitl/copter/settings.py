@@ -7,7 +7,7 @@ autopilot's SITL.
 
 from __future__ import annotations
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 
 class HomeSettings(BaseModel):
@@ -139,3 +139,9 @@ class SitlSettings(BaseModel):
     unix_time_at_boot: float = Field(
         1.7e9, ge=0, description="SYSTEM_TIME epoch of boot, Unix seconds (deterministic)"
     )
+
+    @model_validator(mode="after")
+    def _ranges_make_sense(self) -> SitlSettings:
+        if self.rangefinder_min >= self.rangefinder_max:
+            raise ValueError("rangefinder_min: must be below rangefinder_max")
+        return self

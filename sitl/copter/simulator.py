@@ -78,6 +78,8 @@ class Sitl:
         if autopilot not in PERSONALITIES:
             known = ", ".join(sorted(PERSONALITIES))
             raise ValueError(f"autopilot: unknown personality {autopilot!r} (known: {known})")
+        if terrain is not None and not callable(getattr(terrain, "height", None)):
+            raise TypeError("terrain: needs a height(x, y) method (or None for flat ground)")
         self.settings = s = settings if settings is not None else SitlSettings()
         self.terrain = terrain
         self._time = 0.0
@@ -98,7 +100,8 @@ class Sitl:
         self.autopilot = PERSONALITIES[autopilot](
             s, self.model, self.battery, self.slope, ground_z=home_z
         )
-        self._ground = home_z
+        self._ground = self._ground_now = home_z
+        self._ground_xy = (0.0, 0.0)
         self.server = MavlinkServer(
             self.autopilot,
             self._agl,
@@ -109,7 +112,9 @@ class Sitl:
     def _height(self, x: float, y: float) -> float:
         if self.terrain is None:
             return 0.0
-        return float(np.asarray(self.terrain.height(np.array([x]), np.array([y]))).ravel()[0])
+        h = float(np.asarray(self.terrain.height(np.array([x]), np.array([y]))).ravel()[0])
+        # A terrain without data here (NaN) keeps the last known ground under the vehicle.
+        return h if math.isfinite(h) else getattr(self, "_ground", 0.0)
 
     def slope(self, x: float, y: float) -> float:
         """Terrain slope at (x, y) in degrees, by central differences over
@@ -125,7 +130,12 @@ class Sitl:
         return math.degrees(math.atan(math.hypot(gx, gy)))
 
     def _agl(self) -> float:
-        return self.model.z - self._ground
+        """Height above the terrain right below the vehicle now (for the rangefinder)."""
+        m = self.model
+        if (m.x, m.y) != self._ground_xy:
+            self._ground_xy = (m.x, m.y)
+            self._ground_now = self._height(m.x, m.y)
+        return m.z - self._ground_now
 
     # --------------------------------------------------------------------- API
     @property
@@ -187,6 +197,7 @@ class Sitl:
         ap = self.autopilot
         m = self.model
         td = ap.touchdown
+        agl = self._agl()
         return TruthState(
             time=self._time,
             position=m.position,
@@ -201,7 +212,7 @@ class Sitl:
             touchdown=None if td is None else Touchdown(td.x, td.y, td.z, td.speed),
             touchdown_vertical_speed=None if td is None else td.vertical_speed,
             touchdown_slope_deg=None if td is None else td.slope_deg,
-            ground_height=self._ground,
+            ground_height=m.z - agl,
             wind=self.wind.velocity,
         )
 

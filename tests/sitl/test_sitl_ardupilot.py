@@ -7,6 +7,7 @@ import math
 
 import numpy as np
 import pytest
+from pydantic import ValidationError
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from sitl import MemoryLink, Sitl, SitlSettings
@@ -103,6 +104,29 @@ def test_arming_denied_with_prearm_text_until_settled():
     assert gcs.acks(mavlink.MAV_CMD_COMPONENT_ARM_DISARM)[-1] == mavlink.MAV_RESULT_ACCEPTED
     assert sim.truth.armed
     assert gcs.last["HEARTBEAT"].base_mode & mavlink.MAV_MODE_FLAG_SAFETY_ARMED
+
+
+def test_guided_refused_until_the_position_estimate_settles():
+    sim, gcs = connect()
+    gcs.heartbeat()
+    gcs.set_mode(GUIDED)
+    run(sim, gcs, 1.5)
+    assert gcs.acks(mavlink.MAV_CMD_DO_SET_MODE) == [mavlink.MAV_RESULT_FAILED]
+    assert gcs.last["HEARTBEAT"].custom_mode == 0  # still STABILIZE
+    run(sim, gcs, sim.settings.arming_settle_time)
+    gcs.set_mode(GUIDED)
+    run(sim, gcs, 1.5)
+    assert gcs.acks(mavlink.MAV_CMD_DO_SET_MODE)[-1] == mavlink.MAV_RESULT_ACCEPTED
+    assert gcs.last["HEARTBEAT"].custom_mode == GUIDED
+
+
+def test_settings_name_the_bad_field():
+    with pytest.raises(ValidationError, match="max_horizontal_speed"):
+        SitlSettings(max_horizontal_speed=-1)
+    with pytest.raises(ValidationError, match="rangefinder_min"):
+        SitlSettings(rangefinder_min=50, rangefinder_max=40)
+    with pytest.raises(ValueError, match="autopilot"):
+        Sitl(autopilot="inav")
 
 
 def test_takeoff_refused_when_disarmed_or_not_guided():
