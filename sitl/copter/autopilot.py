@@ -240,8 +240,11 @@ class Autopilot:
         self.takeoff_target = None
         self.ground_since = self.time
         reason = ""
+        sideways = math.hypot(contact.vx, contact.vy)
         if descent > s.crash_speed:
             reason = f"hard landing at {descent:.1f} m/s (limit {s.crash_speed:g})"
+        elif sideways > s.crash_horizontal_speed:
+            reason = f"hit the ground at {sideways:.1f} m/s sideways"
         elif slope > s.crash_slope:
             reason = f"tipped over on a {slope:.0f} deg slope (limit {s.crash_slope:g})"
         if reason:

@@ -122,6 +122,10 @@ class SitlSettings(BaseModel):
     crash_speed: float = Field(
         2.0, gt=0, description="touching down faster than this (vertical, m/s) is a crash"
     )
+    crash_horizontal_speed: float = Field(
+        2.0, gt=0, description="touching the ground moving faster than this sideways (m/s) "
+        "is a crash (flying into rising terrain)"
+    )
     crash_slope: float = Field(
         20.0, gt=0, lt=90, description="touching down on a slope steeper than this (deg) tips over"
     )

@@ -252,6 +252,16 @@ def test_forced_disarm_in_the_air_falls_and_crashes_hard():
     assert sim.truth.touchdown.speed > sim.settings.crash_speed
 
 
+def test_flying_into_rising_terrain_is_a_crash():
+    sim, gcs = connect(terrain=Ramp(grade=0.15))
+    airborne(sim, gcs, 5.0)
+    gcs.goto_ned(0.0, 200.0, -5.0)  # level flight east, into the slope
+    assert run(sim, gcs, 60.0, until=lambda: sim.truth.landed)
+    truth = sim.truth
+    assert truth.crashed and "sideways" in truth.crash_reason
+    assert truth.touchdown.x == pytest.approx(5.0 / 0.15, abs=1.0)
+
+
 def test_guided_targets_are_ignored_in_land():
     sim, gcs = connect()
     airborne(sim, gcs, 10.0)
