@@ -183,3 +183,12 @@ def test_disarms_ten_seconds_after_arming_without_takeoff():
     armed_at = sim.time
     assert run(sim, gcs, 15.0, until=lambda: not sim.truth.armed)
     assert sim.time - armed_at == pytest.approx(sim.settings.disarm_delay, abs=0.2)
+
+
+def test_takeoff_refused_when_disarmed():
+    sim, gcs = connect()
+    run(sim, gcs, sim.settings.arming_settle_time + 0.1)
+    gcs.takeoff(float("nan"))
+    run(sim, gcs, 1.0)
+    assert gcs.acks(mavlink.MAV_CMD_NAV_TAKEOFF) == [mavlink.MAV_RESULT_TEMPORARILY_REJECTED]
+    assert sim.truth.landed and sim.truth.mode == "AUTO.LOITER"
