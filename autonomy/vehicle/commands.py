@@ -176,6 +176,9 @@ class CommandTracker:
             step = self._waiting.popleft()
             if step.done:
                 continue
+            if step.confirm is not None and step.confirm():
+                step._set(CommandStatus.ACCEPTED, now=now)  # already so: nothing to send
+                continue
             if step.command in self._in_flight:
                 kept.append(step)
                 continue
@@ -294,7 +297,7 @@ class Procedure(Handle):
     of the first step that does not succeed. Yielding ``None`` ends the procedure at once.
     """
 
-    __slots__ = ("_steps", "current", "on_accept")
+    __slots__ = ("_steps", "current", "on_accept", "kind")
 
     def __init__(
         self,
@@ -302,11 +305,13 @@ class Procedure(Handle):
         created: float,
         steps: StepGenerator,
         on_accept: Callable[[], None] | None = None,
+        kind: str = "",
     ) -> None:
         super().__init__(name, created)
         self._steps = steps
         self.current: Handle | None = None
         self.on_accept = on_accept
+        self.kind = kind  # e.g. "guided": follows a setpoint stream that others may stop
 
     def advance(self, now: float) -> None:
         """Move on while the current step has succeeded; never waits."""

@@ -292,8 +292,10 @@ class MavlinkVehicle:
         if request.name == modes.guided_mode(self._autopilot):
             if self._setpoint is None:
                 self._hold_here()
-            return self._procedure(f"set_mode {request.name}", self._enter_guided_steps())
-        self._clear_setpoint()
+            return self._procedure(
+                f"set_mode {request.name}", self._enter_guided_steps(), kind="guided"
+            )
+        self._stop_guided(f"set_mode {request.name}")
         return self._mode_step(request.name)
 
     def takeoff(self, altitude: float) -> Handle:
@@ -309,7 +311,7 @@ class MavlinkVehicle:
                 name, self.clock.now(), CommandStatus.DENIED, "altitude must be > 0 m"
             )
         # A GUIDED position target would cancel ArduPilot's take-off.
-        self._clear_setpoint()
+        self._stop_guided("takeoff")
         if self._autopilot == modes.PX4:
             return self._procedure(name, self._px4_takeoff_steps(float(altitude)))
         return self._procedure(name, self._ardupilot_takeoff_steps(float(altitude)))
@@ -324,7 +326,7 @@ class MavlinkVehicle:
         if not all(math.isfinite(v) for v in (x, y, z)):
             return finished_handle(name, self.clock.now(), CommandStatus.DENIED, "not finite")
         self._set_setpoint("position", frames.enu_to_ned(x, y, z, self._home_ned))
-        return self._procedure(name, self._enter_guided_steps())
+        return self._procedure(name, self._enter_guided_steps(), kind="guided")
 
     def set_velocity(self, vx: float, vy: float, vz: float) -> Handle:
         """Fly at the ENU velocity (m/s), streamed like :meth:`goto`."""
@@ -335,7 +337,7 @@ class MavlinkVehicle:
         if not all(math.isfinite(v) for v in (vx, vy, vz)):
             return finished_handle(name, self.clock.now(), CommandStatus.DENIED, "not finite")
         self._set_setpoint("velocity", frames.enu_to_ned_velocity(vx, vy, vz))
-        return self._procedure(name, self._enter_guided_steps())
+        return self._procedure(name, self._enter_guided_steps(), kind="guided")
 
     def hold(self) -> Handle:
         """Stop and hover: PX4 AUTO.LOITER; ArduPilot GUIDED at the current position."""
@@ -343,17 +345,17 @@ class MavlinkVehicle:
         if refused:
             return refused
         if self._autopilot == modes.PX4 or self._position_ned is None:
-            self._clear_setpoint()
+            self._stop_guided("hold")
             return self._mode_step("AUTO.LOITER" if self._autopilot == modes.PX4 else "LOITER")
         self._hold_here()
-        return self._procedure("hold", self._enter_guided_steps())
+        return self._procedure("hold", self._enter_guided_steps(), kind="guided")
 
     def land(self) -> Handle:
         """Land where the vehicle is: ArduPilot LAND mode, PX4 MAV_CMD_NAV_LAND (AUTO.LAND)."""
         refused = self._start("land")
         if refused:
             return refused
-        self._clear_setpoint()
+        self._stop_guided("land")
         if self._autopilot == modes.PX4:
             target = modes.resolve_mode(modes.PX4, "AUTO.LAND")
             self._requested_modes[target.name] = self.clock.now()
@@ -510,7 +512,7 @@ class MavlinkVehicle:
         guided = modes.guided_mode(self._autopilot)
         if not requested and old == guided and new != guided:
             # Someone else took the vehicle (operator, failsafe): stop pushing our targets.
-            self._clear_setpoint()
+            self._stop_guided(f"a mode change to {new} not asked for")
 
     def _on_sys_status(self, msg: Any, now: float) -> None:
         if msg.battery_remaining >= 0:
@@ -660,6 +662,14 @@ class MavlinkVehicle:
         self._last_setpoint_sent = -math.inf
         self._stream_setpoint(self.clock.now())
 
+    def _stop_guided(self, by: str) -> None:
+        """Stop streaming setpoints and end the commands still waiting to follow them."""
+        self._clear_setpoint()
+        now = self.clock.now()
+        for proc in self._procedures:
+            if proc.kind == "guided" and not proc.done:
+                proc.cancel(f"superseded by {by}", now)
+
     def _clear_setpoint(self) -> None:
         self._setpoint = None
         self._setpoint_since = None
@@ -719,8 +729,8 @@ class MavlinkVehicle:
     def _submit(self, step: CommandStep) -> CommandStep:
         return self._tracker.submit(step, self.clock.now())
 
-    def _procedure(self, name: str, steps: StepGenerator) -> Procedure:
-        proc = Procedure(name, self.clock.now(), steps)
+    def _procedure(self, name: str, steps: StepGenerator, kind: str = "") -> Procedure:
+        proc = Procedure(name, self.clock.now(), steps, kind=kind)
         proc.advance(self.clock.now())
         if not proc.done:
             self._procedures.append(proc)

@@ -278,3 +278,24 @@ def test_packets_split_across_reads_are_reassembled(rig):
     assert rig.vehicle.stats.messages - before == 3000
     assert rig.vehicle.stats.corrupt_bytes == 0
     assert state.position == (0.0, 2999.0, -0.0)
+
+
+def test_land_supersedes_a_goto_still_waiting_for_offboard(rig):
+    rig.peer.heartbeat(custom_mode=PX4_LOITER, autopilot=PX4)
+    rig.peer.send(rig.peer.mav.local_position_ned_encode(0, 0, 0, -5.0, 0, 0, 0))
+    rig.tick()
+    goto = rig.vehicle.goto(10.0, 0.0, 5.0)
+    rig.run(0.2)
+    land = rig.vehicle.land()
+    assert goto.status is CommandStatus.DENIED and "superseded by land" in goto.reason
+    streamed = sum(m.get_type() == "SET_POSITION_TARGET_LOCAL_NED" for m in rig.peer.received)
+    rig.run(1.0)
+    assert streamed == sum(
+        m.get_type() == "SET_POSITION_TARGET_LOCAL_NED" for m in rig.peer.received
+    ), "the stream stops"
+    assert not rig.peer.commands(mavlink.MAV_CMD_DO_SET_MODE), "OFFBOARD is never asked for"
+    # Only NAV_LAND goes out (re-sent once: this peer never answers).
+    assert {m.command for m in rig.peer.commands() if m.command != 511} == {
+        mavlink.MAV_CMD_NAV_LAND
+    }
+    assert land.status is CommandStatus.PENDING
