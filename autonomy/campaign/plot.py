@@ -31,17 +31,31 @@ OUTCOME_COLOURS = {
 
 
 def representative_terrain(mission: Any, seed: int) -> Any | None:
-    """The terrain world of ``mission`` flown with ``seed`` (a ``sitl.terrain.Terrain``), or
-    None when it cannot be built (no ``world`` section, or the simulator is unavailable)."""
-    world = getattr(mission, "world", None)
-    if world is None:
+    """The terrain world a flight of ``mission`` with run seed ``seed`` flies over (a
+    ``sitl.terrain.Terrain``, built as the runner builds it), or None when it cannot be
+    built."""
+    if getattr(mission, "world", None) is None:
         return None
     try:
-        from sitl.terrain import make_terrain
+        from autonomy.runner.world import FlightSeeds, build_terrain
 
-        return make_terrain(world, seed=seed)
+        return build_terrain(mission, FlightSeeds.derive(seed).terrain)
     except Exception:  # a plot must not fail the campaign
         return None
+
+
+def _zoom_to_touchdowns(ax: Any, records: Sequence[dict[str, Any]], terrain: Any) -> None:
+    """Frame home and every touchdown with a 20 m margin, within the terrain if known."""
+    points = np.array([r["touchdown"] for r in records if r.get("touchdown")] + [[0.0, 0.0]],
+                      dtype=float)
+    lo, hi = points.min(axis=0) - 20.0, points.max(axis=0) + 20.0
+    if terrain is not None:
+        xmin, xmax, ymin, ymax = terrain.extent
+        lo = np.maximum(lo, (xmin, ymin))
+        hi = np.minimum(hi, (xmax, ymax))
+    ax.set_xlim(lo[0], hi[0])
+    ax.set_ylim(lo[1], hi[1])
+    ax.set_aspect("equal")
 
 
 def plot_campaign(
@@ -115,6 +129,9 @@ def plot_campaign(
         if len(points):
             ax_map.scatter(points[:, 0], points[:, 1], s=16, color=OUTCOME_COLOURS[outcome],
                            edgecolors="black", linewidths=0.3, label=OUTCOME_TITLES[outcome])
+    ax_map.scatter([0.0], [0.0], marker="^", s=60, color="white", edgecolors="black",
+                   label="home", zorder=3)
+    _zoom_to_touchdowns(ax_map, records, terrain)
     ax_map.set_xlabel("east (m)")
     ax_map.set_ylabel("north (m)")
     if ax_map.get_legend_handles_labels()[0]:

@@ -8,6 +8,8 @@ traceback instead.
 from __future__ import annotations
 
 import math
+import os
+import socket
 import threading
 import time
 import traceback
@@ -29,14 +31,11 @@ SUMMARY_FIELDS: tuple[str, ...] = (
     "verification_attempts",
     "search_patterns",
     "mission_time",
-)
-#: Summary keys that may hold the touchdown point (ENU metres), first match wins.
-TOUCHDOWN_KEYS: tuple[str, ...] = (
-    "touchdown",
-    "touchdown_position",
-    "touchdown_xy",
-    "touchdown_enu",
-    "landing_position",
+    "sites_retained",
+    "touchdown_error",
+    "stop_reason",
+    "failure_reason",
+    "crash_reason",
 )
 #: Record fields that are not the same when a run is repeated (left out of comparisons).
 NONDETERMINISTIC_FIELDS: frozenset[str] = frozenset({"wall_time", "worker"})
@@ -72,6 +71,7 @@ def base_record(task: RunTask) -> dict[str, Any]:
         "values": _jsonable(task.values),
         "seed_index": task.seed_index,
         "seed": task.seed,
+        "worker": f"{socket.gethostname()}:{os.getpid()}",
     }
 
 
@@ -79,19 +79,34 @@ def error_record(task: RunTask, message: str, wall_time: float | None = None) ->
     """Record of a run that raised or whose worker died; ``message`` is the traceback."""
     record = base_record(task)
     record.update({field: None for field in SUMMARY_FIELDS})
-    record.update({"outcome": "error", "touchdown": None, "error": message})
+    record.update({"outcome": "error", "battery_used": None, "touchdown": None,
+                   "error": message})
     record["wall_time"] = wall_time
     return record
 
 
+def _touchdown(value: Any) -> list[float] | None:
+    """[x, y] ENU metres of the summary's touchdown ({"x", "y", ...} or a sequence)."""
+    if isinstance(value, Mapping):
+        value = [value.get("x"), value.get("y")]
+    value = _jsonable(value)
+    if isinstance(value, list) and len(value) >= 2 and None not in value[:2]:
+        return [float(v) for v in value[:2]]
+    return None
+
+
 def summary_record(task: RunTask, summary: Mapping[str, Any], wall_time: float) -> dict:
-    """Record of a finished flight from its summary dict."""
+    """Record of a finished flight from its summary dict (:func:`autonomy.runner.fly`'s
+    ``summary``): ``energy`` is in Wh and ``battery_used`` in percent of the pack."""
     record = base_record(task)
     for field in SUMMARY_FIELDS:
         record[field] = _jsonable(summary.get(field))
-    touchdown = next((summary[k] for k in TOUCHDOWN_KEYS if summary.get(k) is not None), None)
-    touchdown = _jsonable(touchdown)
-    record["touchdown"] = touchdown[:2] if isinstance(touchdown, list) else None
+    energy = summary.get("energy")
+    record["battery_used"] = None
+    if isinstance(energy, Mapping):
+        record["energy"] = _jsonable(energy.get("wh"))
+        record["battery_used"] = _jsonable(energy.get("battery_used"))
+    record["touchdown"] = _touchdown(summary.get("touchdown"))
     record["error"] = None
     record["wall_time"] = wall_time
     return record

@@ -1,0 +1,131 @@
+"""``lander campaign`` end to end with the real runner on missions/demo.yaml (few runs)."""
+
+import json
+import socket
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from autonomy.campaign import NONDETERMINISTIC_FIELDS
+from autonomy.cli import main
+
+DEMO = Path(__file__).resolve().parents[3] / "missions" / "demo.yaml"
+
+
+def records(out):
+    lines = (out / "runs.jsonl").read_text().splitlines()
+    found = [json.loads(line) for line in lines]
+    for r in found:
+        for field in NONDETERMINISTIC_FIELDS:
+            r.pop(field)
+    return sorted(found, key=lambda r: r["run_id"])
+
+
+def lander(*args):
+    return main(["campaign", *map(str, args)])
+
+
+def test_pool_and_dask_fly_the_same_runs_and_rerun_skips_them(tmp_path, capsys):
+    distributed = pytest.importorskip("distributed")
+    assert lander(DEMO, "--runs", 2, "--seed", 3, "--workers", 2, "--out", tmp_path / "pool",
+                  "--quiet") == 0
+    table = capsys.readouterr().out
+    assert "landed safe" in table and "flew 2 run(s), 0 already recorded" in table
+    pool = records(tmp_path / "pool")
+    assert [r["run_id"] for r in pool] == ["v000-r00000", "v000-r00001"]
+    assert all(r["outcome"] == "landed" and r["touchdown_safe"] for r in pool)
+    assert all(r["time_to_land"] > 0 and r["energy"] > 0 for r in pool)
+    assert pool[0]["seed"] != pool[1]["seed"]
+    for name in ("summary.json", "campaign.png"):
+        assert (tmp_path / "pool" / name).stat().st_size > 0
+
+    assert lander(DEMO, "--runs", 2, "--seed", 3, "--out", tmp_path / "pool", "--quiet") == 0
+    assert "flew 0 run(s), 2 already recorded" in capsys.readouterr().out
+    assert len((tmp_path / "pool" / "runs.jsonl").read_text().splitlines()) == 2
+
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False,
+                                  protocol="tcp", host="127.0.0.1",
+                                  dashboard_address=None) as cluster:
+        assert lander(DEMO, "--runs", 2, "--seed", 3, "--scheduler", cluster.scheduler_address,
+                      "--out", tmp_path / "dask", "--quiet") == 0
+    assert records(tmp_path / "dask") == pool
+
+
+def test_a_variant_whose_flights_raise_is_recorded_and_the_others_fly(tmp_path, capsys):
+    good, bad = tmp_path / "flat.npy", tmp_path / "corrupt.npy"
+    np.save(good, np.zeros((161, 161), dtype=np.float32))
+    bad.write_bytes(b"this is not an elevation model")
+    mission = yaml.safe_load(DEMO.read_text())
+    mission["world"] = {"kind": "file", "path": str(good), "source_cell_size": 1.0}
+    path = tmp_path / "file_world.yaml"
+    path.write_text(yaml.safe_dump(mission))
+    assert lander(path, "--runs", 1, "--vary", f"world.path={bad},{good}", "--workers", 2,
+                  "--out", tmp_path / "out", "--quiet") == 0
+    assert "1 run(s) raised" in capsys.readouterr().out
+    failed, flown = records(tmp_path / "out")
+    assert failed["outcome"] == "error" and "corrupt.npy" in failed["values"]["world.path"]
+    assert "Traceback" in failed["error"]
+    assert flown["outcome"] == "landed"
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert [(row["error"], row["landed"]) for row in summary["variants"]] == [(1, 0), (0, 1)]
+
+
+def test_compare_flies_the_same_seeds_through_each_mission(tmp_path, capsys):
+    mission = yaml.safe_load(DEMO.read_text())
+    mission["landing"]["verification_altitude"] = 5.0
+    other = tmp_path / "high_verification.yaml"
+    other.write_text(yaml.safe_dump(mission))
+    assert lander("--compare", DEMO, other, "--runs", 1, "--workers", 2,
+                  "--out", tmp_path, "--quiet") == 0
+    out = capsys.readouterr().out
+    assert "diff vs demo" in out
+    compared = json.loads((tmp_path / "compare.json").read_text())
+    base, high = compared["missions"]
+    assert (base["mission"], high["mission"]) == ("demo", "high_verification")
+    assert base["pairs"] == high["pairs"] == 1
+    assert [r["seed"] for r in records(tmp_path / "demo")] == [
+        r["seed"] for r in records(tmp_path / "high_verification")]
+    assert base["difference"] == 0.0
+    assert high["difference_low"] <= high["difference"] <= high["difference_high"]
+    assert {"unsafe", "success_low", "success_high"} <= set(high)
+
+
+@pytest.mark.parametrize(
+    ("vary", "message"),
+    [
+        ("landing.no_such_setting=1,2", "landing.no_such_setting"),
+        ("landing.verification_altitude=5:1", "runs backwards"),
+        ("landing.verification_altitude=1:5:x", "count N"),
+        ("landing.verification_altitude=-1,2", "landing.verification_altitude"),
+        ("no_equals_sign", "KEY=SPEC"),
+    ],
+)
+def test_bad_vary_exits_2_with_one_line_before_any_run(tmp_path, capsys, vary, message):
+    assert lander(DEMO, "--runs", 1, "--vary", vary, "--out", tmp_path) == 2
+    err = capsys.readouterr().err
+    assert message in err and len(err.strip().splitlines()) == 1
+    assert err.startswith("lander campaign: error:")
+    assert not (tmp_path / "runs.jsonl").exists()
+
+
+def test_unreachable_scheduler_exits_2_before_any_run(tmp_path, capsys):
+    pytest.importorskip("distributed")
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        port = sock.getsockname()[1]
+    assert lander(DEMO, "--runs", 1, "--scheduler", f"tcp://127.0.0.1:{port}",
+                  "--connect-timeout", 1, "--out", tmp_path) == 2
+    assert "cannot reach the scheduler" in capsys.readouterr().err
+    assert not (tmp_path / "runs.jsonl").exists()
+
+
+@pytest.mark.parametrize(
+    "args",
+    [["--runs", "0", DEMO], ["--runs", "1"], ["--runs", "1", "--compare", DEMO],
+     ["--runs", "1", "--workers", "0", DEMO], ["--runs", "1", DEMO, "--compare", DEMO, DEMO]],
+)
+def test_bad_options_exit_2(tmp_path, args, capsys):
+    assert lander(*args, "--out", tmp_path) == 2
+    assert "lander campaign: error:" in capsys.readouterr().err
