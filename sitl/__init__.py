@@ -4,12 +4,17 @@ MAVLink server. A separate "vehicle": it never imports :mod:`autonomy` or :mod:`
 Quick start (lockstep, everything crossing the link as MAVLink bytes)::
 
     from sitl import MemoryLink, Sitl
+    from sitl.copter.gcs import MiniGcs
+
     link = MemoryLink()
-    sim = Sitl(autopilot="ardupilot")
+    sim = Sitl(autopilot="ardupilot")     # or "px4"; terrain=any object with height(x, y)
     sim.attach(link.vehicle)
-    link.gcs.write(heartbeat_bytes)   # ArduPilot talks once it has heard from you
-    sim.step(0.05)
-    data = link.gcs.read()
+    gcs = MiniGcs(link.gcs)               # a bare pymavlink client (the driver goes here)
+    gcs.heartbeat()                       # ArduPilot talks once it has heard from you
+    for _ in range(200):
+        sim.step(0.05)                    # simulated seconds
+        gcs.poll()
+    print(sim.truth)
 """
 
 from .copter import Sitl, SitlSettings, Touchdown, TruthState

@@ -182,7 +182,8 @@ class Sitl:
             for i in range(1, n + 1):
                 sp = ap.control(model.z - ground)
                 contact = model.step(h, sp, wind, ground)
-                self._time = ap.time = t0 + i * h
+                # Rounded to the nanosecond: sums of ticks stay clean (10.0, not 10.000...07).
+                self._time = ap.time = round(t0 + i * h, 9)
                 if contact is not None:
                     ap.on_contact(contact)
                 flying = model.motors_on and not model.on_ground
