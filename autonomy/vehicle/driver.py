@@ -261,6 +261,7 @@ class MavlinkVehicle:
             self.stats.links_lost += 1
             self._on_link_lost(now, age)
         elif was_lost and not self._link_lost:
+            # First contact, or the link is back (the autopilot may have rebooted).
             self._request_streams(now)
         self._tracker.update(now)
         self._advance_procedures(now)
@@ -501,8 +502,6 @@ class MavlinkVehicle:
             self._mode = name
             if not first:
                 self._on_mode_change(now, old, name)
-        if first:
-            self._request_streams(now)
 
     def _on_mode_change(self, now: float, old: str, new: str) -> None:
         asked = self._requested_modes.get(new)

@@ -39,9 +39,10 @@ def test_detects_autopilot_and_requests_streams(rig):
     for _ in range(10):
         rig.peer.ack(mavlink.MAV_CMD_SET_MESSAGE_INTERVAL)
         rig.tick()
-    asked = {int(m.param1) for m in rig.peer.commands(mavlink.MAV_CMD_SET_MESSAGE_INTERVAL)}
+    asked = [int(m.param1) for m in rig.peer.commands(mavlink.MAV_CMD_SET_MESSAGE_INTERVAL)]
     assert mavlink.MAVLINK_MSG_ID_LOCAL_POSITION_NED in asked
     assert mavlink.MAVLINK_MSG_ID_HOME_POSITION in asked
+    assert len(asked) == len(set(asked)) == len(VehicleLinkSettings().streams), "each once"
 
 
 def test_telemetry_becomes_enu_state(rig):
