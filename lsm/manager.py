@@ -46,7 +46,8 @@ _OBS_FIELDS = attrgetter(
     "x", "y", "z", "roughness", "uncertainty", "size", "obstacle_altitude",
     "observation_altitude", "timestamp",
 )
-_BATCH = 512  # observations processed per lock acquisition by the worker
+_BATCH = 1024  # observations processed per lock acquisition by the worker
+_KEY_STRIDE = 1 << 32  # spatial-hash key = ix * stride + iy (|iy| < 2**31 cells)
 
 
 @dataclass(frozen=True, slots=True)
@@ -152,18 +153,26 @@ class LandingSiteManager:
         self._last = np.zeros(cap)
         self._count = np.zeros(cap, dtype=np.int64)
         self._ids = np.full(cap, -1, dtype=np.int64)
-        self._sources: list[str] = [""] * cap
+        self._sources = np.full(cap, "", dtype=object)
         self._xy: list[tuple[float, float]] = [(0.0, 0.0)] * cap  # fast scalar access
         self._version: list[int] = [0] * cap  # heap entries of older versions are stale
         self._free: list[int] = list(range(cap - 1, -1, -1))
         self._slot_of: dict[int, int] = {}
-        self._cells: dict[tuple[int, int], list[int]] = {}  # spatial hash, cell = match radius
+        # Spatial hash of sites; cells are 2 match radii wide, so a match circle overlaps at
+        # most 2 x 2 cells. Key = ix * _KEY_STRIDE + iy.
+        self._cells: dict[int, list[int]] = {}
+        self._cell_size = 2.0 * self.settings.match_radius
+        # Redetections that only bump last_seen/count are applied in bulk (np.add.at).
+        self._pending_slots: list[int] = []
+        self._pending_times: list[float] = []
+        self._pending_set: set[int] = set()
         # Max-heap as a min-heap of (-loss, -id, version, slot): ties evict the newest site.
         self._heap: list[tuple[float, int, int, int]] = []
         self._next_id = 1
         self._size_max = 0.0
         self._drone: tuple[float, float, float] | None = None
         self._keyed_at: tuple[float, float] | None = None  # drone xy when keys were computed
+        self._checked_at: tuple[float, float] | None = None  # drone xy of the last far check
         self._keyed_size_max = 0.0
         self._bans = np.zeros((0, 3))  # rows of (x, y, radius)
         self._queue: deque = deque()
@@ -365,7 +374,17 @@ class LandingSiteManager:
         return out
 
     def _active_slots(self) -> np.ndarray:
-        return np.fromiter(self._slot_of.values(), dtype=np.int64, count=len(self._slot_of))
+        return np.flatnonzero(self._ids >= 0)
+
+    def _flush_redetections(self) -> None:
+        """Apply the queued last_seen/count bumps of plain redetections, vectorised."""
+        if self._pending_slots:
+            slots = np.array(self._pending_slots, dtype=np.int64)
+            np.add.at(self._count, slots, 1)
+            np.maximum.at(self._last, slots, np.array(self._pending_times))
+            self._pending_slots.clear()
+            self._pending_times.clear()
+            self._pending_set.clear()
 
     def _losses(self, slots: np.ndarray) -> np.ndarray:
         if self._drone is None:
@@ -392,40 +411,45 @@ class LandingSiteManager:
         # Ties broken by id so rankings are reproducible.
         order = np.lexsort((self._ids[slots], loss))
         slots = slots[order]
-        return RankedSites(self._columns(slots, loss[order]), [self._sources[s] for s in slots])
+        return RankedSites(self._columns(slots, loss[order]), self._sources[slots].tolist())
 
-    def _cell(self, x: float, y: float) -> tuple[int, int]:
-        r = self.settings.match_radius
-        return (math.floor(x / r), math.floor(y / r))
+    def _cell_key(self, x: float, y: float) -> int:
+        c = self._cell_size
+        return math.floor(x / c) * _KEY_STRIDE + math.floor(y / c)
 
-    def _nearest_within_match(self, x: float, y: float) -> int | None:
-        cx, cy = self._cell(x, y)
-        r2 = self.settings.match_radius ** 2
+    def _match_keys(self, xy: np.ndarray) -> list[int]:
+        """Key of the lower-left of the 2 x 2 cells each match circle can overlap."""
+        r, c = self.settings.match_radius, self._cell_size
+        with np.errstate(invalid="ignore"):  # rows with NaN are rejected anyway
+            ix = np.floor((xy[:, 0] - r) / c).astype(np.int64)
+            iy = np.floor((xy[:, 1] - r) / c).astype(np.int64)
+        return (ix * _KEY_STRIDE + iy).tolist()
+
+    def _nearest_within_match(self, x: float, y: float, key: int) -> int | None:
+        r2 = self.settings.match_radius * self.settings.match_radius
         best, best_d2 = None, r2
         cells = self._cells
         xy = self._xy
         ids = self._ids
-        for ix in (cx - 1, cx, cx + 1):
-            for iy in (cy - 1, cy, cy + 1):
-                members = cells.get((ix, iy))
-                if not members:
-                    continue
-                for slot in members:
-                    sx, sy = xy[slot]
-                    d2 = (sx - x) * (sx - x) + (sy - y) * (sy - y)
-                    # Nearest wins; equal distances go to the older (smaller id) site.
-                    if d2 < best_d2 or (d2 == best_d2 and (best is None
-                                                           or ids[slot] < ids[best])):
-                        best, best_d2 = slot, d2
+        for k in (key, key + 1, key + _KEY_STRIDE, key + _KEY_STRIDE + 1):
+            members = cells.get(k)
+            if not members:
+                continue
+            for slot in members:
+                sx, sy = xy[slot]
+                d2 = (sx - x) * (sx - x) + (sy - y) * (sy - y)
+                # Nearest wins; equal distances go to the older (smaller id) site.
+                if d2 < best_d2 or (d2 == best_d2 and (best is None or ids[slot] < ids[best])):
+                    best, best_d2 = slot, d2
         return best
 
     def _hash_add(self, slot: int) -> None:
         x, y = self._xy[slot]
-        self._cells.setdefault(self._cell(x, y), []).append(slot)
+        self._cells.setdefault(self._cell_key(x, y), []).append(slot)
 
     def _hash_remove(self, slot: int) -> None:
         x, y = self._xy[slot]
-        key = self._cell(x, y)
+        key = self._cell_key(x, y)
         members = self._cells[key]
         members.remove(slot)
         if not members:
@@ -462,6 +486,8 @@ class LandingSiteManager:
         return None
 
     def _remove(self, slot: int) -> None:
+        if slot in self._pending_set:
+            self._flush_redetections()  # the slot may be reused: settle its counts first
         site_id = int(self._ids[slot])
         self._hash_remove(slot)
         del self._slot_of[site_id]
@@ -475,22 +501,22 @@ class LandingSiteManager:
         slots = self._active_slots()
         self._size_max = float(self._size[slots].max()) if len(slots) else 0.0
 
-    def _maybe_rekey(self) -> None:
-        moved = (
-            self._drone is not None
-            and (
-                self._keyed_at is None
-                or math.hypot(self._drone[0] - self._keyed_at[0],
-                              self._drone[1] - self._keyed_at[1]) > self.settings.rekey_distance
-            )
-        )
-        if moved or self._size_max != self._keyed_size_max:
-            self._rekey()
+    def _moved_since(self, xy: tuple[float, float] | None) -> bool:
+        if self._drone is None:
+            return False
+        if xy is None:
+            return True
+        return math.hypot(self._drone[0] - xy[0],
+                          self._drone[1] - xy[1]) > self.settings.rekey_distance
 
-    def _rekey(self) -> None:
-        """Drop sites beyond max_distance, recompute every key, re-heapify (O(n))."""
-        slots = self._active_slots()
-        if self._drone is not None and len(slots):
+    def _maybe_rekey(self) -> None:
+        """After the drone moved more than rekey_distance: drop sites beyond max_distance.
+
+        Heap keys are recomputed lazily, only when an eviction needs them (:meth:`_rekey`).
+        """
+        if self._moved_since(self._checked_at):
+            self._checked_at = self._drone[:2]
+            slots = self._active_slots()
             d = self._pos[slots, :2] - np.asarray(self._drone[:2])
             far = slots[np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1])
                         > self.settings.max_distance]
@@ -500,13 +526,17 @@ class LandingSiteManager:
                 self._remove(slot)
                 self._counts["dropped"] += 1
                 self._decide("dropped", site_id, "beyond max distance", t)
-            if len(far):
-                slots = self._active_slots()
+
+    def _keys_current(self) -> bool:
+        return not self._moved_since(self._keyed_at) and self._size_max == self._keyed_size_max
+
+    def _rekey(self) -> None:
+        """Recompute every heap key at the current drone position and re-heapify (O(n))."""
+        slots = self._active_slots()
         loss = self._losses(slots)
-        version = self._version
-        ids = self._ids[slots].tolist()
-        self._heap = [(-lv, -i, version[s], s)
-                      for lv, i, s in zip(loss.tolist(), ids, slots.tolist(), strict=True)]
+        version = np.array(self._version, dtype=np.int64)[slots]
+        self._heap = list(zip((-loss).tolist(), (-self._ids[slots]).tolist(), version.tolist(),
+                              slots.tolist(), strict=True))
         heapq.heapify(self._heap)
         self._keyed_at = None if self._drone is None else self._drone[:2]
         self._keyed_size_max = self._size_max
@@ -570,34 +600,43 @@ class LandingSiteManager:
         vals, reasons = self._validate(batch)
         self._counts["received"] += len(batch)
         rows = vals.tolist()
+        keys = self._match_keys(vals)
+        nearest = self._nearest_within_match
         for i, reason in enumerate(reasons):
             row = rows[i]
             if reason is not None:
                 self._reject(reason, row[8] if reason != "malformed" else 0.0)
                 continue
-            self._accept(row, batch[i].source)
+            slot = nearest(row[0], row[1], keys[i])
+            if slot is None:
+                self._insert(row, batch[i].source)
+            elif row[7] < self._veralt[slot]:
+                self._update(slot, row, batch[i].source)
+            else:
+                self._counts["merged"] += 1
+                self._pending_slots.append(slot)
+                self._pending_times.append(row[8])
+                self._pending_set.add(slot)
+                if self._on_decision is not None:
+                    self._decide("merged", int(self._ids[slot]), "", row[8])
+        self._flush_redetections()
         self._maybe_rekey()
 
-    def _accept(self, row: list[float], source: str) -> None:
+    def _insert(self, row: list[float], source: str) -> None:
         x, y, z, rough, unc, size, obst, obs_alt, t = row
-        slot = self._nearest_within_match(x, y)
-        if slot is not None:
-            self._merge(slot, row, source)
-            return
         if not self._free:
             # Full: the new site must beat the worst retained one to get in.
             retained_size_max = self._size_max
-            if self._size_max != self._keyed_size_max or size > self._size_max:
-                # Compare under the size_max that would hold with the newcomer in: exact keys.
-                self._size_max = max(self._size_max, size)
+            # Compare under the size_max that would hold with the newcomer in, with keys of
+            # the current drone position (within rekey_distance).
+            self._size_max = max(self._size_max, size)
+            if not self._keys_current():
                 self._rekey()
             loss = site_loss_scalar(self._distance(x, y), rough, unc, size, obs_alt,
                                     self._size_max, self.weights)
             worst = self._worst_slot()
             if worst is None or loss >= worst[1]:
-                if self._size_max != retained_size_max:
-                    self._size_max = retained_size_max
-                    self._rekey()
+                self._size_max = retained_size_max  # keys re-made lazily if this changed it
                 self._reject("worse_than_worst", t)
                 return
             worst_slot = worst[0]
@@ -633,25 +672,23 @@ class LandingSiteManager:
         self._last[slot] = t
         self._sources[slot] = source
 
-    def _merge(self, slot: int, row: list[float], source: str) -> None:
+    def _update(self, slot: int, row: list[float], source: str) -> None:
+        """Redetected from lower down: trust the new properties (thesis 3.1.5)."""
         t = row[8]
         site_id = int(self._ids[slot])
         self._counts["merged"] += 1
-        self._count[slot] += 1
-        if row[7] < self._veralt[slot]:
-            # Seen from lower down: trust the new properties (thesis 3.1.5).
-            old_size = float(self._size[slot])
-            self._hash_remove(slot)
-            self._store(slot, row, source)
-            self._hash_add(slot)
-            new_size = row[5]
-            if new_size > self._size_max:
-                self._size_max = new_size
-            elif old_size >= self._size_max and new_size < old_size:
-                self._refresh_size_max()
-            self._push(slot)
-            self._counts["updated"] += 1
-            self._decide("updated", site_id, "redetected lower", t)
-        else:
-            self._last[slot] = max(float(self._last[slot]), t)
-            self._decide("merged", site_id, "", t)
+        self._counts["updated"] += 1
+        self._pending_slots.append(slot)  # counts the detection; last_seen set by _store
+        self._pending_times.append(t)
+        self._pending_set.add(slot)
+        old_size = float(self._size[slot])
+        self._hash_remove(slot)
+        self._store(slot, row, source)
+        self._hash_add(slot)
+        new_size = row[5]
+        if new_size > self._size_max:
+            self._size_max = new_size
+        elif old_size >= self._size_max and new_size < old_size:
+            self._refresh_size_max()
+        self._push(slot)
+        self._decide("updated", site_id, "redetected lower", t)
