@@ -66,11 +66,20 @@ def _add_rocks(grid, origin, cs, extent, settings: MarsTerrainSettings, rng) -> 
     if settings.rock_density == 0:
         return
     # Rock fields: where a smooth random field is in its top `rock_field_fraction`.
-    field = fractal_relief(grid.shape, cs, 1.0, 60.0, 4.0, rng)
-    threshold = np.quantile(field[::8, ::8], 1.0 - settings.rock_field_fraction)
+    # The field varies over tens of metres: a coarse grid of ~2 m cells is enough.
+    coarse = max(1, int(2.0 / cs))
+    field = fractal_relief(
+        (grid.shape[0] // coarse + 1, grid.shape[1] // coarse + 1),
+        cs * coarse,
+        1.0,
+        60.0,
+        4.0,
+        rng,
+    )
+    threshold = np.quantile(field, 1.0 - settings.rock_field_fraction)
     candidates = poisson_points(settings.rock_density, extent, rng)
-    col = np.rint((candidates[:, 0] - origin[0]) / cs).astype(np.intp)
-    row = np.rint((candidates[:, 1] - origin[1]) / cs).astype(np.intp)
+    col = np.rint((candidates[:, 0] - origin[0]) / (cs * coarse)).astype(np.intp)
+    row = np.rint((candidates[:, 1] - origin[1]) / (cs * coarse)).astype(np.intp)
     in_field = field[row, col] >= threshold
     keep = in_field | (rng.random(len(candidates)) < _BACKGROUND_ROCKS)
     keep &= np.hypot(*candidates.T) > home_keep_out(settings) + settings.rock_diameter[1]

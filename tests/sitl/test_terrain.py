@@ -163,3 +163,33 @@ def test_bad_elevation_files_are_reported_by_field(tmp_path):
     bad.write_text("ncols 3\nnrows 2\ncellsize 1\n1 2 3\n")
     with pytest.raises(ValueError, match="path"):
         make_terrain({"kind": "file", "path": str(bad)}, seed=0)
+
+
+def test_geotiff_without_rasterio_says_how_to_install_it(tmp_path, monkeypatch):
+    import sys
+
+    monkeypatch.setitem(sys.modules, "rasterio", None)  # import fails as if not installed
+    path = tmp_path / "dem.tif"
+    path.write_bytes(b"II*\x00")
+    with pytest.raises(ValueError, match="path: .*rasterio"):
+        make_terrain({"kind": "file", "path": str(path)}, seed=0)
+
+
+def test_mars_craters_are_bowls_with_raised_rims():
+    bare = {
+        "kind": "mars",
+        "size": (200.0, 200.0),
+        "relief_rms": 0.0,
+        "rock_density": 0.0,
+        "scarp_count": 0,
+        "home_clear_radius": 0.0,
+    }
+    plain = make_terrain({**bare, "crater_density": 0.0}, seed=1)
+    assert np.ptp(plain.grid) == 0.0
+    cratered = make_terrain(
+        {**bare, "crater_density": 200.0, "crater_diameter": (20.0, 20.0)}, seed=1
+    )
+    level = np.median(cratered.grid)
+    # bowls about 0.2 D = 4 m deep below the plain, rims about 0.04 D = 0.8 m above it
+    assert -5.5 < cratered.grid.min() - level < -3.0
+    assert 0.5 < cratered.grid.max() - level < 2.0
