@@ -58,10 +58,18 @@ class PymavlinkTransport:
     the driver does its own parsing so that it can bound, count and log every packet."""
 
     def __init__(self, connection: Any, description: str) -> None:
+        from pymavlink import mavutil
+
         self._conn = connection
         self.description = description
+        # A TCP client socket is read directly: pymavlink prints a line on every read after
+        # the peer hung up; here the hang-up is noted once and the link then goes quiet.
+        self._stream = connection.port if isinstance(connection, mavutil.mavtcp) else None
+        self.peer_closed = False
 
     def read(self) -> bytes:
+        if self._stream is not None:
+            return self._read_stream(self._stream)
         chunks = []
         for _ in range(_UDP_CHUNKS_PER_READ):
             data = self._conn.recv(65536)
@@ -70,8 +78,24 @@ class PymavlinkTransport:
             chunks.append(data if isinstance(data, bytes) else bytes(data, "latin-1"))
         return b"".join(chunks)
 
+    def _read_stream(self, sock: socket.socket) -> bytes:
+        chunks = []
+        while not self.peer_closed:
+            try:
+                data = sock.recv(65536)
+            except (BlockingIOError, InterruptedError):
+                break
+            except ConnectionError:
+                data = b""
+            if not data:
+                self.peer_closed = True
+                break
+            chunks.append(data)
+        return b"".join(chunks)
+
     def write(self, data: bytes) -> None:
-        self._conn.write(data)
+        if not self.peer_closed:
+            self._conn.write(data)
 
     def close(self) -> None:
         self._conn.close()

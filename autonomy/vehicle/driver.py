@@ -81,6 +81,7 @@ class LinkStats:
     ignored: int = 0  # packets from other systems, source 0/0, or before the autopilot spoke
     dropped_sensor: Counter = field(default_factory=Counter)  # bad values, by message type
     messages_sent: int = 0
+    read_errors: int = 0
     write_errors: int = 0
     commands_sent: int = 0
     links_lost: int = 0
@@ -374,10 +375,14 @@ class MavlinkVehicle:
         return self._mode_step("LAND")
 
     def close(self) -> None:
-        """Close the link, the telemetry log and an owned simulator."""
+        """Close the link, the telemetry log and an owned simulator; commands still pending
+        end as TIMED_OUT."""
+        now = self.clock.now()
         for proc in self._procedures:
-            proc.cancel("vehicle closed", self.clock.now())
+            proc.cancel("vehicle closed", now, CommandStatus.TIMED_OUT)
         self._procedures.clear()
+        self._tracker.fail_all(CommandStatus.TIMED_OUT, "vehicle closed", now)
+        self._clear_setpoint()
         try:
             self._transport.close()
         except OSError:
@@ -410,7 +415,7 @@ class MavlinkVehicle:
             data = self._transport.read()
         except OSError:
             data = b""
-            self.stats.write_errors += 1
+            self.stats.read_errors += 1
         if not data:
             return
         self.stats.bytes_received += len(data)

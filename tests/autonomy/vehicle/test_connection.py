@@ -15,6 +15,7 @@ from autonomy.errors import UserError
 from autonomy.vehicle import MavlinkVehicle, connect, signing_key_from_text
 from autonomy.vehicle.connection import MemoryTransport
 from autonomy.vehicle.tlog import TlogWriter
+from behaviors.ports import CommandStatus
 from sitl.link import MemoryLink
 
 
@@ -177,3 +178,34 @@ def test_tlog_in_an_unwritable_place_is_a_user_error(tmp_path):
     blocker.write_text("not a folder")
     with pytest.raises(UserError, match="telemetry log"):
         connect("sim://", SimClock(), tlog_path=blocker / "x.tlog")
+
+
+def test_tcp_peer_hanging_up_is_a_quiet_link_loss(capsys):
+    server = socket.socket()
+    server.bind(("127.0.0.1", 0))
+    server.listen(1)
+    clock = SimClock()
+    vehicle = connect(f"tcp:127.0.0.1:{server.getsockname()[1]}", clock, link_timeout=1.0)
+    try:
+        autopilot, _ = server.accept()
+        mav = mavlink.MAVLink(None, 1, 1)
+        autopilot.sendall(
+            mav.heartbeat_encode(
+                mavlink.MAV_TYPE_QUADROTOR, mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA, 0, 4, 3
+            ).pack(mav)
+        )
+        for _ in range(200):
+            clock.advance(0.01)
+            if not vehicle.poll().link_lost:
+                break
+        assert vehicle.state.mode == "GUIDED"
+        autopilot.close()
+        for _ in range(150):
+            clock.advance(0.01)
+            state = vehicle.poll()
+        assert state.link_lost
+        assert vehicle.land().status is CommandStatus.TIMED_OUT
+        assert capsys.readouterr().out == ""
+    finally:
+        vehicle.close()
+        server.close()
