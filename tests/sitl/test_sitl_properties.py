@@ -32,7 +32,8 @@ def _flying() -> tuple[Sitl, MiniGcs]:
     return sim, gcs
 
 
-@settings(max_examples=15, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=15, deadline=None, derandomize=True,
+          suppress_health_check=[HealthCheck.too_slow])
 @given(north=coordinate, east=coordinate, up=st.floats(2.0, 60.0))
 def test_speeds_stay_within_the_airframe_limits(north, east, up):
     sim, gcs = _flying()
@@ -47,7 +48,7 @@ def test_speeds_stay_within_the_airframe_limits(north, east, up):
     assert not sim.truth.crashed
 
 
-@settings(max_examples=25, deadline=None)
+@settings(max_examples=25, deadline=None, derandomize=True)
 @given(garbage=st.lists(st.binary(min_size=0, max_size=64), min_size=1, max_size=6))
 def test_garbage_between_packets_never_stops_valid_commands(garbage):
     sim = Sitl()
