@@ -238,3 +238,28 @@ def test_closing_the_vehicle_detaches_it_from_a_shared_simulator():
     finally:
         second.close()
         sitl.close()
+
+
+def test_velocity_then_hold(flight):
+    v = flight.vehicle
+    flight.until(lambda s: s.prearm_ok, 30, "prearm checks")
+    flight.done(v.takeoff(6.0))
+    flight.until(lambda s: s.position[2] > 5.6, 30, "climb")
+
+    fly = flight.done(v.set_velocity(0.0, 3.0, 0.0))  # north at 3 m/s
+    assert fly.status is CommandStatus.ACCEPTED, fly.reason
+    s = flight.until(lambda s: s.velocity[1] > 2.8, 10, "speed up northwards")
+    assert abs(s.velocity[0]) < 0.3
+    start_y = s.position[1]
+    for _ in range(int(3.0 / DT)):
+        s = flight.tick()
+    assert s.position[1] - start_y == pytest.approx(9.0, abs=1.0)
+
+    stop = flight.done(v.hold())
+    assert stop.status is CommandStatus.ACCEPTED, stop.reason
+    assert v.state.mode in ("GUIDED", "AUTO.LOITER")
+    s = flight.until(lambda s: math.hypot(*s.velocity) < 0.05, 15, "stop")
+    here = s.position
+    for _ in range(int(5.0 / DT)):
+        s = flight.tick()
+    assert s.position == pytest.approx(here, abs=0.2)
