@@ -142,6 +142,10 @@ def open_transport(url: str, baud: int = 115200) -> PymavlinkTransport:
     try:
         if sep and scheme in _NETWORK_SCHEMES:
             host, port = _host_port(url, rest)
+            try:
+                socket.getaddrinfo(host, port)
+            except socket.gaierror as exc:
+                raise UserError(f"{url}: unknown host {host!r}") from exc
             if scheme in ("udp", "udpin"):
                 _check_free(url, host, port, socket.SOCK_DGRAM)
             conn = mavutil.mavlink_connection(

@@ -32,6 +32,7 @@ from sitl.link import MemoryLink
         ("sim://px4?speed=3", "unknown option"),
         ("/dev/this-serial-port-does-not-exist", "cannot open"),
         ("", "empty"),
+        ("udpout:no-such-host.invalid:14550", "unknown host"),
     ],
 )
 def test_bad_url_is_one_clear_user_error(url, words):
