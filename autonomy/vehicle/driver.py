@@ -39,6 +39,7 @@ from behaviors.ports import Clock, CommandStatus, LandedState, VehicleState
 # Longest MAVLink 2 packet (header 10 + payload 255 + crc 2 + signature 13).
 _MAX_PACKET = 280
 _CHUNK = 4096
+_PREARM_TEXT_FRESH = 30.0  # s a PreArm STATUSTEXT stays the reason for a denied arm
 _COMPACT_AT = 1 << 16  # bytes consumed in pymavlink's parse buffer before it is compacted
 _PREARM_BIT = mavlink.MAV_SYS_STATUS_PREARM_CHECK
 _ARMED_FLAG = mavlink.MAV_MODE_FLAG_SAFETY_ARMED
@@ -208,6 +209,7 @@ class MavlinkVehicle:
         self._prearm_health = False
         self._status_text = ""
         self._prearm_text = ""
+        self._prearm_text_time = -math.inf
         self._link_lost = True
         self._requested_modes: dict[str, float] = {}
 
@@ -580,6 +582,7 @@ class MavlinkVehicle:
         lowered = text.lower()
         if lowered.startswith(("prearm", "preflight", "arm:")) or "arming denied" in lowered:
             self._prearm_text = text
+            self._prearm_text_time = now
 
     def _on_command_ack(self, msg: Any, now: float) -> None:
         if msg.target_system not in (0, self.settings.source_system):
@@ -788,9 +791,15 @@ class MavlinkVehicle:
                 mavlink.MAV_CMD_COMPONENT_ARM_DISARM,
                 (1.0 if arm else 0.0,),
                 confirm=(lambda: self._armed) if arm else (lambda: not self._armed),
-                denied_reason=(lambda: self._prearm_text) if arm else None,
+                denied_reason=self._recent_prearm_text if arm else None,
             )
         )
+
+    def _recent_prearm_text(self) -> str:
+        # ArduPilot repeats failing PreArm checks every 30 s; an older text may be stale.
+        if self.clock.now() - self._prearm_text_time <= _PREARM_TEXT_FRESH:
+            return self._prearm_text
+        return ""
 
     def _enter_guided_steps(self) -> StepGenerator:
         guided = modes.guided_mode(self._autopilot)

@@ -300,3 +300,16 @@ def test_land_supersedes_a_goto_still_waiting_for_offboard(rig):
         mavlink.MAV_CMD_NAV_LAND
     }
     assert land.status is CommandStatus.PENDING
+
+
+def test_a_stale_prearm_text_is_not_the_reason(make_rig):
+    r = make_rig(link_timeout=100.0)
+    r.peer.heartbeat(custom_mode=STABILIZE)
+    r.peer.text("PreArm: Need Position Estimate")
+    r.tick()
+    r.run(40.0, heartbeat=dict(custom_mode=STABILIZE))
+    handle = r.vehicle.arm()
+    r.peer.ack(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, mavlink.MAV_RESULT_DENIED)
+    r.tick()
+    assert handle.status is CommandStatus.DENIED
+    assert handle.reason == "MAV_CMD_COMPONENT_ARM_DISARM: MAV_RESULT_DENIED"
