@@ -25,6 +25,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "autonomy.cli.sitl",
     "autonomy.cli.detect",
     "autonomy.cli.link",
+    "autonomy.cli.terrain",
 )
 
 
