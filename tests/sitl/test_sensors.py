@@ -245,3 +245,21 @@ def test_rendered_depth_converts_to_a_detector_frame_on_the_terrain():
     points, sigma = frame.to_points()
     assert points.shape == (256 * 256, 3) and sigma.shape == (256 * 256,)
     np.testing.assert_allclose(points[:, 2], 0.1 * points[:, 0], atol=2e-3)
+
+
+def test_image_up_is_the_vehicle_heading():
+    box = (np.abs(X) <= 2.1) & (np.abs(Y - 6.0) <= 2.1)  # 6 m north of the vehicle
+    cam = camera(terrain_of(np.where(box, 4.0, 0.0)), noise=False)
+    frame = cam.render([0.0, 0.0, 12.0], np.pi / 2, 0.0)  # heading north
+    rows, cols = np.nonzero(frame.depth < 10.0)
+    assert rows.size and rows.max() < frame.cy  # in the upper half
+    assert abs(cols.mean() - frame.cx) < 2.0
+    frame = cam.render([0.0, 0.0, 12.0], 0.0, 1.0)  # heading east: north is to the left
+    rows, cols = np.nonzero(frame.depth < 10.0)
+    assert cols.max() < frame.cx and abs(rows.mean() - frame.cy) < 2.0
+
+
+def test_beyond_the_terrain_edge_the_ground_continues():
+    cam = camera(terrain_of(np.zeros_like(X)), noise=False)
+    frame = cam.render([400.0, -300.0, 20.0], 0.0, 0.0)
+    np.testing.assert_allclose(frame.depth, 20.0, atol=1e-3)
