@@ -32,8 +32,16 @@ def generate(
     cs = settings.cell_size
     ny, nx = shape
     extent = (origin[0], origin[0] + (nx - 1) * cs, origin[1], origin[1] + (ny - 1) * cs)
+    # Steep spectra are smooth at the cell scale: synthesise on ~0.5 m cells then.
+    coarsen = max(1, int(0.5 / cs)) if settings.relief_beta >= 3.5 else 1
     grid = fractal_relief(
-        shape, cs, settings.relief_rms, settings.relief_wavelength, settings.relief_beta, rng
+        shape,
+        cs,
+        settings.relief_rms,
+        settings.relief_wavelength,
+        settings.relief_beta,
+        rng,
+        coarsen=coarsen,
     )
     _add_scarps(grid, origin, cs, extent, settings, rng)
     _add_craters(grid, origin, cs, extent, settings, rng)

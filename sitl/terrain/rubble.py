@@ -22,7 +22,7 @@ def generate(
     ny, nx = shape
     extent = (origin[0], origin[0] + (nx - 1) * cs, origin[1], origin[1] + (ny - 1) * cs)
     keep_out = home_keep_out(settings)
-    grid = fractal_relief(shape, cs, 0.4, 80.0, 4.4, rng)
+    grid = fractal_relief(shape, cs, 0.4, 80.0, 4.4, rng, coarsen=max(1, int(1.0 / cs)))
 
     # Debris piles: rounded mounds ...
     piles = poisson_points(settings.pile_density * 1e-4, extent, rng)
