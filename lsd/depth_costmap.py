@@ -38,6 +38,7 @@ from scipy.spatial.distance import pdist
 
 from lsd.depth_costmap_settings import CostmapWeights, DepthCostmapSettings
 from lsd.frames import DepthFrame
+from lsd.pointcloud import thin_by_distance
 from lsm.records import SiteObservation
 
 __all__ = [
@@ -238,14 +239,19 @@ def dense_sites(
     d = depth[rows, cols]
     positions = maps.points[rows, cols].astype(np.float64)
 
-    # Obstacle altitude: one dilation of the world-z image with the footprint (+ margin)
-    # projected at the median site depth.
-    z = np.where(maps.valid, maps.points[..., 2], -np.inf).astype(np.float32)
-    radius_px = int(np.ceil(f * (s.vehicle_radius + s.obstacle_margin) / np.median(d)))
-    # A square window (separable, fast) covers the disk: conservative.
-    kernel = np.ones((2 * radius_px + 1, 2 * radius_px + 1), dtype=np.uint8)
-    zmax = cv2.dilate(z, kernel, borderType=cv2.BORDER_REPLICATE)
-    obstacle = np.maximum(zmax[rows, cols].astype(np.float64), positions[:, 2])
+    # Obstacle altitude: highest world z near each site, from per-block maxima (blocks of
+    # site_stride pixels) dilated by the footprint + margin projected at the median site
+    # depth; conservative (covers at least that disc around every site).
+    h, w = depth.shape
+    hb, wb = -(-h // stride), -(-w // stride)
+    z = np.full((hb * stride, wb * stride), -np.inf, dtype=np.float32)
+    z[:h, :w] = np.where(maps.valid, maps.points[..., 2], -np.inf)
+    block_max = z.reshape(hb, stride, wb, stride).max(axis=(1, 3))
+    radius_px = f * (s.vehicle_radius + s.obstacle_margin) / float(np.median(d))
+    reach = int(np.ceil(radius_px / stride))
+    kernel = np.ones((2 * reach + 1, 2 * reach + 1), dtype=np.uint8)
+    zmax = cv2.dilate(block_max, kernel, borderType=cv2.BORDER_REPLICATE)
+    obstacle = np.maximum(zmax[rows // stride, cols // stride].astype(np.float64), positions[:, 2])
 
     if frame.sigma is not None:
         sig = np.asarray(frame.sigma, dtype=np.float64)[rows, cols]
@@ -311,7 +317,7 @@ class SiteList:
 
     def add(self, new: DenseSites, now: float = 0.0) -> np.ndarray:
         """Add a frame's sites; return, for each input site, its index in the list, or -1
-        when it was not listed (list full, or a dropped in-batch duplicate of a duplicate)."""
+        when it was not listed (list full)."""
         out = np.full(len(new), -1, dtype=np.int64)
         if len(new) == 0:
             return out
@@ -329,15 +335,12 @@ class SiteList:
                     arr[near[lower]] = getattr(new, key)[lower]
             self.timestamp[near[seen]] = now
         idx = np.flatnonzero(fresh)
-        alias = np.full(len(new), -1, dtype=np.int64)
+        dropped = np.empty(0, dtype=np.int64)
         if r > 0 and len(idx) > 1:
-            # Within the batch, any pair closer than r loses its later member (so no two
-            # listed sites are within r); the loser points at its partner.
-            pairs = cKDTree(new.positions[idx]).query_pairs(r, output_type="ndarray")
-            if len(pairs):
-                later, earlier = idx[pairs.max(axis=1)], idx[pairs.min(axis=1)]
-                alias[later] = earlier
-                idx = idx[alias[idx] < 0]
+            # Within the batch: greedy, best score first, so no two listed sites are within r.
+            idx = idx[np.argsort(-new.score[idx], kind="stable")]
+            keep = thin_by_distance(new.positions[idx], r)
+            dropped, idx = idx[~keep], np.sort(idx[keep])
         idx = idx[: max(self.max_sites - len(self.sites), 0)]
         if len(idx):
             start = len(self.sites)
@@ -350,8 +353,13 @@ class SiteList:
             self.timestamp = np.concatenate((self.timestamp, np.full(len(idx), float(now))))
             self._tree = cKDTree(self.sites.positions)
             out[idx] = start + np.arange(len(idx))
-        has_alias = alias >= 0
-        out[has_alias] = out[alias[has_alias]]
+        if len(dropped) and len(idx):
+            # A dropped duplicate maps to the listed site that displaced it.
+            dist, near = cKDTree(new.positions[idx]).query(
+                new.positions[dropped], distance_upper_bound=r
+            )
+            found = np.isfinite(dist)
+            out[dropped[found]] = out[idx[near[found]]]
         return out
 
 

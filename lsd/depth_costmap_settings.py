@@ -52,7 +52,7 @@ class DepthCostmapSettings(BaseModel):
     cluster_distance: float = Field(0.5, gt=0, description="clustering euclidean threshold (m)")
     cluster_dz: float = Field(0.01, gt=0, description="clustering z-difference threshold (m)")
     hierarchy_limit: int = Field(
-        2000,
+        1000,
         ge=2,
         description="lists up to this size use scipy.cluster.hierarchy; larger ones the "
         "equivalent k-d tree single-linkage components (O(n log n) instead of O(n^2))",

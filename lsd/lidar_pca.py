@@ -32,7 +32,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from lsd.lidar_pca_settings import LidarPcaSettings, SpotWeights
-from lsd.pointcloud import CloudAccumulator, clean_points, voxel_downsample
+from lsd.pointcloud import CloudAccumulator, clean_points, thin_by_distance, voxel_downsample
 from lsm.records import SiteObservation
 
 __all__ = [
@@ -146,48 +146,85 @@ def search_points(
 
 
 def _neighbourhoods(
-    tree: cKDTree, centres: np.ndarray, radius: float
+    tree: cKDTree, centres: np.ndarray, radius: float | np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Flattened spherical neighbourhoods: (lengths (S,), point indices (sum lengths,))."""
+    """Flattened ball neighbourhoods: (lengths (S,), point indices (sum lengths,)), the
+    indices of each centre contiguous and in centre order."""
     nb = tree.query_ball_point(centres, radius, return_sorted=False)
     lengths = np.fromiter(map(len, nb), dtype=np.int64, count=len(nb))
     flat = np.fromiter(chain.from_iterable(nb), dtype=np.int64, count=int(lengths.sum()))
     return lengths, flat
 
 
-def _fit_planes(
-    cloud: np.ndarray, lengths: np.ndarray, flat: np.ndarray
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Batched PCA of S neighbourhoods given as flattened index runs.
+class _Pairs:
+    """(search point, cloud point) pairs of the vertical cylinders around the search points,
+    contiguous per search point, with coordinates relative to the search point. Spheres,
+    clearance discs and obstacle discs of any radius up to the cylinder's are masks over
+    these pairs, so the cloud is queried once."""
 
-    Returns centroid (S, 3), eigenvalues (S, 3) ascending, unit normal (S, 3) with z >= 0,
-    z standard deviation (S,), and the largest point distance from the plane (S,).
-    Neighbourhoods must be non-empty.
+    def __init__(self, cloud: np.ndarray, tree2: cKDTree, seeds: np.ndarray, radius: float):
+        lengths, flat = _neighbourhoods(tree2, cloud[seeds, :2], radius)
+        self.owner = np.repeat(np.arange(len(seeds)), lengths)
+        self.origin = cloud[seeds]
+        self.rel = cloud[flat] - self.origin[self.owner]
+        self.distance = np.sqrt(np.einsum("ij,ij->i", self.rel, self.rel))
+        self.n = len(seeds)
+
+    def subset(self, which: np.ndarray) -> _Pairs:
+        """The pairs of the search points selected by the boolean ``which`` (n,), renumbered
+        0..k-1 in order."""
+        rows = which[self.owner]
+        out = _Pairs.__new__(_Pairs)
+        out.owner = (np.cumsum(which) - 1)[self.owner[rows]]
+        out.origin = self.origin[which]
+        out.rel = self.rel[rows]
+        out.distance = self.distance[rows]
+        out.n = int(which.sum())
+        return out
+
+    def starts(self) -> np.ndarray:
+        """First pair of each search point (every one has its own point at distance 0)."""
+        return np.searchsorted(self.owner, np.arange(self.n))
+
+
+def _shell_pca(pairs: _Pairs, radii: np.ndarray):
+    """PCA of every search point's sphere at every radius at once.
+
+    Points are binned into spherical shells (radius index of the smallest sphere holding
+    them); per-shell moment sums from ``np.bincount`` are accumulated over shells, so each
+    sphere's moments cost O(1) and one stacked ``eigh`` fits all (S, R) planes.
+
+    Returns count (S, R), centroid relative to the search point (S, R, 3), eigenvalues
+    (S, R, 3) ascending, unit normals (S, R, 3) with z >= 0, z std (S, R), and the shell
+    index of every pair (P,) (R where beyond the largest sphere).
     """
-    s = len(lengths)
-    owner = np.repeat(np.arange(s), lengths)
-    pts = cloud[flat]
-    n = lengths.astype(np.float64)
-    centroid = np.stack([np.bincount(owner, pts[:, k], minlength=s) for k in range(3)], 1)
-    centroid /= n[:, None]
-    d = pts - centroid[owner]
-    cov = np.empty((s, 3, 3))
-    for a, b in ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)):
-        cov[:, a, b] = cov[:, b, a] = np.bincount(owner, d[:, a] * d[:, b], minlength=s) / n
+    s, r = pairs.n, len(radii)
+    shell = np.searchsorted(radii, pairs.distance, side="left")
+    inside = shell < r
+    key = (pairs.owner * r + shell)[inside]
+    x, y, z = pairs.rel[inside].T
+    weights = (None, x, y, z, x * x, x * y, x * z, y * y, y * z, z * z)
+    m = np.stack([np.bincount(key, w, minlength=s * r) for w in weights], axis=-1)
+    m = np.cumsum(m.reshape(s, r, 10), axis=1)
+    count = m[..., 0]
+    n = np.maximum(count, 1.0)[..., None]
+    mean = m[..., 1:4] / n
+    second = m[..., 4:10] / n
+    cov = np.empty((s, r, 3, 3))
+    for k, (a, b) in enumerate(((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))):
+        cov[..., a, b] = cov[..., b, a] = second[..., k] - mean[..., a] * mean[..., b]
     evals, evecs = np.linalg.eigh(cov)
-    normal = evecs[:, :, 0]
-    normal *= np.where(normal[:, 2] < 0, -1.0, 1.0)[:, None]
-    residual = np.abs(np.einsum("ij,ij->i", d, normal[owner]))
-    starts = np.concatenate(([0], np.cumsum(lengths)[:-1]))
-    max_residual = np.maximum.reduceat(residual, starts)
-    return centroid, np.clip(evals, 0.0, None), normal, np.sqrt(cov[:, 2, 2]), max_residual
+    normal = evecs[..., 0]
+    normal *= np.where(normal[..., 2] < 0, -1.0, 1.0)[..., None]
+    zstd = np.sqrt(np.clip(cov[..., 2, 2], 0.0, None))
+    return count, mean, np.clip(evals, 0.0, None), normal, zstd, shell
 
 
 def detect_planes(
     cloud: np.ndarray,
     settings: LidarPcaSettings,
     rng: np.random.Generator,
-    tree: cKDTree | None = None,
+    tree2: cKDTree | None = None,
     timestamp: float = 0.0,
 ) -> PlaneSearch:
     """Algorithm 1 (growing spherical neighbourhoods, PCA planes) on a downsampled cloud,
@@ -197,74 +234,80 @@ def detect_planes(
         cloud: ``(N, 3)`` downsampled world points, metres.
         settings: detector settings.
         rng: source of the random search points.
-        tree: a ``cKDTree`` of ``cloud`` if already built.
+        tree2: a ``cKDTree`` of ``cloud[:, :2]`` (horizontal) if already built.
         timestamp: clock seconds stamped on the spots.
 
     A search point grows its sphere from r_min by r_step while the fit has at least n_min
     points, slope <= theta_max and (beyond the paper) no point farther than max_step from the
     plane; the last radius that passed is its spot. A point failing at r_min is rejected.
+    Beyond the paper, the spot radius is then cut to the horizontal distance of the nearest
+    point farther than max_step from the plane inside the vertical cylinder (a sphere misses
+    a tall obstacle beside the spot and the drop at a roof edge), and a spot cut below r_min
+    is rejected. One horizontal k-d tree query (radius r_max + obstacle_margin + r_step)
+    serves every radius, the clearance and the obstacle altitude.
     """
     seeds = search_points(cloud, settings, rng)
     s = len(seeds)
     accepted = np.zeros(s, dtype=bool)
     if s == 0:
         return PlaneSearch(SpotTable(), seeds, accepted)
-    if tree is None:
-        tree = cKDTree(cloud)
-    best_r = np.full(s, np.nan)
-    best_c = np.zeros((s, 3))
-    best_n = np.zeros((s, 3))
-    best_e = np.zeros((s, 3))
-    best_z = np.zeros(s)
-    best_count = np.zeros(s, dtype=np.int64)
-    first_fail = np.zeros(s, dtype=np.int8)  # 1 points, 2 slope, 3 step (at r_min)
-    active = np.arange(s)
-    fits = 0
+    if tree2 is None:
+        tree2 = cKDTree(cloud[:, :2], balanced_tree=False, compact_nodes=False)
+    radii = np.asarray(settings.radii)
+    reach = settings.r_max + settings.obstacle_margin + settings.r_step
+    pairs = _Pairs(cloud, tree2, seeds, reach)
+    count, mean, evals, normal, zstd, shell = _shell_pca(pairs, radii)
+    slope = np.arccos(np.clip(normal[..., 2], 0.0, 1.0))
+    enough = count >= settings.n_min
+    steep = enough & (slope > settings.theta_max)
     max_step = settings.max_step if settings.max_step is not None else np.inf
-    for step, radius in enumerate(settings.radii):
-        if len(active) == 0:
+    # Grow: a search point stays alive while each larger sphere passes (Algorithm 1 loop).
+    level = np.full(s, -1)  # index of the largest radius that passed
+    first_fail = np.zeros(s, dtype=np.int8)  # 1 points, 2 slope, 3 step (at r_min)
+    alive = np.ones(s, dtype=bool)
+    fits = 0
+    for j in range(len(radii)):
+        fits += int((alive & enough[:, j]).sum())
+        ok = alive & enough[:, j] & ~steep[:, j]
+        off = np.zeros(s, dtype=bool)
+        if np.isfinite(max_step) and ok.any():
+            # Largest distance from the plane over the sphere's pairs of the live points.
+            sel = np.flatnonzero(ok[pairs.owner] & (shell <= j))
+            own = pairs.owner[sel]
+            res = np.abs(np.einsum("ij,ij->i", pairs.rel[sel] - mean[own, j], normal[own, j]))
+            first = np.flatnonzero(np.diff(own, prepend=-1))
+            off[own[first]] = np.maximum.reduceat(res, first) > max_step
+        if j == 0:
+            first_fail[~enough[:, 0]] = 1
+            first_fail[steep[:, 0]] = 2
+            first_fail[off] = 3
+        ok &= ~off
+        level[ok] = j
+        alive = ok
+        if not alive.any():
             break
-        lengths, flat = _neighbourhoods(tree, cloud[seeds[active]], radius)
-        enough = lengths >= settings.n_min
-        ok = enough.copy()
-        steep = np.zeros(len(active), dtype=bool)
-        off_plane = np.zeros(len(active), dtype=bool)
-        if enough.any():
-            keep_runs = np.repeat(enough, lengths)
-            centroid, evals, normal, zstd, max_res = _fit_planes(
-                cloud, lengths[enough], flat[keep_runs]
-            )
-            fits += int(enough.sum())
-            slope = np.arccos(np.clip(normal[:, 2], 0.0, 1.0))
-            steep[enough] = slope > settings.theta_max
-            off_plane[enough] = ~steep[enough] & (max_res > max_step)
-            ok = enough & ~steep & ~off_plane
-            good = ok[enough]
-            idx = active[ok]
-            best_r[idx] = radius
-            best_c[idx] = centroid[good]
-            best_n[idx] = normal[good]
-            best_e[idx] = evals[good]
-            best_z[idx] = zstd[good]
-            best_count[idx] = lengths[ok]
-        if step == 0:
-            first_fail[active[~enough]] = 1
-            first_fail[active[steep]] = 2
-            first_fail[active[off_plane]] = 3
-        active = active[ok]
-    grown = np.isfinite(best_r)
-    tree2 = cKDTree(cloud[:, :2]) if grown.any() else None
-    clearance = np.full(s, np.inf)
-    if np.isfinite(max_step) and grown.any():
-        clearance[grown] = clearance_radii(
-            cloud, best_c[grown], best_n[grown], best_r[grown], max_step, tree2
-        )
-    best_r = np.minimum(best_r, clearance)
+    grown = level >= 0
+    pick = np.maximum(level, 0)
+    rows = np.arange(s)
+    best_r = np.where(grown, radii[pick], np.nan)
+    best_c = mean[rows, pick] + pairs.origin
+    best_n = normal[rows, pick]
+    best_e = evals[rows, pick]
+    best_z = zstd[rows, pick]
+    best_count = count[rows, pick].astype(np.int64)
+    obstacle = best_c[:, 2].copy()
+    if grown.any():
+        clearance, obstacle = _clearance_and_obstacle(
+            pairs, best_c, best_n, np.where(grown, best_r, 0.0), max_step,
+            settings.obstacle_margin,
+        )  # fmt: skip
+        best_r = np.minimum(best_r, clearance)
     clear = grown & (best_r >= settings.r_min - 1e-9)
     sigma_ok = clear & (best_z <= settings.sigma_max)
     accepted[:] = sigma_ok
     total = best_e.sum(axis=1)
     planarity = np.clip(3.0 * best_e[:, 0] / np.where(total > 0, total, 1.0), 0.0, 1.0)
+    k = int(sigma_ok.sum())
     spots = SpotTable(
         centre=best_c[sigma_ok],
         radius=best_r[sigma_ok],
@@ -273,11 +316,8 @@ def detect_planes(
         normal=best_n[sigma_ok],
         planarity=planarity[sigma_ok],
         count=best_count[sigma_ok],
-        obstacle_altitude=np.empty(int(sigma_ok.sum())),
-        timestamp=np.full(int(sigma_ok.sum()), float(timestamp)),
-    )
-    spots.obstacle_altitude = obstacle_altitudes(
-        cloud, spots.centre, spots.radius + settings.obstacle_margin, tree2
+        obstacle_altitude=obstacle[sigma_ok],
+        timestamp=np.full(k, float(timestamp)),
     )
     return PlaneSearch(
         spots=spots,
@@ -292,53 +332,28 @@ def detect_planes(
     )
 
 
-def clearance_radii(
-    cloud: np.ndarray,
+def _clearance_and_obstacle(
+    pairs: _Pairs,
     centres: np.ndarray,
     normals: np.ndarray,
     radii: np.ndarray,
     max_step: float,
-    tree2: cKDTree | None = None,
-) -> np.ndarray:
-    """Horizontal distance from each spot centre to the nearest point farther than
-    ``max_step`` from the spot's plane, searched within the vertical cylinder of each radius;
-    ``radii`` where there is none. Shapes: centres/normals (K, 3), radii (K,) -> (K,).
-
-    Beyond the paper: a sphere misses a tall obstacle beside the spot (and the drop at a roof
-    edge), a vertical cylinder does not.
-    """
-    out = np.asarray(radii, dtype=np.float64).copy()
-    if len(centres) == 0:
-        return out
-    tree2 = tree2 if tree2 is not None else cKDTree(cloud[:, :2])
-    lengths, flat = _neighbourhoods(tree2, centres[:, :2], out)
-    if len(flat) == 0:
-        return out
-    owner = np.repeat(np.arange(len(centres)), lengths)
-    rel = cloud[flat] - centres[owner]
+    margin: float,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Per search point (S,): the horizontal distance from the spot centre to the nearest
+    point farther than ``max_step`` from the spot plane within its radius (the radius if
+    none), and the highest point within radius + margin (the centre's z if none)."""
+    owner = pairs.owner
+    rel = pairs.rel + (pairs.origin - centres)[owner]
+    horiz = np.hypot(rel[:, 0], rel[:, 1])
+    starts = pairs.starts()
     off = np.abs(np.einsum("ij,ij->i", rel, normals[owner])) > max_step
-    horiz = np.where(off, np.hypot(rel[:, 0], rel[:, 1]), np.inf)
-    has = lengths > 0
-    starts = np.concatenate(([0], np.cumsum(lengths[has])[:-1]))
-    out[has] = np.minimum(out[has], np.minimum.reduceat(horiz, starts))
-    return out
-
-
-def obstacle_altitudes(
-    cloud: np.ndarray, centres: np.ndarray, radii: np.ndarray, tree2: cKDTree | None = None
-) -> np.ndarray:
-    """Highest cloud z within each horizontal radius around each centre, ``(K,)`` metres
-    (the centre's own z where no point is that close)."""
-    if len(centres) == 0:
-        return np.empty(0)
-    tree2 = tree2 if tree2 is not None else cKDTree(cloud[:, :2])
-    lengths, flat = _neighbourhoods(tree2, centres[:, :2], radii)
-    out = centres[:, 2].copy()
-    has = lengths > 0
-    if has.any():
-        starts = np.concatenate(([0], np.cumsum(lengths[has])[:-1]))
-        out[has] = np.maximum(out[has], np.maximum.reduceat(cloud[flat, 2], starts))
-    return out
+    blocking = np.where(off & (horiz <= radii[owner]), horiz, np.inf)
+    clearance = np.minimum(radii, np.minimum.reduceat(blocking, starts))
+    near = horiz <= radii[owner] + margin
+    z = np.where(near, pairs.rel[:, 2] + pairs.origin[owner, 2], -np.inf)
+    obstacle = np.maximum(centres[:, 2], np.maximum.reduceat(z, starts))
+    return clearance, obstacle
 
 
 def spot_grades(
@@ -365,16 +380,12 @@ def spot_grades(
 
 
 def _dedupe(spots: SpotTable, settings: LidarPcaSettings) -> SpotTable:
-    """Keep, among spots closer than merge_distance, only the best-graded one (any pair within
-    the distance loses its worse member, so no two kept spots are that close)."""
+    """Keep, among spots closer than merge_distance, the better-graded ones (greedy, best
+    first), so no two kept spots are that close."""
     if len(spots) < 2 or settings.merge_distance <= 0:
         return spots
-    order = np.argsort(-spot_grades(spots, settings), kind="stable")
-    ranked = spots.take(order)
-    pairs = cKDTree(ranked.centre).query_pairs(settings.merge_distance, output_type="ndarray")
-    keep = np.ones(len(ranked), dtype=bool)
-    keep[pairs.max(axis=1)] = False
-    return ranked.take(keep)
+    ranked = spots.take(np.argsort(-spot_grades(spots, settings), kind="stable"))
+    return ranked.take(thin_by_distance(ranked.centre, settings.merge_distance))
 
 
 class LidarPcaDetector:

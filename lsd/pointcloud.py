@@ -10,6 +10,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 
 def clean_points(points: np.ndarray) -> tuple[np.ndarray, int]:
@@ -124,3 +125,35 @@ class CloudAccumulator:
         self._anchor = None
         self._travelled = 0.0
         return out
+
+
+def thin_by_distance(positions: np.ndarray, distance: float) -> np.ndarray:
+    """Greedy thinning: walk the points in the given order (best first) and keep each one
+    that has no kept point within ``distance``; returns the (N,) bool mask of kept points.
+
+    Computed in parallel rounds over the k-d tree's close pairs (a point is decided once no
+    undecided better neighbour remains), which gives exactly the sequential greedy result.
+    """
+    pos = np.asarray(positions, dtype=np.float64)
+    n = len(pos)
+    keep = np.ones(n, dtype=bool)
+    if n < 2 or distance <= 0:
+        return keep
+    pairs = cKDTree(pos).query_pairs(distance, output_type="ndarray")
+    if len(pairs) == 0:
+        return keep
+    a = np.concatenate((pairs[:, 0], pairs[:, 1]))
+    b = np.concatenate((pairs[:, 1], pairs[:, 0]))
+    state = np.zeros(n, dtype=np.int8)  # 0 undecided, 1 kept, 2 dropped
+    while True:
+        open_pair = (state[a] == 0) & (state[b] == 0)
+        best_nb = np.full(n, n, dtype=np.int64)
+        np.minimum.at(best_nb, a[open_pair], b[open_pair])
+        undecided = state == 0
+        if not undecided.any():
+            break
+        winners = undecided & (np.arange(n) < best_nb)
+        state[winners] = 1
+        hit = winners[a] & (state[b] == 0)
+        state[b[hit]] = 2
+    return state == 1

@@ -9,7 +9,7 @@ import pytest
 from pydantic import ValidationError
 
 from lsd.lidar_pca import LidarPcaDetector, LidarPcaSettings, detect_planes, spot_grades
-from lsd.pointcloud import CloudAccumulator, voxel_downsample
+from lsd.pointcloud import CloudAccumulator, thin_by_distance, voxel_downsample
 
 STEP = 0.1  # sample spacing of the constructed clouds, m
 
@@ -263,3 +263,15 @@ def test_settings_reject_inconsistent_radii_and_unknown_fields():
     with pytest.raises(ValidationError, match="voxel"):
         LidarPcaSettings(voxel=0.1)
     assert LidarPcaSettings(r_min=1.0, r_max=2.2, r_step=0.5).radii == [1.0, 1.5, 2.0, 2.2]
+
+
+def test_thin_by_distance_equals_sequential_greedy():
+    rng = np.random.default_rng(11)
+    pts = np.c_[rng.uniform(0, 10, (400, 2)), np.zeros(400)]
+    pts[:50] = np.c_[np.arange(50) * 0.3, np.zeros(50), np.zeros(50)]  # a chain of ties
+    keep = thin_by_distance(pts, 1.0)
+    kept: list[int] = []
+    for i in range(len(pts)):  # the reference: walk in order, keep if no kept neighbour
+        if all(np.linalg.norm(pts[i] - pts[k]) > 1.0 for k in kept):
+            kept.append(i)
+    np.testing.assert_array_equal(np.flatnonzero(keep), kept)
