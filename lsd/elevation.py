@@ -7,6 +7,11 @@ threshold test gives the safe mask, one Euclidean distance transform gives every
 size, non-maximum suppression picks sites, and a maximum filter gives each site's obstacle
 altitude. Sites come out as :class:`lsm.SiteObservation` records, already threshold-filtered.
 
+``observation_altitude`` is the camera's current height above the site, or, if larger, the
+greatest height from which any cell within ``footprint_radius + clearance_margin`` of the
+site was last best seen: a site redetected at 2.5 m whose surroundings were only seen from
+20 m is not reported as seen from 2.5 m, which keeps verification meaningful.
+
 Normalisation of the emitted values (so they can enter the loss unaltered):
 ``roughness = roughness_m / max_roughness`` and ``uncertainty = sigma_m / max_uncertainty``,
 where ``sigma_m`` is the RMS 1-sigma fused height error over the footprint window. Because a
@@ -24,7 +29,9 @@ from collections import Counter
 from dataclasses import dataclass
 from typing import Any
 
+import cv2
 import numpy as np
+from scipy import ndimage
 
 from lsd.elevation_map import ElevationMap
 from lsd.elevation_settings import DetectorSettings, ElevationMapSettings
@@ -70,6 +77,7 @@ class ElevationDetector:
         self.last_analysis: MapAnalysis | None = None
         self._counters: Counter[str] = Counter()
         self._events: list[dict[str, Any]] = []
+        self._last_skip: str | None = None
 
     @property
     def map_settings(self) -> ElevationMapSettings:
@@ -80,7 +88,10 @@ class ElevationDetector:
         return dict(self._counters)
 
     def drain_events(self) -> list[dict[str, Any]]:
-        """Events since the last call, each a JSON-able dict with ``"event"``."""
+        """Events since the last call, each a JSON-able dict with ``"event"``:
+        ``{"event": "frame_skipped", "reason", "frame_time"}`` when frames start being
+        skipped (or the reason changes); every skipped frame is counted in :meth:`counters`.
+        """
         events, self._events = self._events, []
         return events
 
@@ -106,10 +117,17 @@ class ElevationDetector:
         valid = self._valid_pixels(frame, depth)
         if not valid.any():
             return self._skip(frame, "no_valid_depth")
-        clean = dataclasses.replace(frame, depth=np.where(valid, depth, np.nan))
-        points, sigma = clean.to_points()
+        placement = _placement_depth(depth, valid, self.map_settings.placement_smoothing)
+        # Points are placed horizontally along the smoothed depth but keep their own
+        # height: placing each point with its own noisy depth would crowd the
+        # short-depth (high) points towards the nadir and bias cells upwards by about
+        # 2 sigma^2 / depth.
+        placed = dataclasses.replace(frame, depth=np.where(valid, placement, np.nan))
+        points, sigma = placed.to_points()
         position = np.asarray(frame.position, dtype=np.float64)
         rotation = np.asarray(frame.rotation, dtype=np.float64)
+        ratio = depth[valid] / placement[valid]  # same row-major order as to_points
+        points[:, 2] = position[2] + ratio * (points[:, 2] - position[2])
         # The ray error sigma is along the optical axis; its vertical part scales the depth
         # error by |dz| / depth (|dz| = height of the camera above the point).
         offset = points - position
@@ -118,9 +136,10 @@ class ElevationDetector:
         variance = vertical_sigma**2 + self.map_settings.min_sigma**2
 
         now = float(frame.timestamp)
+        self._last_skip = None
         self.map.recentre(position[0], position[1])
         self._counters["cells_forgotten"] += self.map.forget_older_than(now)
-        fused = self.map.fuse(points, variance, now)
+        fused = self.map.fuse(points, variance, now, camera_height=float(position[2]))
         self._counters["points_fused"] += fused
         self._counters["points_outside_map"] += len(points) - fused
         self._counters["frames_fused"] += 1
@@ -155,11 +174,15 @@ class ElevationDetector:
         if len(i) == 0:
             return []
         top = obstacle_altitude(m.top, m.variance, r, s.obstacle_radius)[i, j]
+        # A site is only as trustworthy as the farthest look at the ground that decides it.
+        reach = int(np.ceil((s.footprint_radius + s.clearance_margin) / r - 1e-9))
+        looks = np.where(np.isfinite(m.closest), m.closest, 0.0)  # unobserved: no say
+        farthest_look = ndimage.maximum_filter(looks, size=2 * reach + 1, mode="nearest")[i, j]
         xs, ys = m.cell_centres()
         z = fit.height[i, j]
         roughness = np.clip(fit.roughness[i, j] / s.max_roughness, 0.0, 1.0)
         uncertainty = np.clip(fit.sigma[i, j] / s.max_uncertainty, 0.0, 1.0)
-        altitude = np.maximum(float(camera_position[2]) - z, 0.0)
+        altitude = np.maximum(float(camera_position[2]) - z, farthest_look)
         label = f"{s.source}:{source}" if source else s.source
         observations = [
             SiteObservation(
@@ -185,6 +208,10 @@ class ElevationDetector:
 
     def _skip(self, frame: DepthFrame, reason: str) -> bool:
         self._counters[f"frames_skipped_{reason}"] += 1
+        # One event when skipping starts or its reason changes, not one per frame.
+        if reason == self._last_skip:
+            return False
+        self._last_skip = reason
         timestamp = getattr(frame, "timestamp", None)
         self._events.append(
             {
@@ -244,3 +271,16 @@ class ElevationDetector:
             c["pixels_dropped_bad_sigma"] += int(np.count_nonzero(valid & ~good_sigma))
             valid &= good_sigma
         return valid
+
+
+def _placement_depth(depth: np.ndarray, valid: np.ndarray, kernel: int) -> np.ndarray:
+    """(H, W) depth averaged over the valid pixels of a ``kernel`` x ``kernel`` box
+    (``depth`` itself where ``kernel`` is 1), used only to place points horizontally."""
+    if kernel <= 1:
+        return depth
+    mask = valid.astype(np.float32)
+    total = cv2.blur(np.where(valid, depth, 0.0).astype(np.float32), (kernel, kernel))
+    share = cv2.blur(mask, (kernel, kernel))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        smooth = (total / share).astype(np.float64)
+    return np.where(valid & (share > 0), smooth, depth)

@@ -39,6 +39,8 @@ class ElevationMap:
         top: (n, n) float64 fused highest point of the cell, ENU z metres (NaN where
             unobserved): catches rocks smaller than a cell, which the mean averages away.
         variance: (n, n) float64 variance of ``mean``, m^2; inf where unobserved.
+        closest: (n, n) float64 smallest height of the camera above the cell at which the
+            cell was measured, metres; inf where unobserved (or the camera was unknown).
         last_update: (n, n) float64 clock seconds of the last measurement; -inf if none.
         origin_index: (2,) int64 world cell index (x, y) of cell ``[0, 0]``.
     """
@@ -49,6 +51,7 @@ class ElevationMap:
         self.mean = np.full((n, n), np.nan)
         self.top = np.full((n, n), np.nan)
         self.variance = np.full((n, n), np.inf)
+        self.closest = np.full((n, n), np.inf)
         self.last_update = np.full((n, n), -np.inf)
         self.origin_index = np.zeros(2, dtype=np.int64)
         self._centred = False
@@ -113,11 +116,18 @@ class ElevationMap:
         self.mean = _shifted(self.mean, di, dj, np.nan)
         self.top = _shifted(self.top, di, dj, np.nan)
         self.variance = _shifted(self.variance, di, dj, np.inf)
+        self.closest = _shifted(self.closest, di, dj, np.inf)
         self.last_update = _shifted(self.last_update, di, dj, -np.inf)
         self.origin_index = target
         return max(abs(di), abs(dj))
 
-    def fuse(self, points: np.ndarray, variance: np.ndarray, now: float) -> int:
+    def fuse(
+        self,
+        points: np.ndarray,
+        variance: np.ndarray,
+        now: float,
+        camera_height: float | None = None,
+    ) -> int:
         """Fuse height measurements into their cells.
 
         All points falling in one cell are first combined by inverse-variance weighting
@@ -132,6 +142,8 @@ class ElevationMap:
             points: (N, 3) world points, ENU metres.
             variance: (N,) variance of each point's height, m^2, > 0.
             now: clock seconds of the measurements.
+            camera_height: ENU z of the camera that measured them, metres, or None; it
+                updates :attr:`closest`.
 
         Returns:
             the number of points that fell inside the window and were fused.
@@ -181,6 +193,9 @@ class ElevationMap:
         top[cells] = np.maximum(new_top, new_mu)
         var[cells] = new_var
         self.last_update.reshape(-1)[cells] = now
+        if camera_height is not None:
+            closest = self.closest.reshape(-1)
+            closest[cells] = np.minimum(closest[cells], np.maximum(camera_height - meas, 0.0))
         return int(np.count_nonzero(inside))
 
     def forget_older_than(self, now: float) -> int:
@@ -194,6 +209,7 @@ class ElevationMap:
             self.mean[stale] = np.nan
             self.top[stale] = np.nan
             self.variance[stale] = np.inf
+            self.closest[stale] = np.inf
             self.last_update[stale] = -np.inf
         return count
 
@@ -202,4 +218,5 @@ class ElevationMap:
         self.mean.fill(np.nan)
         self.top.fill(np.nan)
         self.variance.fill(np.inf)
+        self.closest.fill(np.inf)
         self.last_update.fill(-np.inf)

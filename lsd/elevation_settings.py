@@ -26,6 +26,13 @@ class ElevationMapSettings(BaseModel):
     min_sigma: float = Field(
         0.01, gt=0, description="floor of the 1-sigma height error of one point (m)"
     )
+    placement_smoothing: int = Field(
+        5,
+        ge=1,
+        le=31,
+        description="side (px) of the box over which depth is averaged to place points "
+        "horizontally (1: each pixel's own depth)",
+    )
     outlier_gate: float = Field(
         4.0,
         gt=0,

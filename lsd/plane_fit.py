@@ -1,9 +1,9 @@
 """Local plane fits over a sliding square window of an elevation grid, by box filters.
 
-For every cell the least-squares plane ``z = a + b x + c y`` through the observed cells of the
-window centred on it is found from windowed first and second moments (one
-:func:`scipy.ndimage.uniform_filter` pass over a stack of masked products), so the cost is
-independent of the window size and there is no loop over cells.
+For every cell the inverse-variance weighted least-squares plane ``z = a + b x + c y``
+through the observed cells of the window centred on it is found from windowed first and
+second moments (one :func:`scipy.ndimage.uniform_filter` pass over a stack of masked
+products), so the cost is independent of the window size and there is no loop over cells.
 """
 
 from __future__ import annotations
@@ -22,10 +22,11 @@ class PlaneFit:
         height: fitted plane height at the cell centre, ENU z metres (NaN if no fit).
         slope: inclination of the plane, radians (NaN if no fit).
         slope_error: approximate 1-sigma error of ``slope`` from the measurement noise, rad.
-        roughness: RMS residual of the fit with the expected measurement-noise part removed,
-            ``sqrt(max(0, residual_var - mean_var))``, metres (NaN if no fit).
+        roughness: weighted RMS residual of the fit with the part that measurement noise
+            explains removed, ``sqrt(max(0, residual_var - noise_var))`` where ``noise_var``
+            is the harmonic mean of the cell variances, metres (NaN if no fit).
         roughness_error: approximate 1-sigma error of ``roughness**2`` from the measurement
-            noise, ``mean_var * sqrt(2 / (cells - 3))``, m^2.
+            noise, ``noise_var * sqrt(2 / (cells - 3))``, m^2.
         step: ``max(|cell height - plane height|, cell top - plane height)`` at the cell
             itself, metres (NaN where the cell is unobserved): how far the cell sticks out
             of (or into) its footprint plane.
@@ -67,8 +68,10 @@ def fit_planes(
     """
     half = max(1, int(round(radius / resolution)))
     size = 2 * half + 1
-    observed = np.isfinite(height)
-    w = observed.astype(np.float64)
+    observed = np.isfinite(height) & np.isfinite(variance) & (variance > 0)
+    o = observed.astype(np.float64)
+    # Inverse-variance weights: a cell seen by few or far points counts less.
+    w = np.where(observed, 1.0 / np.where(observed, variance, 1.0), 0.0)
     # Heights relative to a reference keep the second moments well conditioned.
     ref = float(np.median(height[observed])) if observed.any() else 0.0
     z = np.where(observed, height - ref, 0.0)
@@ -77,12 +80,13 @@ def fit_planes(
     x = (np.arange(n0, dtype=np.float64) * resolution)[:, None] * np.ones((1, n1))
     y = (np.arange(n1, dtype=np.float64) * resolution)[None, :] * np.ones((n0, 1))
     wx, wy, wz = w * x, w * y, w * z
-    stack = np.stack((w, wx, wy, wz, wx * x, wx * y, wy * y, wz * x, wz * y, wz * z, var))
+    stack = np.stack((o, var, w, wx, wy, wz, wx * x, wx * y, wy * y, wz * x, wz * y, wz * z))
     m = ndimage.uniform_filter(stack, size=(1, size, size), mode="constant", cval=0.0)
-    frac, sx, sy, sz, sxx, sxy, syy, sxz, syz, szz, svar = m
+    frac, svar, sw, sx, sy, sz, sxx, sxy, syy, sxz, syz, szz = m
     count = frac * size * size
     with np.errstate(divide="ignore", invalid="ignore"):
-        inv = 1.0 / frac
+        weight = sw * size * size  # sum of the window's weights
+        inv = 1.0 / sw
         mx, my, mz = sx * inv, sy * inv, sz * inv
         cxx = sxx * inv - mx * mx
         cxy = sxy * inv - mx * my
@@ -96,20 +100,21 @@ def fit_planes(
         b = (cyy * cxz - cxy * cyz) / det
         c = (cxx * cyz - cxy * cxz) / det
         residual = czz - b * cxz - c * cyz
-        mean_var = svar * inv
+        # The weighted mean squared residual that noise alone produces: count / sum(w).
+        noise_var = count / weight
         plane = mz + b * (x - mx) + c * (y - my)
         gradient = np.hypot(b, c)
         slope = np.arctan(gradient)
-        # Standard error of the gradient of a least-squares plane with i.i.d. noise.
-        gradient_error = np.sqrt(mean_var / (count * np.maximum(0.5 * (cxx + cyy), 1e-12)))
+        # Standard error of the gradient of a weighted least-squares plane.
+        gradient_error = np.sqrt(1.0 / (weight * np.maximum(0.5 * (cxx + cyy), 1e-12)))
         slope_error = gradient_error / (1.0 + gradient * gradient)
-        roughness = np.sqrt(np.maximum(residual - mean_var, 0.0))
-        roughness_error = mean_var * np.sqrt(2.0 / np.maximum(count - 3.0, 1.0))
+        roughness = np.sqrt(np.maximum(residual - noise_var, 0.0))
+        roughness_error = noise_var * np.sqrt(2.0 / np.maximum(count - 3.0, 1.0))
         step = np.abs(z - plane)
         if top is not None:
             step = np.maximum(step, np.where(observed, top - ref, 0.0) - plane)
-        step_error = np.sqrt(np.where(observed, variance, np.inf) + mean_var / count)
-        sigma = np.sqrt(mean_var)
+        step_error = np.sqrt(np.where(observed, variance, np.inf) + 1.0 / weight)
+        sigma = np.sqrt(svar / frac)
     nan = np.nan
     return PlaneFit(
         height=np.where(ok, plane + ref, nan),
