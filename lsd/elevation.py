@@ -8,8 +8,8 @@ size, non-maximum suppression picks sites, and a maximum filter gives each site'
 altitude. Sites come out as :class:`lsm.SiteObservation` records, already threshold-filtered.
 
 ``observation_altitude`` is the camera's current height above the site, or, if larger, the
-greatest height from which any cell within ``footprint_radius + clearance_margin`` of the
-site was last best seen: a site redetected at 2.5 m whose surroundings were only seen from
+greatest height from which any cell within ``footprint_radius`` of the site was best
+seen: a site redetected at 2.5 m whose surroundings were only seen from
 20 m is not reported as seen from 2.5 m, which keeps verification meaningful.
 
 Normalisation of the emitted values (so they can enter the loss unaltered):
@@ -168,21 +168,27 @@ class ElevationDetector:
         size = site_size(safe, r)
         origin = (int(m.origin_index[0]), int(m.origin_index[1]))
         self.last_analysis = MapAnalysis(fit, safe, size, origin, r)
+        # A site is only as trustworthy as the farthest look at the ground under its
+        # footprint (the smallest camera height each cell was seen from, largest over the
+        # footprint).
+        reach = int(np.ceil(s.footprint_radius / r - 1e-9))
+        looks = np.where(np.isfinite(m.closest), m.closest, 0.0)  # unobserved: no say
+        farthest_look = ndimage.maximum_filter(looks, size=2 * reach + 1, mode="nearest")
         with np.errstate(invalid="ignore"):
-            quality = 1.0 - 0.5 * (fit.roughness / s.max_roughness + fit.sigma / s.max_uncertainty)
+            # Between equally roomy cells prefer the best-seen one (so that a low hover
+            # redetects the site right below it), then the smoothest and most certain.
+            quality = 0.7 * np.exp(-farthest_look / 10.0) + 0.3 * (
+                1.0 - 0.5 * (fit.roughness / s.max_roughness + fit.sigma / s.max_uncertainty)
+            )
         i, j = select_sites(size, np.nan_to_num(quality), origin, r, s)
         if len(i) == 0:
             return []
         top = obstacle_altitude(m.top, m.variance, r, s.obstacle_radius)[i, j]
-        # A site is only as trustworthy as the farthest look at the ground that decides it.
-        reach = int(np.ceil((s.footprint_radius + s.clearance_margin) / r - 1e-9))
-        looks = np.where(np.isfinite(m.closest), m.closest, 0.0)  # unobserved: no say
-        farthest_look = ndimage.maximum_filter(looks, size=2 * reach + 1, mode="nearest")[i, j]
         xs, ys = m.cell_centres()
         z = fit.height[i, j]
         roughness = np.clip(fit.roughness[i, j] / s.max_roughness, 0.0, 1.0)
         uncertainty = np.clip(fit.sigma[i, j] / s.max_uncertainty, 0.0, 1.0)
-        altitude = np.maximum(float(camera_position[2]) - z, farthest_look)
+        altitude = np.maximum(float(camera_position[2]) - z, farthest_look[i, j])
         label = f"{s.source}:{source}" if source else s.source
         observations = [
             SiteObservation(

@@ -18,9 +18,7 @@ def flat_world():
 
 
 def test_source_reports_sites_from_the_reported_pose(flat_world):
-    source: SiteSource = ElevationMapSource.from_settings(
-        flat_world, rng=np.random.default_rng(4)
-    )
+    source: SiteSource = ElevationMapSource.from_settings(flat_world, rng=np.random.default_rng(4))
     observations = []
     for k in range(3):  # hovering at 8 m: the stereo camera needs no motion
         state = VehicleState(time=k * 0.5, position=(10.0, -5.0, 8.0), yaw=0.4)
