@@ -92,23 +92,36 @@ def _sec(x: float | None) -> str:
     return "-" if x is None else f"{x:.1f}"
 
 
+def text_table(head: Sequence[str], lines: Sequence[Sequence[str]]) -> str:
+    """Fixed-width columns: the first left-aligned, the others right-aligned."""
+    widths = [max(len(h), *(len(line[i]) for line in lines)) for i, h in enumerate(head)]
+
+    def row(cells: Sequence[str]) -> str:
+        first, *rest = (
+            c.ljust(w) if i == 0 else c.rjust(w)
+            for i, (c, w) in enumerate(zip(cells, widths, strict=True))
+        )
+        return "  ".join([first, *rest])
+
+    return "\n".join([row(head), *(row(line) for line in lines)])
+
+
+def _interval(low: float | None, high: float | None) -> str:
+    return f"[{_pct(low)}, {_pct(high)}]"
+
+
 def format_table(rows: Sequence[dict[str, Any]]) -> str:
-    """A fixed-width text table of :func:`summarise` rows."""
+    """A text table of :func:`summarise` rows: counts per outcome, success rate (%) with
+    its Wilson 95 % interval, median and 90th percentile time to land (sim s)."""
     head = ["variant", "runs", *(OUTCOME_TITLES[o] for o in OUTCOMES),
             "success %", "95% CI", "TTL median s", "TTL p90 s"]
     lines = [
         [row.get("label", "all"), str(row["runs"]), *(str(row[o]) for o in OUTCOMES),
-         _pct(row["success_rate"]),
-         f"[{_pct(row['success_low'])}, {_pct(row['success_high'])}]",
+         _pct(row["success_rate"]), _interval(row["success_low"], row["success_high"]),
          _sec(row["time_to_land_median"]), _sec(row["time_to_land_p90"])]
         for row in rows
     ]
-    widths = [max(len(h), *(len(line[i]) for line in lines)) for i, h in enumerate(head)]
-    fmt = [str.ljust] + [str.rjust] * (len(head) - 1)
-    out = ["  ".join(f(h, w) for f, h, w in zip(fmt, head, widths, strict=True))]
-    out += ["  ".join(f(c, w) for f, c, w in zip(fmt, line, widths, strict=True))
-            for line in lines]
-    return "\n".join(out)
+    return text_table(head, lines)
 
 
 def compare_missions(
@@ -151,22 +164,20 @@ def compare_missions(
 
 
 def format_comparison(rows: Sequence[dict[str, Any]]) -> str:
-    """A text table of :func:`compare_missions` rows (the first row is the baseline)."""
+    """A text table of :func:`compare_missions` rows (the first row is the baseline);
+    differences are in percentage points with Newcombe's paired 95 % interval."""
     head = ["mission", "runs", "success %", "95% CI", "unsafe", "error",
-            "diff vs " + rows[0]["mission"] + " (pp)", "95% CI (pp)"]
+            f"diff vs {rows[0]['mission']} (pp)", "95% CI (pp)"]
     lines = []
     for i, row in enumerate(rows):
-        diff = "baseline" if i == 0 else (
-            "-" if row["difference"] is None else f"{100 * row['difference']:+.1f}")
-        ci = "" if i == 0 else (
-            f"[{100 * row['difference_low']:+.1f}, {100 * row['difference_high']:+.1f}]"
-            if row["difference_low"] is not None else "-")
+        if i == 0:
+            diff, ci = "baseline", ""
+        elif row["difference"] is None:
+            diff, ci = "-", "-"
+        else:
+            diff = f"{100 * row['difference']:+.1f}"
+            ci = f"[{100 * row['difference_low']:+.1f}, {100 * row['difference_high']:+.1f}]"
         lines.append([row["mission"], str(row["runs"]), _pct(row["success_rate"]),
-                      f"[{_pct(row['success_low'])}, {_pct(row['success_high'])}]",
+                      _interval(row["success_low"], row["success_high"]),
                       str(row["unsafe"]), str(row["error"]), diff, ci])
-    widths = [max(len(h), *(len(line[i]) for line in lines)) for i, h in enumerate(head)]
-    fmt = [str.ljust] + [str.rjust] * (len(head) - 1)
-    out = ["  ".join(f(h, w) for f, h, w in zip(fmt, head, widths, strict=True))]
-    out += ["  ".join(f(c, w) for f, c, w in zip(fmt, line, widths, strict=True))
-            for line in lines]
-    return "\n".join(out)
+    return text_table(head, lines)

@@ -90,3 +90,39 @@ def test_run_seeds_are_spawned_children_of_the_campaign_seed():
     expected = [int(c.generate_state(1)[0]) for c in children]
     assert [run_seed(42, i) for i in range(5)] == expected
     assert run_seed(43, 0) != run_seed(42, 0)
+
+
+def record(outcome, seed, time_to_land=None, safe=None):
+    return {"outcome": outcome, "seed": seed, "time_to_land": time_to_land,
+            "touchdown_safe": safe, "variant_key": ""}
+
+
+def test_summary_counts_outcomes_and_leaves_errors_out_of_the_success_rate():
+    from autonomy.campaign import format_table, summarise
+
+    runs = ([record("landed", i, 100.0 + i, True) for i in range(8)]
+            + [record("landed", 8, 50.0, False), record("error", 9)])
+    row = summarise(runs)
+    assert (row["runs"], row["landed"], row["landed_unsafe"], row["error"]) == (10, 8, 1, 1)
+    assert row["success_rate"] == pytest.approx(8 / 9)
+    assert (row["success_low"], row["success_high"]) == pytest.approx(wilson_interval(8, 9))
+    times = [100.0 + i for i in range(8)] + [50.0]
+    assert row["time_to_land_median"] == pytest.approx(np.median(times))
+    assert row["time_to_land_p90"] == pytest.approx(np.percentile(times, 90))
+    table = format_table([row]).splitlines()
+    assert "success %" in table[0] and "88.9" in table[1]
+
+
+def test_comparison_pairs_runs_by_seed():
+    from autonomy.campaign import compare_missions
+
+    base = [record("landed", s, 80.0, True) for s in range(6)] + [record("crashed", 6)]
+    other = ([record("landed", s, 80.0, True) for s in range(3)]
+             + [record("no_site", s) for s in range(3, 6)] + [record("error", 6)])
+    first, second = compare_missions(["a", "b"], [base, other])
+    assert first["difference"] == 0.0 and first["pairs"] == 7
+    assert second["pairs"] == 6  # the errored seed is left out
+    assert (second["both"], second["only_baseline"]) == (3, 3)
+    assert second["difference"] == pytest.approx(-0.5)
+    assert (second["difference_low"], second["difference_high"]) == pytest.approx(
+        newcombe_paired_interval(3, 0, 3, 0))
