@@ -27,6 +27,7 @@ within the footprint + margin around the site.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import lru_cache
 
 import cv2
 import numpy as np
@@ -63,22 +64,22 @@ class Costmaps:
 
     Attributes:
         valid: bool, depth finite and within [d_min, d_max].
-        points: (H, W, 3) float32 world ENU points (NaN where invalid).
+        world_z: float32 world ENU height of each pixel's point (NaN where invalid).
         depth_accuracy, flatness, steepness, energy: float32 normalised scores in [0, 1].
         flatness_px: float32 distance (pixels) to the nearest depth edge.
-        accuracy_raw: float32 eq. 1 term (D^2 - min D^2) / max D^2 (0 near, 1 far).
         decision: float32 eq. 7 score in [0, 1] (0 where invalid).
+        depth_range: (min, max) valid depth, metres (eq. 1 normalisers).
     """
 
     valid: np.ndarray
-    points: np.ndarray
+    world_z: np.ndarray
     depth_accuracy: np.ndarray
     flatness: np.ndarray
     steepness: np.ndarray
     energy: np.ndarray
     flatness_px: np.ndarray
-    accuracy_raw: np.ndarray
     decision: np.ndarray
+    depth_range: tuple[float, float]
 
 
 @dataclass
@@ -139,82 +140,110 @@ def _minmax(values: np.ndarray, valid: np.ndarray) -> np.ndarray:
     return out
 
 
+@lru_cache(maxsize=8)
+def _rays(fx: float, fy: float, cx: float, cy: float, w: int, h: int):
+    """Normalised image coordinates xn (1, W), yn (H, 1) and the ray length factor
+    |(xn, yn, 1)| (H, W) of a pinhole camera, float32 (cached per camera)."""
+    xn = ((np.arange(w, dtype=np.float32) - np.float32(cx)) / np.float32(fx))[None, :]
+    yn = ((np.arange(h, dtype=np.float32) - np.float32(cy)) / np.float32(fy))[:, None]
+    return xn, yn, np.sqrt(1.0 + xn * xn + yn * yn)
+
+
 def compute_costmaps(frame: DepthFrame, settings: DepthCostmapSettings) -> Costmaps:
     """All costmaps of one frame (see the module docstring); the frame must pass
-    :func:`frame_problem`."""
+    :func:`frame_problem`.
+
+    Surface normals: for a pinhole camera the cross product of the 3D gradients
+    dP/du x dP/dv of P = D (xn, yn, 1) is proportional to
+    n_cam = (-fx D_u, -fy D_v, D + fx xn D_u + fy yn D_v), so box-averaged depth gradients
+    (one separable filter each) give the averaged 3D-gradient normals without building
+    the point image; the world z of the normal is R[2] . n_cam.
+    """
     s = settings
     k = frame.intrinsics
     depth = np.asarray(frame.depth, dtype=np.float32)
     h, w = depth.shape
-    with np.errstate(invalid="ignore"):
-        valid = np.isfinite(depth) & (depth >= max(s.d_min, 1e-9)) & (depth <= s.d_max)
+    xn, yn, ray_len = _rays(k.fx, k.fy, k.cx, k.cy, w, h)
+    # Invalid depth (NaN, inf, out of [d_min, d_max]) -> 0, with OpenCV's in-place
+    # passes (numpy's where and masked stores cost ten times more on a full image).
+    d = depth.copy()
+    cv2.patchNaNs(d, 0.0)
+    d = cv2.threshold(d, s.d_max, 0.0, cv2.THRESH_TOZERO_INV)[1]
+    d = cv2.threshold(d, max(s.d_min, 1e-9), 0.0, cv2.THRESH_TOZERO)[1]
+    valid = d > 0
+    mask8 = valid.view(np.uint8)
+    valid8 = mask8 * np.uint8(255)
     if valid.any():
-        lo, hi = float(depth[valid].min()), float(depth[valid].max())
+        lo, hi, _, _ = cv2.minMaxLoc(d, mask=mask8)
     else:
         lo, hi = 1.0, 1.0
-    d = np.where(valid, depth, np.float32(np.nan))
 
-    # J_DE (eq. 1)
-    accuracy_raw = np.where(valid, (d * d - lo * lo) / (hi * hi), np.float32(1.0))
-    depth_accuracy = _minmax(np.float32(1.0) - accuracy_raw, valid)
+    # J_DE (eq. 1) min-max normalised: 1 - (D^2 - lo^2) / hi^2 is linear in D^2, so its
+    # normalised form is (hi^2 - D^2) / (hi^2 - lo^2).
+    d2 = d * d
+    if hi > lo:
+        depth_accuracy = (np.float32(hi * hi) - d2) * np.float32(1.0 / (hi * hi - lo * lo))
+    else:
+        depth_accuracy = np.ones_like(d)
+    depth_accuracy *= mask8
 
     # J_FL (eq. 2-3): Canny on the 8-bit depth map, distance transform to the edges.
     scale = 255.0 / max(hi - lo, 1e-12)
-    depth8 = np.where(valid, np.clip((depth - lo) * scale, 0, 255), 0).astype(np.uint8)
-    edges = cv2.Canny(depth8, s.canny_low, s.canny_high, L2gradient=True) > 0
-    edges |= ~valid
-    edges[0, :] = edges[-1, :] = True
-    edges[:, 0] = edges[:, -1] = True
+    depth8 = cv2.convertScaleAbs(d, alpha=scale, beta=-lo * scale)
+    depth8 *= mask8
+    edges = cv2.Canny(depth8, s.canny_low, s.canny_high, L2gradient=True)
+    edges |= cv2.bitwise_not(valid8)
+    edges[0, :] = edges[-1, :] = 255
+    edges[:, 0] = edges[:, -1] = 255
     flatness_px = cv2.distanceTransform(
-        (~edges).astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_5
+        cv2.bitwise_not(edges), cv2.DIST_L2, cv2.DIST_MASK_5
     )
     flatness = _minmax(flatness_px, valid)
 
-    # World points of every pixel (NaN where invalid), float32 for the image filters.
-    xn = ((np.arange(w, dtype=np.float32) - k.cx) / k.fx)[None, :]
-    yn = ((np.arange(h, dtype=np.float32) - k.cy) / k.fy)[:, None]
-    rot = np.asarray(frame.rotation, dtype=np.float32)
-    pos = np.asarray(frame.position, dtype=np.float64)
-    points = np.empty((h, w, 3), dtype=np.float32)
-    for i in range(3):  # three world axes, each a whole-image expression
-        points[..., i] = (rot[i, 0] * xn + rot[i, 1] * yn + rot[i, 2]) * d + np.float32(pos[i])
-
-    # J_N (eq. 4-5): normals from box-averaged 3D gradients (one separable filter each).
+    # J_N (eq. 4-5) from box-averaged depth gradients.
     box = np.full(s.normal_window, 1.0 / s.normal_window, dtype=np.float32)
-    diff = np.array([-0.5, 0.0, 0.5], dtype=np.float32)
-    gu = cv2.sepFilter2D(points, -1, np.convolve(diff, box), box)
-    gv = cv2.sepFilter2D(points, -1, box, np.convolve(diff, box))
-    nx = gu[..., 1] * gv[..., 2] - gu[..., 2] * gv[..., 1]
-    ny = gu[..., 2] * gv[..., 0] - gu[..., 0] * gv[..., 2]
-    nz = gu[..., 0] * gv[..., 1] - gu[..., 1] * gv[..., 0]
-    with np.errstate(invalid="ignore", divide="ignore"):
-        cos_t = np.abs(nz) / np.sqrt(nx * nx + ny * ny + nz * nz)
-    # fmax/fmin map NaN (next to invalid pixels) to 0, i.e. vertical: no site there.
-    theta = np.arccos(np.fmin(np.fmax(cos_t, np.float32(0.0)), np.float32(1.0)))
-    steepness = np.exp(theta * theta * np.float32(-0.5 / s.theta_th**2)) * valid
+    diff = np.convolve(np.array([-0.5, 0.0, 0.5], dtype=np.float32), box).astype(np.float32)
+    du = cv2.sepFilter2D(d, -1, diff, box, borderType=cv2.BORDER_REPLICATE)
+    dv = cv2.sepFilter2D(d, -1, box, diff, borderType=cv2.BORDER_REPLICATE)
+    dm = cv2.sepFilter2D(d, -1, box, box, borderType=cv2.BORDER_REPLICATE)
+    nx = du * np.float32(-k.fx)
+    ny = dv * np.float32(-k.fy)
+    nz = dm - nx * xn - ny * yn
+    rot = np.asarray(frame.rotation, dtype=np.float64)
+    up = nx * np.float32(rot[2, 0]) + ny * np.float32(rot[2, 1]) + nz * np.float32(rot[2, 2])
+    norm = cv2.magnitude(cv2.magnitude(nx, ny), nz)
+    norm += np.float32(1e-30)  # no gradient at all (outside the depth): vertical, no site
+    cos_t = np.abs(up) / norm
+    theta = np.arccos(np.minimum(cos_t, np.float32(1.0)))
+    steepness = cv2.exp(theta * theta * np.float32(-0.5 / s.theta_th**2))
+    steepness *= mask8
 
     # J_EC: distance camera -> point (= depth * |(xn, yn, 1)|), inverted so near scores high.
-    dist = d * np.sqrt(1.0 + xn * xn + yn * yn)
-    energy = (1.0 - _minmax(dist, valid)) * valid
+    energy = np.float32(1.0) - _minmax(d * ray_len, valid)
+    energy *= mask8
 
     c = s.weights
-    decision = (
-        c.depth_accuracy * depth_accuracy
-        + c.flatness * flatness
-        + c.steepness * steepness
-        + c.energy * energy
-    )
-    decision = np.where(valid, decision, np.float32(0.0))
+    decision = cv2.addWeighted(depth_accuracy, c.depth_accuracy, flatness, c.flatness, 0.0)
+    decision = cv2.addWeighted(decision, 1.0, steepness, c.steepness, 0.0)
+    decision = cv2.addWeighted(decision, 1.0, energy, c.energy, 0.0)
+    decision *= mask8
+
+    pos = np.asarray(frame.position, dtype=np.float64)
+    z = (
+        np.float32(rot[2, 0]) * xn + np.float32(rot[2, 1]) * yn + np.float32(rot[2, 2])
+    ) * d + np.float32(pos[2])
+    world_z = np.full((h, w), np.nan, dtype=np.float32)
+    cv2.copyTo(z, valid8, world_z)
     return Costmaps(
         valid=valid,
-        points=points,
+        world_z=world_z,
         depth_accuracy=depth_accuracy,
         flatness=flatness,
         steepness=steepness,
         energy=energy,
         flatness_px=flatness_px,
-        accuracy_raw=accuracy_raw,
         decision=decision,
+        depth_range=(float(lo), float(hi)),
     )
 
 
@@ -225,27 +254,38 @@ def dense_sites(
     ``site_stride`` pixels."""
     s = settings
     k = frame.intrinsics
-    depth = np.asarray(frame.depth, dtype=np.float64)
     f = min(k.fx, k.fy)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        footprint_px = f * s.vehicle_radius / depth
-    mask = maps.valid & (maps.decision >= s.threshold) & (maps.flatness_px >= footprint_px)
     stride = s.site_stride
-    sample = np.zeros_like(mask)
-    sample[stride // 2 :: stride, stride // 2 :: stride] = True
-    rows, cols = np.nonzero(mask & sample)
-    if len(rows) == 0:
+    off = stride // 2
+    # Only the sampled pixels are tested: every stride-th row and column.
+    sub = (slice(off, None, stride), slice(off, None, stride))
+    depth = np.asarray(frame.depth, dtype=np.float32)[sub]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mask = (
+            maps.valid[sub]
+            & (maps.decision[sub] >= s.threshold)
+            & (maps.flatness_px[sub] * depth >= np.float32(f * s.vehicle_radius))
+        )
+    rb, cb = np.nonzero(mask)
+    if len(rb) == 0:
         return DenseSites()
-    d = depth[rows, cols]
-    positions = maps.points[rows, cols].astype(np.float64)
+    rows, cols = rb * stride + off, cb * stride + off
+    d = depth[rb, cb].astype(np.float64)
+    xn, yn, _ = _rays(k.fx, k.fy, k.cx, k.cy, frame.depth.shape[1], frame.depth.shape[0])
+    cam = np.stack((xn[0, cols] * d, yn[rows, 0] * d, d), axis=1)
+    positions = cam @ np.asarray(frame.rotation, dtype=np.float64).T + np.asarray(
+        frame.position, dtype=np.float64
+    )
 
     # Obstacle altitude: highest world z near each site, from per-block maxima (blocks of
     # site_stride pixels) dilated by the footprint + margin projected at the median site
     # depth; conservative (covers at least that disc around every site).
-    h, w = depth.shape
+    h, w = frame.depth.shape
     hb, wb = -(-h // stride), -(-w // stride)
+    valid_z = np.full((h, w), -np.inf, dtype=np.float32)
+    cv2.copyTo(maps.world_z, maps.valid.view(np.uint8), valid_z)
     z = np.full((hb * stride, wb * stride), -np.inf, dtype=np.float32)
-    z[:h, :w] = np.where(maps.valid, maps.points[..., 2], -np.inf)
+    z[:h, :w] = valid_z
     block_max = z.reshape(hb, stride, wb, stride).max(axis=(1, 3))
     radius_px = f * (s.vehicle_radius + s.obstacle_margin) / float(np.median(d))
     reach = int(np.ceil(radius_px / stride))
@@ -256,15 +296,16 @@ def dense_sites(
     if frame.sigma is not None:
         sig = np.asarray(frame.sigma, dtype=np.float64)[rows, cols]
         uncertainty = np.clip(np.nan_to_num(sig, nan=s.sigma_ref) / s.sigma_ref, 0.0, 1.0)
-    else:
-        uncertainty = np.clip(maps.accuracy_raw[rows, cols], 0.0, 1.0)
+    else:  # the raw eq. 1 term
+        lo, hi = maps.depth_range
+        uncertainty = np.clip((d * d - lo * lo) / (hi * hi), 0.0, 1.0)
     cam_z = float(np.asarray(frame.position, dtype=np.float64)[2])
     return DenseSites(
         pixels=np.stack((rows, cols), axis=1),
         positions=positions,
-        score=maps.decision[rows, cols],
+        score=maps.decision[rows, cols].astype(np.float64),
         size=maps.flatness_px[rows, cols].astype(np.float64) * d / f,
-        roughness=np.clip(1.0 - maps.steepness[rows, cols], 0.0, 1.0),
+        roughness=np.clip(1.0 - maps.steepness[rows, cols].astype(np.float64), 0.0, 1.0),
         uncertainty=uncertainty,
         obstacle_altitude=obstacle,
         observation_altitude=np.maximum(cam_z - positions[:, 2], 0.0),

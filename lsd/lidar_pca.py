@@ -29,6 +29,7 @@ from dataclasses import dataclass, field
 from itertools import chain
 
 import numpy as np
+from scipy import ndimage
 from scipy.spatial import cKDTree
 
 from lsd.lidar_pca_settings import LidarPcaSettings, SpotWeights
@@ -137,11 +138,15 @@ def search_points(
         k = min(settings.n_points, n)
         return np.sort(rng.choice(n, size=k, replace=False))
     spacing = settings.grid_spacing or settings.r_max
-    cell = np.floor(cloud[:, :2] / spacing)
-    offset = np.linalg.norm(cloud[:, :2] - (cell + 0.5) * spacing, axis=1)
-    cell_id = np.unique(cell, axis=0, return_inverse=True)[1].ravel()
+    xy = cloud[:, :2]
+    grid = np.floor(xy / spacing)
+    centre = (grid + 0.5) * spacing
+    cell = (grid - grid.min(axis=0)).astype(np.int64)
+    cell_id = cell[:, 0] * (int(cell[:, 1].max()) + 1) + cell[:, 1]  # one int key per cell
+    offset = np.hypot(xy[:, 0] - centre[:, 0], xy[:, 1] - centre[:, 1])
     order = np.lexsort((offset, cell_id))
-    first = np.unique(cell_id[order], return_index=True)[1]
+    sorted_ids = cell_id[order]
+    first = np.flatnonzero(np.r_[True, sorted_ids[1:] != sorted_ids[:-1]])
     return np.sort(order[first])
 
 
@@ -162,8 +167,17 @@ class _Pairs:
     clearance discs and obstacle discs of any radius up to the cylinder's are masks over
     these pairs, so the cloud is queried once."""
 
-    def __init__(self, cloud: np.ndarray, tree2: cKDTree, seeds: np.ndarray, radius: float):
+    def __init__(
+        self,
+        cloud: np.ndarray,
+        tree2: cKDTree,
+        seeds: np.ndarray,
+        radius: float,
+        tree_index: np.ndarray | None = None,
+    ):
         lengths, flat = _neighbourhoods(tree2, cloud[seeds, :2], radius)
+        if tree_index is not None:  # the tree holds a subset of the cloud
+            flat = tree_index[flat]
         self.owner = np.repeat(np.arange(len(seeds)), lengths)
         self.origin = cloud[seeds]
         self.rel = cloud[flat] - self.origin[self.owner]
@@ -185,6 +199,23 @@ class _Pairs:
     def starts(self) -> np.ndarray:
         """First pair of each search point (every one has its own point at distance 0)."""
         return np.searchsorted(self.owner, np.arange(self.n))
+
+
+def _near(cloud: np.ndarray, centres: np.ndarray, reach: float) -> np.ndarray:
+    """Indices of the cloud points in the horizontal cells (of size ``reach``) around the
+    centres' cells: a superset of every point within ``reach`` of a centre, so the k-d tree
+    is built only over what the few search points can touch."""
+    lo = centres[:, :2].min(axis=0) - 2.0 * reach  # the grid spans the centres only
+    c = np.floor((centres[:, :2] - lo) / reach).astype(np.int64)
+    shape = c.max(axis=0) + 3
+    marked = np.zeros(shape, dtype=bool)
+    marked[c[:, 0], c[:, 1]] = True
+    marked = ndimage.binary_dilation(marked, structure=np.ones((3, 3), dtype=bool))
+    ix = np.floor((cloud[:, 0] - lo[0]) * (1.0 / reach)).astype(np.int64)
+    iy = np.floor((cloud[:, 1] - lo[1]) * (1.0 / reach)).astype(np.int64)
+    np.clip(ix, 0, shape[0] - 1, out=ix)  # the grid's border cells are never marked
+    np.clip(iy, 0, shape[1] - 1, out=iy)
+    return np.flatnonzero(marked[ix, iy])
 
 
 def _shell_pca(pairs: _Pairs, radii: np.ndarray):
@@ -220,6 +251,57 @@ def _shell_pca(pairs: _Pairs, radii: np.ndarray):
     return count, mean, np.clip(evals, 0.0, None), normal, zstd, shell
 
 
+@dataclass
+class _Growth:
+    """Algorithm 1 on one set of pairs: per search point the index of the largest radius
+    that passed (-1: none), why r_min failed, the fits done, and the PCA of every radius."""
+
+    level: np.ndarray
+    first_fail: np.ndarray
+    fits: int
+    count: np.ndarray
+    mean: np.ndarray
+    evals: np.ndarray
+    normal: np.ndarray
+    zstd: np.ndarray
+
+
+def _grow(pairs: _Pairs, radii: np.ndarray, settings: LidarPcaSettings, max_step: float):
+    """Grow every search point's sphere over ``radii`` (the Algorithm 1 loop, batched): a
+    point stays alive while each larger sphere has n_min points, slope <= theta_max and no
+    point farther than max_step from its plane."""
+    s = pairs.n
+    count, mean, evals, normal, zstd, shell = _shell_pca(pairs, radii)
+    slope = np.arccos(np.clip(normal[..., 2], 0.0, 1.0))
+    enough = count >= settings.n_min
+    steep = enough & (slope > settings.theta_max)
+    level = np.full(s, -1)
+    first_fail = np.zeros(s, dtype=np.int8)  # 1 points, 2 slope, 3 step (at r_min)
+    alive = np.ones(s, dtype=bool)
+    fits = 0
+    for j in range(len(radii)):  # a handful of radius steps, all search points at once
+        fits += int((alive & enough[:, j]).sum())
+        ok = alive & enough[:, j] & ~steep[:, j]
+        off = np.zeros(s, dtype=bool)
+        if np.isfinite(max_step) and ok.any():
+            # Largest distance from the plane over the sphere's pairs of the live points.
+            sel = np.flatnonzero(ok[pairs.owner] & (shell <= j))
+            own = pairs.owner[sel]
+            res = np.abs(np.einsum("ij,ij->i", pairs.rel[sel] - mean[own, j], normal[own, j]))
+            first = np.flatnonzero(np.diff(own, prepend=-1))
+            off[own[first]] = np.maximum.reduceat(res, first) > max_step
+        if j == 0:
+            first_fail[~enough[:, 0]] = 1
+            first_fail[steep[:, 0]] = 2
+            first_fail[off] = 3
+        ok &= ~off
+        level[ok] = j
+        alive = ok
+        if not alive.any():
+            break
+    return _Growth(level, first_fail, fits, count, mean, evals, normal, zstd)
+
+
 def detect_planes(
     cloud: np.ndarray,
     settings: LidarPcaSettings,
@@ -251,57 +333,53 @@ def detect_planes(
     accepted = np.zeros(s, dtype=bool)
     if s == 0:
         return PlaneSearch(SpotTable(), seeds, accepted)
-    if tree2 is None:
-        tree2 = cKDTree(cloud[:, :2], balanced_tree=False, compact_nodes=False)
     radii = np.asarray(settings.radii)
     reach = settings.r_max + settings.obstacle_margin + settings.r_step
-    pairs = _Pairs(cloud, tree2, seeds, reach)
-    count, mean, evals, normal, zstd, shell = _shell_pca(pairs, radii)
-    slope = np.arccos(np.clip(normal[..., 2], 0.0, 1.0))
-    enough = count >= settings.n_min
-    steep = enough & (slope > settings.theta_max)
+    tree_index = None
+    if tree2 is None:
+        tree_index = _near(cloud, cloud[seeds], reach)
+        tree2 = cKDTree(cloud[tree_index, :2], balanced_tree=False, compact_nodes=False)
     max_step = settings.max_step if settings.max_step is not None else np.inf
-    # Grow: a search point stays alive while each larger sphere passes (Algorithm 1 loop).
-    level = np.full(s, -1)  # index of the largest radius that passed
-    first_fail = np.zeros(s, dtype=np.int8)  # 1 points, 2 slope, 3 step (at r_min)
-    alive = np.ones(s, dtype=bool)
-    fits = 0
-    for j in range(len(radii)):
-        fits += int((alive & enough[:, j]).sum())
-        ok = alive & enough[:, j] & ~steep[:, j]
-        off = np.zeros(s, dtype=bool)
-        if np.isfinite(max_step) and ok.any():
-            # Largest distance from the plane over the sphere's pairs of the live points.
-            sel = np.flatnonzero(ok[pairs.owner] & (shell <= j))
-            own = pairs.owner[sel]
-            res = np.abs(np.einsum("ij,ij->i", pairs.rel[sel] - mean[own, j], normal[own, j]))
-            first = np.flatnonzero(np.diff(own, prepend=-1))
-            off[own[first]] = np.maximum.reduceat(res, first) > max_step
-        if j == 0:
-            first_fail[~enough[:, 0]] = 1
-            first_fail[steep[:, 0]] = 2
-            first_fail[off] = 3
-        ok &= ~off
-        level[ok] = j
-        alive = ok
-        if not alive.any():
-            break
+    # Most search points fail at r_min (the paper's env II): test r_min on small cylinders
+    # first and query the full reach only for the points that passed.
+    first = _grow(_Pairs(cloud, tree2, seeds, radii[0], tree_index), radii[:1], settings,
+                  max_step)  # fmt: skip
+    first_fail = first.first_fail
+    level = first.level
+    fits = first.fits
+    mean = np.zeros((s, 3))
+    origin = cloud[seeds]
+    normal = np.zeros((s, 3))
+    normal[:, 2] = 1.0
+    evals = np.zeros((s, 3))
+    zstd = np.zeros(s)
+    count = np.zeros(s)
+    live = np.flatnonzero(level >= 0)
+    pairs = None
+    if len(live):
+        pairs = _Pairs(cloud, tree2, seeds[live], reach, tree_index)
+        grow = _grow(pairs, radii, settings, max_step)
+        fits += grow.fits - len(live)  # r_min was fitted twice
+        level[live] = grow.level
+        pick = np.maximum(grow.level, 0)
+        sub = np.arange(len(live))
+        mean[live] = grow.mean[sub, pick]
+        normal[live] = grow.normal[sub, pick]
+        evals[live] = grow.evals[sub, pick]
+        zstd[live] = grow.zstd[sub, pick]
+        count[live] = grow.count[sub, pick]
     grown = level >= 0
-    pick = np.maximum(level, 0)
-    rows = np.arange(s)
-    best_r = np.where(grown, radii[pick], np.nan)
-    best_c = mean[rows, pick] + pairs.origin
-    best_n = normal[rows, pick]
-    best_e = evals[rows, pick]
-    best_z = zstd[rows, pick]
-    best_count = count[rows, pick].astype(np.int64)
+    best_r = np.where(grown, radii[np.maximum(level, 0)], np.nan)
+    best_c = mean + origin
+    best_n, best_e, best_z = normal, evals, zstd
+    best_count = count.astype(np.int64)
     obstacle = best_c[:, 2].copy()
-    if grown.any():
-        clearance, obstacle = _clearance_and_obstacle(
-            pairs, best_c, best_n, np.where(grown, best_r, 0.0), max_step,
-            settings.obstacle_margin,
-        )  # fmt: skip
-        best_r = np.minimum(best_r, clearance)
+    if pairs is not None:
+        clearance, obstacle_live = _clearance_and_obstacle(
+            pairs, best_c[live], best_n[live], best_r[live], max_step, settings.obstacle_margin
+        )
+        best_r[live] = np.minimum(best_r[live], clearance)
+        obstacle[live] = obstacle_live
     clear = grown & (best_r >= settings.r_min - 1e-9)
     sigma_ok = clear & (best_z <= settings.sigma_max)
     accepted[:] = sigma_ok

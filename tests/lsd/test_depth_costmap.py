@@ -31,9 +31,9 @@ def rays(rotation, k=K):
     return cam @ np.asarray(rotation).T
 
 
-def plane_depth(normal, offset, position, rotation):
+def plane_depth(normal, offset, position, rotation, k=K):
     """Depth image of the plane normal . p = offset."""
-    r = rays(rotation)
+    r = rays(rotation, k)
     n = np.asarray(normal, dtype=np.float64)
     return (offset - n @ position) / (r @ n)
 
@@ -264,3 +264,21 @@ def test_settings_validation_names_the_field():
         DepthCostmapSettings(d_min=10.0, d_max=5.0)
     with pytest.raises(ValidationError, match="threshold"):
         DepthCostmapSettings(threshold=1.5)
+
+
+def test_image_size_not_a_multiple_of_the_stride():
+    k = Intrinsics(fx=300.0, fy=300.0, cx=150.0, cy=101.0, width=301, height=203)
+    pos = np.array([0.0, 0.0, 15.0])
+    depth = plane_depth((0, 0, 1), 0.0, pos, NADIR, k).astype(np.float32)
+    top = plane_depth((0, 0, 1), 1.0, pos, NADIR, k)
+    hit = pos + rays(NADIR, k) * top[..., None]
+    post = (np.abs(hit[..., 0] - 4.0) <= 0.5) & (np.abs(hit[..., 1]) <= 0.5)
+    depth[post] = top[post]
+    det = DepthCostmapDetector(DepthCostmapSettings(vehicle_radius=0.5, obstacle_margin=3.0))
+    obs = det.process(frame(depth, position=pos, k=k))
+    assert obs
+    gap = horizontal_distance_to_box(det.last_sites.positions, (4.0, 0.0, 0.5, 1.0))
+    near, far = gap < 3.5, gap > 6.0
+    assert near.any() and far.any()
+    np.testing.assert_allclose(det.last_sites.obstacle_altitude[near], 1.0, atol=1e-3)
+    np.testing.assert_allclose(det.last_sites.obstacle_altitude[far], 0.0, atol=1e-3)
