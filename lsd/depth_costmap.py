@@ -191,6 +191,9 @@ def compute_costmaps(frame: DepthFrame, settings: DepthCostmapSettings) -> Costm
     scale = 255.0 / max(hi - lo, 1e-12)
     depth8 = cv2.convertScaleAbs(d, alpha=scale, beta=-lo * scale)
     depth8 *= mask8
+    if s.edge_blur_px:
+        ksize = 2 * s.edge_blur_px + 1
+        depth8 = cv2.GaussianBlur(depth8, (ksize, ksize), 0)
     edges = cv2.Canny(depth8, s.canny_low, s.canny_high, L2gradient=True)
     edges |= cv2.bitwise_not(valid8)
     edges[0, :] = edges[-1, :] = 255

@@ -44,6 +44,13 @@ class DepthCostmapSettings(BaseModel):
     vehicle_radius: float = Field(0.5, gt=0, description="footprint radius checked (m)")
     canny_low: float = Field(30.0, gt=0, description="Canny hysteresis low (8-bit depth units)")
     canny_high: float = Field(90.0, gt=0, description="Canny hysteresis high")
+    edge_blur_px: int = Field(
+        0,
+        ge=0,
+        le=15,
+        description="beyond the paper: Gaussian blur radius (px) of the 8-bit depth map before "
+        "Canny, so noisy depth (stereo or SfM) does not turn every pixel into an edge; 0: off",
+    )
     normal_window: int = Field(5, ge=1, description="box window (px) averaging 3D gradients")
     site_stride: int = Field(8, ge=1, description="dense sites are sampled every N pixels")
     dedup_distance: float = Field(

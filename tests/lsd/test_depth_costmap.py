@@ -282,3 +282,14 @@ def test_image_size_not_a_multiple_of_the_stride():
     assert near.any() and far.any()
     np.testing.assert_allclose(det.last_sites.obstacle_altitude[near], 1.0, atol=1e-3)
     np.testing.assert_allclose(det.last_sites.obstacle_altitude[far], 0.0, atol=1e-3)
+
+
+def test_edge_blur_recovers_sites_from_noisy_depth():
+    rng = np.random.default_rng(1)
+    noisy = render(box=BOX) + rng.normal(0.0, 0.15, (K.height, K.width)).astype(np.float32)
+    assert DepthCostmapDetector().process(frame(noisy)) == []  # the paper's pipeline
+    det = DepthCostmapDetector(DepthCostmapSettings(edge_blur_px=4, normal_window=9,
+                                                    vehicle_radius=1.0))
+    assert det.process(frame(noisy))
+    # Still clear of the box.
+    assert horizontal_distance_to_box(det.last_sites.positions).min() >= 1.0 - 0.2
