@@ -194,3 +194,36 @@ def test_bad_inputs_exit_2_with_one_line(tmp_path, capsys):
         assert lines[0].startswith("lander detect: error:"), name
         assert words in lines[0], (name, lines[0])
         assert "Traceback" not in captured.err
+
+
+def test_las_classification_codes_are_reported(tmp_path, capsys):
+    laspy = pytest.importorskip("laspy")
+    cloud, inside = box_cloud()
+    header = laspy.LasHeader(point_format=3, version="1.2")
+    header.scales = np.array([0.001, 0.001, 0.001])
+    header.offsets = np.zeros(3)
+    las = laspy.LasData(header)
+    las.x, las.y, las.z = cloud[:, 0], cloud[:, 1], cloud[:, 2]
+    las.classification = np.where(inside, 6, 2).astype(np.uint8)
+    las.write(tmp_path / "c.las")
+    assert lander("--lidar", tmp_path / "c.las", "--voxel", 0.2, "--seeding", "grid",
+                  "--out", tmp_path / "o") == 0
+    rows = read_sites(tmp_path / "o")
+    assert rows and all(r["class"].startswith("ground") for r in rows)
+    assert "ground" in capsys.readouterr().out
+
+
+def test_las_without_laspy_is_one_clear_line(tmp_path, capsys, monkeypatch):
+    (tmp_path / "c.las").write_bytes(b"LASF" + b"\0" * 400)
+    monkeypatch.setitem(__import__("sys").modules, "laspy", None)  # import fails
+    assert lander("--lidar", tmp_path / "c.las", "--out", tmp_path / "o") == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "pip install 'landing-autonomy[las]'" in err[0]
+
+
+def test_corrupt_las_is_one_clear_line(tmp_path, capsys):
+    pytest.importorskip("laspy")
+    (tmp_path / "bad.las").write_bytes(b"this is not a las file at all" * 10)
+    assert lander("--lidar", tmp_path / "bad.las", "--out", tmp_path / "o") == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "not a readable LAS/LAZ file" in err[0]
