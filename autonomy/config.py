@@ -40,9 +40,11 @@ from autonomy.perception.scripted import ScriptedSettings, ScriptedSite
 from autonomy.vehicle.connection import signing_key_from_text
 from autonomy.vehicle.settings import VehicleLinkSettings
 from behaviors.settings import LandingSettings, MissionPlan
+from lsd.elevation_settings import DetectorSettings, ElevationMapSettings
 from lsm.settings import LossWeights, LsmSettings
 from sitl import SitlSettings
 from sitl.copter import HomeSettings
+from sitl.sensors import DepthCameraSettings, RangeFinderSettings
 from sitl.terrain import TerrainSettings
 
 # WGS-84, for the local tangent plane about home.
@@ -124,12 +126,24 @@ Waypoint = Annotated[
 
 
 class PerceptionConfig(BaseModel):
-    """Which detector feeds the Landing Site Manager, and how often."""
+    """Which detector feeds the Landing Site Manager, how often, and its settings.
+
+    ``elevation_map``: the simulated depth camera (``camera``, with its ``rangefinder``
+    switching SfM/stereo) feeding the elevation-map detector (``elevation_map`` grid,
+    ``detection`` thresholds). ``scripted``: the sites listed under ``sites`` in the mission,
+    seen with the ``scripted`` sensor model.
+    """
 
     model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
-    detector: Literal["scripted"] = Field("scripted", description="the site source")
+    detector: Literal["elevation_map", "scripted"] = Field(
+        "elevation_map", description="the site source"
+    )
     rate: float = Field(2.0, gt=0, le=100, description="perception updates per second, Hz")
+    camera: DepthCameraSettings = DepthCameraSettings()
+    rangefinder: RangeFinderSettings = RangeFinderSettings()
+    elevation_map: ElevationMapSettings = ElevationMapSettings()
+    detection: DetectorSettings = DetectorSettings()
     scripted: ScriptedSettings = ScriptedSettings()
 
 

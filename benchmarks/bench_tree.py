@@ -135,7 +135,37 @@ def section_tick_cost() -> None:
                 )
 
 
-SECTIONS: list[Callable[[], None]] = [section_tick_cost]
+def section_end_to_end() -> None:
+    """Section 2 (runner): whole missions flown end to end in lockstep by
+    :func:`autonomy.runner.fly` - world generation, embedded SITL, MAVLink driver, tree, LSM
+    and perception - with no report files written. Prints how many times faster than real
+    time they run (simulated mission time / wall time, and / this process's CPU time)."""
+    from autonomy.config import load_mission
+    from autonomy.runner import fly
+
+    print("== 2. end-to-end lockstep flights (world + SITL + driver + tree + LSM + perception) ==")
+    for name, runs in (("demo.yaml", 3), ("mars_science.yaml", 2)):
+        mission = load_mission(ROOT / "missions" / name)
+        sim, wall, cpu, outcomes = [], [], [], []
+        for seed in range(runs):
+            w0, c0 = time.perf_counter(), time.process_time()
+            result = fly(mission, seed=seed)
+            wall.append(time.perf_counter() - w0)
+            cpu.append(time.process_time() - c0)
+            sim.append(result.summary["mission_time"])
+            outcomes.append(result.outcome)
+        factors = [s / w for s, w in zip(sim, wall, strict=True)]
+        cpu_factors = [s / c for s, c in zip(sim, cpu, strict=True)]
+        print(
+            f"{name}: {runs} seeds, simulated {statistics.median(sim):.0f} s per flight "
+            f"(median), wall {statistics.median(wall):.2f} s, CPU {statistics.median(cpu):.2f} s\n"
+            f"  {statistics.median(factors):.0f}x faster than real time (wall, median; min "
+            f"{min(factors):.0f}x), {statistics.median(cpu_factors):.0f}x per CPU second; "
+            f"outcomes: {', '.join(outcomes)}"
+        )
+
+
+SECTIONS: list[Callable[[], None]] = [section_tick_cost, section_end_to_end]
 
 
 def main() -> int:

@@ -47,6 +47,13 @@ def build_source(mission: Mission, terrain: Any, rng: np.random.Generator) -> Si
             mission.sites, perception.scripted, rng=rng,
             height=None if terrain is None else terrain.height,
         )
+    if perception.detector == "elevation_map":
+        from autonomy.perception.elevation import ElevationMapSource
+
+        return ElevationMapSource.from_settings(
+            terrain, rng=rng, camera=perception.camera, rangefinder=perception.rangefinder,
+            elevation_map=perception.elevation_map, detector=perception.detection,
+        )
     raise UserError(f"perception.detector: unknown detector {perception.detector!r}")
 
 
