@@ -34,7 +34,8 @@ def clean_points(points: np.ndarray) -> tuple[np.ndarray, int]:
 def voxel_downsample(
     points: np.ndarray, voxel_size: float, return_inverse: bool = False
 ) -> tuple[np.ndarray, np.ndarray] | tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Voxel-grid filter: replace the points of each occupied voxel by their centroid.
+    """Voxel-grid filter: replace the points of each occupied voxel by their centroid
+    (voxels of edge ``voxel_size`` anchored at the cloud's lowest corner).
 
     Args:
         points: ``(N, 3)`` finite world points, metres.
@@ -44,7 +45,8 @@ def voxel_downsample(
     Returns:
         ``(centroids, counts)``: ``(V, 3)`` centroids and ``(V,)`` points per voxel, in the
         order of the sorted voxel keys (deterministic); with ``return_inverse`` a third
-        ``(N,)`` array maps input points to voxels.
+        ``(N,)`` array maps input points to voxels. Computed with one argsort of int64 voxel
+        keys and ``np.bincount`` over the sorted points.
     """
     if voxel_size <= 0:
         raise ValueError(f"voxel_size must be positive, got {voxel_size}")
@@ -52,19 +54,28 @@ def voxel_downsample(
     if len(pts) == 0:
         empty = (np.empty((0, 3)), np.empty(0, dtype=np.int64))
         return (*empty, np.empty(0, dtype=np.int64)) if return_inverse else empty
-    keys = np.floor(pts / voxel_size).astype(np.int64)
-    keys -= keys.min(axis=0)
-    # One int64 key per voxel (ravel of the 3D index) is much faster to unique than rows.
-    dims = keys.max(axis=0) + 1
-    flat = np.ravel_multi_index(keys.T, dims)
-    _, inverse, counts = np.unique(flat, return_inverse=True, return_counts=True)
-    inverse = inverse.ravel()
+    # Work on contiguous coordinate rows: column reductions of an (N, 3) array are slow.
+    coords = np.ascontiguousarray(pts.T)
+    # Shifted to non-negative, truncation is floor: voxel indices from the cloud's corner.
+    keys = ((coords - coords.min(axis=1, keepdims=True)) * (1.0 / voxel_size)).astype(np.int64)
+    # One int64 key per voxel (the raveled 3D index); sorting it groups each voxel's points.
+    dims = keys.max(axis=1) + 1
+    flat = (keys[0] * dims[1] + keys[1]) * dims[2] + keys[2]
+    order = np.argsort(flat)
+    sorted_keys = flat[order]
+    first = np.empty(len(flat), dtype=bool)
+    first[0] = True
+    np.not_equal(sorted_keys[1:], sorted_keys[:-1], out=first[1:])
+    group = np.cumsum(first) - 1  # voxel of each sorted point
+    n_vox = int(group[-1]) + 1
+    counts = np.bincount(group, minlength=n_vox)
     centroids = np.stack(
-        [np.bincount(inverse, weights=pts[:, k], minlength=len(counts)) for k in range(3)],
-        axis=1,
+        [np.bincount(group, coords[k][order], minlength=n_vox) for k in range(3)], axis=1
     )
     centroids /= counts[:, None]
     if return_inverse:
+        inverse = np.empty(len(flat), dtype=np.int64)
+        inverse[order] = group
         return centroids, counts, inverse
     return centroids, counts
 
