@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import math
+import threading
 from collections.abc import Callable
 from pathlib import Path
 from typing import IO, Any
@@ -49,22 +50,25 @@ class EventLog:
         self.events: list[dict[str, Any]] = []
         self._path = path
         self._file: IO[str] | None = None  # opened at the first event: no empty files
+        self._lock = threading.Lock()  # live flights log from the LSM worker thread too
 
     def add(self, kind: str, **fields: Any) -> dict[str, Any]:
         """Record one event of ``kind`` now; returns it."""
         event = _clean({"t": self._now(), "kind": kind, **fields})
-        self.events.append(event)
-        if self._path is not None:
-            if self._file is None:
-                self._file = self._path.open("w", encoding="utf-8")
-            self._file.write(json.dumps(event, separators=(",", ":")) + "\n")
+        with self._lock:
+            self.events.append(event)
+            if self._path is not None:
+                if self._file is None:
+                    self._file = self._path.open("w", encoding="utf-8")
+                self._file.write(json.dumps(event, separators=(",", ":")) + "\n")
         return event
 
     def close(self) -> None:
-        if self._file is not None:
-            self._file.close()
-            self._file = None
-        self._path = None
+        with self._lock:
+            if self._file is not None:
+                self._file.close()
+                self._file = None
+            self._path = None
 
 
 def read_events(path: str | Path) -> list[dict[str, Any]]:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from typing import Any
+from urllib.parse import urlsplit
 
 import numpy as np
 
@@ -58,10 +59,16 @@ def build_source(mission: Mission, terrain: Any, rng: np.random.Generator) -> Si
 
 
 def build_sitl(mission: Mission, terrain: Any, seed: int) -> Any:
-    """The embedded simulator for a sim:// flight."""
+    """The embedded simulator for a sim:// flight; ``sim://px4`` or ``sim://ardupilot``
+    chooses the personality, otherwise ``vehicle.autopilot`` does."""
     from sitl import Sitl
 
-    return Sitl(mission.sitl, terrain=terrain, autopilot=mission.vehicle.autopilot, seed=seed)
+    url = urlsplit(mission.vehicle.connection)
+    autopilot = url.netloc or url.path.strip("/") or mission.vehicle.autopilot
+    if autopilot not in ("ardupilot", "px4"):
+        raise UserError(f"{mission.vehicle.connection}: the simulator flies 'ardupilot' or "
+                        f"'px4', not {autopilot!r}")
+    return Sitl(mission.sitl, terrain=terrain, autopilot=autopilot, seed=seed)
 
 
 def judge_touchdown(terrain: Any, x: float, y: float) -> bool | None:

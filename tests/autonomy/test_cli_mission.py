@@ -53,7 +53,9 @@ def test_validate_missing_file(tmp_path, capsys):
     assert "cannot read mission file" in line
 
 
-@pytest.mark.parametrize("url", ["bogus://x", "udp:not-an-address", "tcp:127.0.0.1:99999"])
+@pytest.mark.parametrize(
+    "url", ["bogus://x", "udp:not-an-address", "tcp:127.0.0.1:99999", "sim://inav"]
+)
 def test_fly_bad_connection_exits_2_with_one_line(tmp_path, capsys, url):
     out = tmp_path / "out"
     assert main(["fly", str(demo_mission_path()), "--connect", url, "--out", str(out)]) == 2
