@@ -165,54 +165,50 @@ class _Pairs:
     """(search point, cloud point) pairs of the vertical cylinders around the search points,
     contiguous per search point, with coordinates relative to the search point. Spheres,
     clearance discs and obstacle discs of any radius up to the cylinder's are masks over
-    these pairs, so the cloud is queried once."""
+    these pairs, so the cloud is queried once.
+
+    Attributes: owner (P,) search point of each pair; rel (3, P) x, y, z rows relative to it
+    (rows: 1-D gathers are much faster than row gathers of an (N, 3) array); distance (P,);
+    origin (S, 3) the search points; n = S.
+    """
 
     def __init__(
         self,
-        cloud: np.ndarray,
+        coords: np.ndarray,
         tree2: cKDTree,
         seeds: np.ndarray,
         radius: float,
         tree_index: np.ndarray | None = None,
     ):
-        lengths, flat = _neighbourhoods(tree2, cloud[seeds, :2], radius)
+        self.origin = coords[:, seeds].T
+        lengths, flat = _neighbourhoods(tree2, self.origin[:, :2], radius)
         if tree_index is not None:  # the tree holds a subset of the cloud
             flat = tree_index[flat]
         self.owner = np.repeat(np.arange(len(seeds)), lengths)
-        self.origin = cloud[seeds]
-        self.rel = cloud[flat] - self.origin[self.owner]
-        self.distance = np.sqrt(np.einsum("ij,ij->i", self.rel, self.rel))
+        self.rel = np.empty((3, len(flat)))
+        for k in range(3):
+            np.subtract(coords[k][flat], self.origin[self.owner, k], out=self.rel[k])
+        x, y, z = self.rel
+        self.distance = np.sqrt(x * x + y * y + z * z)
         self.n = len(seeds)
-
-    def subset(self, which: np.ndarray) -> _Pairs:
-        """The pairs of the search points selected by the boolean ``which`` (n,), renumbered
-        0..k-1 in order."""
-        rows = which[self.owner]
-        out = _Pairs.__new__(_Pairs)
-        out.owner = (np.cumsum(which) - 1)[self.owner[rows]]
-        out.origin = self.origin[which]
-        out.rel = self.rel[rows]
-        out.distance = self.distance[rows]
-        out.n = int(which.sum())
-        return out
 
     def starts(self) -> np.ndarray:
         """First pair of each search point (every one has its own point at distance 0)."""
         return np.searchsorted(self.owner, np.arange(self.n))
 
 
-def _near(cloud: np.ndarray, centres: np.ndarray, reach: float) -> np.ndarray:
-    """Indices of the cloud points in the horizontal cells (of size ``reach``) around the
-    centres' cells: a superset of every point within ``reach`` of a centre, so the k-d tree
-    is built only over what the few search points can touch."""
+def _near(coords: np.ndarray, centres: np.ndarray, reach: float) -> np.ndarray:
+    """Indices of the cloud points (``coords`` (3, N) rows) in the horizontal cells (of size
+    ``reach``) around the centres' cells: a superset of every point within ``reach`` of a
+    centre, so the k-d tree is built only over what the few search points can touch."""
     lo = centres[:, :2].min(axis=0) - 2.0 * reach  # the grid spans the centres only
     c = np.floor((centres[:, :2] - lo) / reach).astype(np.int64)
     shape = c.max(axis=0) + 3
     marked = np.zeros(shape, dtype=bool)
     marked[c[:, 0], c[:, 1]] = True
     marked = ndimage.binary_dilation(marked, structure=np.ones((3, 3), dtype=bool))
-    ix = np.floor((cloud[:, 0] - lo[0]) * (1.0 / reach)).astype(np.int64)
-    iy = np.floor((cloud[:, 1] - lo[1]) * (1.0 / reach)).astype(np.int64)
+    ix = np.floor((coords[0] - lo[0]) * (1.0 / reach)).astype(np.int64)
+    iy = np.floor((coords[1] - lo[1]) * (1.0 / reach)).astype(np.int64)
     np.clip(ix, 0, shape[0] - 1, out=ix)  # the grid's border cells are never marked
     np.clip(iy, 0, shape[1] - 1, out=iy)
     return np.flatnonzero(marked[ix, iy])
@@ -233,7 +229,7 @@ def _shell_pca(pairs: _Pairs, radii: np.ndarray):
     shell = np.searchsorted(radii, pairs.distance, side="left")
     inside = shell < r
     key = (pairs.owner * r + shell)[inside]
-    x, y, z = pairs.rel[inside].T
+    x, y, z = pairs.rel[:, inside]
     weights = (None, x, y, z, x * x, x * y, x * z, y * y, y * z, z * z)
     m = np.stack([np.bincount(key, w, minlength=s * r) for w in weights], axis=-1)
     m = np.cumsum(m.reshape(s, r, 10), axis=1)
@@ -287,7 +283,12 @@ def _grow(pairs: _Pairs, radii: np.ndarray, settings: LidarPcaSettings, max_step
             # Largest distance from the plane over the sphere's pairs of the live points.
             sel = np.flatnonzero(ok[pairs.owner] & (shell <= j))
             own = pairs.owner[sel]
-            res = np.abs(np.einsum("ij,ij->i", pairs.rel[sel] - mean[own, j], normal[own, j]))
+            m, nrm = mean[:, j], normal[:, j]
+            res = np.abs(
+                (pairs.rel[0][sel] - m[own, 0]) * nrm[own, 0]
+                + (pairs.rel[1][sel] - m[own, 1]) * nrm[own, 1]
+                + (pairs.rel[2][sel] - m[own, 2]) * nrm[own, 2]
+            )
             first = np.flatnonzero(np.diff(own, prepend=-1))
             off[own[first]] = np.maximum.reduceat(res, first) > max_step
         if j == 0:
@@ -335,14 +336,19 @@ def detect_planes(
         return PlaneSearch(SpotTable(), seeds, accepted)
     radii = np.asarray(settings.radii)
     reach = settings.r_max + settings.obstacle_margin + settings.r_step
+    coords = np.ascontiguousarray(cloud.T)
     tree_index = None
     if tree2 is None:
-        tree_index = _near(cloud, cloud[seeds], reach)
-        tree2 = cKDTree(cloud[tree_index, :2], balanced_tree=False, compact_nodes=False)
+        tree_index = _near(coords, cloud[seeds], reach)
+        tree2 = cKDTree(
+            np.stack((coords[0][tree_index], coords[1][tree_index]), axis=1),
+            balanced_tree=False,
+            compact_nodes=False,
+        )
     max_step = settings.max_step if settings.max_step is not None else np.inf
     # Most search points fail at r_min (the paper's env II): test r_min on small cylinders
     # first and query the full reach only for the points that passed.
-    first = _grow(_Pairs(cloud, tree2, seeds, radii[0], tree_index), radii[:1], settings,
+    first = _grow(_Pairs(coords, tree2, seeds, radii[0], tree_index), radii[:1], settings,
                   max_step)  # fmt: skip
     first_fail = first.first_fail
     level = first.level
@@ -357,7 +363,7 @@ def detect_planes(
     live = np.flatnonzero(level >= 0)
     pairs = None
     if len(live):
-        pairs = _Pairs(cloud, tree2, seeds[live], reach, tree_index)
+        pairs = _Pairs(coords, tree2, seeds[live], reach, tree_index)
         grow = _grow(pairs, radii, settings, max_step)
         fits += grow.fits - len(live)  # r_min was fitted twice
         level[live] = grow.level
@@ -422,14 +428,16 @@ def _clearance_and_obstacle(
     point farther than ``max_step`` from the spot plane within its radius (the radius if
     none), and the highest point within radius + margin (the centre's z if none)."""
     owner = pairs.owner
-    rel = pairs.rel + (pairs.origin - centres)[owner]
-    horiz = np.hypot(rel[:, 0], rel[:, 1])
+    shift = pairs.origin - centres
+    x, y, z = (pairs.rel[k] + shift[owner, k] for k in range(3))
+    horiz = np.hypot(x, y)
     starts = pairs.starts()
-    off = np.abs(np.einsum("ij,ij->i", rel, normals[owner])) > max_step
+    height = x * normals[owner, 0] + y * normals[owner, 1] + z * normals[owner, 2]
+    off = np.abs(height) > max_step
     blocking = np.where(off & (horiz <= radii[owner]), horiz, np.inf)
     clearance = np.minimum(radii, np.minimum.reduceat(blocking, starts))
     near = horiz <= radii[owner] + margin
-    z = np.where(near, pairs.rel[:, 2] + pairs.origin[owner, 2], -np.inf)
+    z = np.where(near, z + centres[owner, 2], -np.inf)
     obstacle = np.maximum(centres[:, 2], np.maximum.reduceat(z, starts))
     return clearance, obstacle
 
