@@ -251,8 +251,16 @@ def run_depth(args: argparse.Namespace, out_dir: Path) -> int:
                             f", got {value}")
     settings = _settings(
         DepthCostmapSettings,
-        {"vehicle_radius": args.vehicle_radius, "threshold": args.threshold, "d_max": args.d_max},
-        {"vehicle_radius": "--vehicle-radius", "threshold": "--threshold", "d_max": "--d-max"},
+        {
+            "vehicle_radius": args.vehicle_radius, "threshold": args.threshold,
+            "d_max": args.d_max, "edge_blur_px": args.edge_blur,
+            "normal_window": args.normal_window,
+        },
+        {
+            "vehicle_radius": "--vehicle-radius", "threshold": "--threshold",
+            "d_max": "--d-max", "edge_blur_px": "--edge-blur",
+            "normal_window": "--normal-window",
+        },
     )
     try:
         depth = read_depth_image(args.depth)
@@ -334,4 +342,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     depth.add_argument("--vehicle-radius", type=float, help="footprint radius (m), default 0.5")
     depth.add_argument("--threshold", type=float, help="decision threshold, default 0.72")
     depth.add_argument("--d-max", type=float, help="farthest valid depth (m), default 200")
+    depth.add_argument("--edge-blur", type=int, metavar="PX",
+                       help="blur radius before Canny for noisy depth (px), default 0 (off)")
+    depth.add_argument("--normal-window", type=int, metavar="PX",
+                       help="window averaging depth gradients for normals (px), default 5")
     parser.set_defaults(func=run)
