@@ -77,19 +77,31 @@ class LocalPool:
         pending = deque(tasks)
         if self._context is None and tasks:
             flight_module = getattr(tasks[0].flight, "__module__", None)
-            preload = ["autonomy.campaign.worker"] + ([flight_module] if flight_module else [])
+            # The server imports these once; every worker forked from it starts with them.
+            preload = ["__main__", "autonomy.campaign.worker"]
+            preload += [flight_module] if flight_module else []
             self._context = _start_context(preload)
+        empty_breaks = 0
         while pending:
             suspects: list[RunTask] = []
             pool = self._pool(min(self.workers, len(pending)))
             try:
                 in_flight: dict[Future, RunTask] = {}
-                while (pending or in_flight) and not suspects:
+                broken = False
+                while (pending or in_flight) and not broken:
                     while pending and len(in_flight) < self.workers:
                         task = pending.popleft()
-                        in_flight[pool.submit(fly_run, task)] = task
+                        try:
+                            in_flight[pool.submit(fly_run, task)] = task
+                        except BrokenProcessPool:  # a worker died since the last wait
+                            pending.appendleft(task)
+                            broken = True
+                            break
                     done, _ = wait(in_flight, return_when=FIRST_COMPLETED)
-                    if any(isinstance(f.exception(), BrokenProcessPool) for f in done):
+                    broken = broken or any(
+                        isinstance(f.exception(), BrokenProcessPool) for f in done
+                    )
+                    if broken:
                         # Every other run in flight fails with the broken pool too.
                         done, _ = wait(in_flight)
                     for future in done:
@@ -103,6 +115,9 @@ class LocalPool:
                             yield future.result()
             finally:
                 pool.shutdown(wait=True, cancel_futures=True)
+            empty_breaks = empty_breaks + 1 if broken and not suspects else 0
+            if empty_breaks >= 3:
+                raise RuntimeError("worker processes keep dying without flying any run")
             for task in suspects:
                 yield self._isolated(task)
 
