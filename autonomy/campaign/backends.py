@@ -109,6 +109,10 @@ class LocalPool:
                         error = future.exception()
                         if isinstance(error, BrokenProcessPool):
                             suspects.append(task)
+                        elif isinstance(error, KeyboardInterrupt):
+                            # Ctrl-C reached the workers too: stop, record nothing for it,
+                            # so that re-running the command flies this run again.
+                            raise KeyboardInterrupt
                         elif error is not None:
                             yield error_record(task, _format(error))
                         else:

@@ -126,3 +126,21 @@ def test_comparison_pairs_runs_by_seed():
     assert second["difference"] == pytest.approx(-0.5)
     assert (second["difference_low"], second["difference_high"]) == pytest.approx(
         newcombe_paired_interval(3, 0, 3, 0))
+
+
+def test_progress_rewrites_one_line_on_a_terminal():
+    import io
+
+    from autonomy.campaign.progress import Progress
+
+    class Terminal(io.StringIO):
+        def isatty(self):
+            return True
+
+    stream = Terminal()
+    progress = Progress(3, stream)
+    for outcome in ("landed", "error", "crashed"):
+        progress.update(record(outcome, 0, 90.0, True))
+    text = stream.getvalue()
+    assert text.count("\r") == 3 and text.endswith("\n") and text.count("\n") == 1
+    assert "3/3 runs, success 50.0%" in text and "1 error" in text
