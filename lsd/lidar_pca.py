@@ -478,7 +478,8 @@ class LidarPcaDetector:
     """Stateful LiDAR detector: accumulate scans, process, register and re-grade spots.
 
     Feed world-frame scans with :meth:`add_scan` (or whole clouds with :meth:`process`); both
-    return the observations of the spots newly registered. :meth:`best_spot` is the paper's
+    return the observations of the spots found when a cloud is processed (re-detections of
+    registered spots included). :meth:`best_spot` is the paper's
     emergency output. Bad rows (NaN/inf) are dropped and counted in :attr:`counters`, never
     raised.
     """
@@ -493,6 +494,7 @@ class LidarPcaDetector:
         )
         self.spots = SpotTable()
         self.last_search: PlaneSearch | None = None
+        self._last_processed: float | None = None
         self.counters: dict[str, int] = {
             "scans": 0,
             "clouds_processed": 0,
@@ -505,13 +507,25 @@ class LidarPcaDetector:
     def add_scan(
         self, points: np.ndarray, vehicle_position: np.ndarray | None = None, now: float = 0.0
     ) -> list[SiteObservation]:
-        """Accumulate one ``(N, 3)`` world scan; process when travel or size says so."""
+        """Accumulate one ``(N, 3)`` world scan; process when travel or size says so (or,
+        beyond the paper, when ``process_interval`` clock seconds have passed)."""
         self.counters["scans"] += 1
+        if self._last_processed is None or not np.isfinite(now):
+            self._last_processed = now if np.isfinite(now) else 0.0
         before = self.accumulator.dropped_points
         cloud = self.accumulator.add(points, vehicle_position)
         self.counters["points_dropped"] += self.accumulator.dropped_points - before
+        interval = self.settings.process_interval
+        if (
+            cloud is None
+            and interval is not None
+            and now - self._last_processed >= interval
+            and self.accumulator.status.points
+        ):
+            cloud = self.accumulator.release()
         if cloud is None:
             return []
+        self._last_processed = now
         return self._process_clean(cloud, vehicle_position, now)
 
     def process(
@@ -535,9 +549,11 @@ class LidarPcaDetector:
         self.last_search = search
         self.counters["planes_accepted"] += search.n_accepted
         self.counters["planes_rejected"] += search.n_rejected
-        new = self._register(_dedupe(search.spots, s))
-        self.counters["spots_registered"] += len(new)
-        return self.to_observations(new, vehicle_position)
+        found = _dedupe(search.spots, s)
+        self.counters["spots_registered"] += len(self._register(found))
+        # Every spot of this cloud is reported, re-detections included: the Landing Site
+        # Manager matches them to its sites and lowers their verification altitude.
+        return self.to_observations(found, vehicle_position)
 
     def _register(self, new: SpotTable) -> SpotTable:
         """Merge new spots into the register; return the ones that entered it."""

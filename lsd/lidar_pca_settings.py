@@ -39,6 +39,12 @@ class LidarPcaSettings(BaseModel):
     max_cloud_points: int = Field(
         1_000_000, ge=1, description="... or when the accumulated cloud has this many points"
     )
+    process_interval: float | None = Field(
+        2.0,
+        gt=0,
+        description="beyond the paper: also process after this many clock seconds without "
+        "processing, so a hovering vehicle (verification) still gets fresh spots; None: off",
+    )
     voxel_size: float = Field(0.05, gt=0, description="voxel-grid filter edge (m)")
     seeding: Literal["random", "grid"] = Field(
         "random",

@@ -4,7 +4,8 @@ At every perception update the LiDAR of the simulated world scans from the pose 
 reports (ENU position and yaw of the :class:`~behaviors.ports.VehicleState`); the scan is
 accumulated by :class:`lsd.lidar_pca.LidarPcaDetector`, which processes the cloud once the
 vehicle has travelled ``travel_distance`` or the cloud holds ``max_cloud_points`` (Loureiro
-et al. 2021) and returns the newly registered spots. Between processed clouds the registered
+et al. 2021), or ``process_interval`` seconds have passed (hovering), and returns the spots
+the cloud showed (re-detections included). Between processed clouds the registered
 spots are re-graded at the current pose; :meth:`LidarPcaSource.best_spot` is the paper's
 emergency output.
 """
@@ -57,7 +58,7 @@ class LidarPcaSource:
         )
 
     def update(self, state: VehicleState, now: float) -> list[SiteObservation]:
-        """Scan at the reported pose and accumulate; return the spots registered when the
+        """Scan at the reported pose and accumulate; return the spots found when the
         accumulated cloud was processed at this update (else nothing)."""
         self._counters["updates"] += 1
         if state.position is None:
@@ -77,7 +78,7 @@ class LidarPcaSource:
                     "event": "lidar_cloud_processed",
                     "search_points": 0 if search is None else len(search.seeds),
                     "accepted": 0 if search is None else search.n_accepted,
-                    "new_spots": len(observations),
+                    "spots": len(observations),
                 }
             )
         self._counters["observations"] += len(observations)

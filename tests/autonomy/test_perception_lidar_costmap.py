@@ -27,7 +27,8 @@ def test_lidar_source_accumulates_until_the_travel_distance_then_reports_safe_sp
         lidar=LidarSettings(pattern="downward", channels=100, azimuth_steps=100,
                             vertical_fov_deg=70.0),
         detector=LidarPcaSettings(voxel_size=0.2, seeding="grid", grid_spacing=2.0,
-                                  travel_distance=10.0, r_min=1.0, r_max=3.0),
+                                  travel_distance=10.0, r_min=1.0, r_max=3.0,
+                                  process_interval=None),
     )
     as_port: SiteSource = source  # the runner's port (structural)
     assert callable(as_port.update) and callable(as_port.drain_events)
@@ -76,3 +77,20 @@ def test_costmap_source_reports_clusters_on_flat_ground_and_counts_missing_frame
     assert any(e["event"] == "depth_source" for e in source.drain_events())
     counters = source.counters()
     assert counters["no_position"] == 1 and counters["costmap_frames"] == 1
+
+
+def test_lidar_source_hovering_still_reports_spots_every_process_interval():
+    terrain = make_terrain({"kind": "flat", "size": (60.0, 60.0)}, seed=0)
+    source = LidarPcaSource.from_settings(
+        terrain,
+        rng=np.random.default_rng(0),
+        lidar=LidarSettings(pattern="downward", channels=60, azimuth_steps=60,
+                            vertical_fov_deg=90.0),
+        detector=LidarPcaSettings(voxel_size=0.1, seeding="grid", grid_spacing=1.0,
+                                  process_interval=2.0, r_min=0.5, r_max=1.5),
+    )
+    reports = [len(source.update(state(3.0, 3.0, 2.5), now=0.5 * i)) for i in range(9)]
+    # Hovering at 2.5 m (no travel): clouds are processed at t = 2, 4 s, ... not before.
+    assert reports[:4] == [0, 0, 0, 0] and reports[4] > 0
+    spot = source.best_spot(state(3.0, 3.0, 2.5))
+    assert spot.observation_altitude < 3.0  # seen from the verification altitude

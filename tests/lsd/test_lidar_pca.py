@@ -210,6 +210,21 @@ def test_scans_accumulate_until_travel_distance_then_process():
     assert det.counters["clouds_processed"] == 1 and obs
 
 
+def test_hovering_scans_are_processed_after_the_process_interval():
+    g = grid(-5, 5, -5, 5)
+    scan = np.c_[g, np.zeros(len(g))]
+    pos = np.array([0.0, 0.0, 3.0])
+    det = LidarPcaDetector(SETTINGS.model_copy(update={"process_interval": 1.5}), rng=0)
+    processed = []
+    for i in range(7):
+        det.add_scan(scan, pos, now=0.5 * i)
+        processed.append(det.counters["clouds_processed"])
+    assert processed == [0, 0, 0, 1, 1, 1, 2]
+    assert len(det.spots) > 0
+    paper = LidarPcaDetector(SETTINGS.model_copy(update={"process_interval": None}), rng=0)
+    assert not any(paper.add_scan(scan, pos, now=0.5 * i) for i in range(7))
+
+
 def test_accumulator_releases_at_max_points():
     acc = CloudAccumulator(travel_distance=1e9, max_points=250)
     assert acc.add(np.zeros((100, 3)), None) is None
