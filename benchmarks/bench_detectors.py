@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import argparse
 import gc
+import os
 import sys
 import time
 import tracemalloc
@@ -371,7 +372,9 @@ def main(argv=None) -> int:
             for seed in range(n_clouds)]
     field = [accumulate(urban, 30.0, 31_156, seed, start=(-30.0 + 15 * seed, 20.0))
              for seed in range(n_clouds)]
-    print(f"scenes built in {time.perf_counter() - t0:.1f} s (not timed below)")
+    print(f"scenes built in {time.perf_counter() - t0:.1f} s (not timed below); machine: "
+          f"{os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f} (other loads slow "
+          f"every figure)")
     note = f"{n_clouds} clouds of {len(env1[0])} points (simulated VLP-16 over an urban world)"
     bench_table3(env1, note)
     bench_table4_5(env2, terrain2)
@@ -382,7 +385,8 @@ def main(argv=None) -> int:
     for name, ratios in RATIOS.items():
         print(f"   {name:<14} min {min(ratios):6.1f}x   median {np.median(ratios):6.1f}x   "
               f"({len(ratios)} figures)")
-    print(f"   total run {time.perf_counter() - t0:.0f} s")
+    print(f"   total run {time.perf_counter() - t0:.0f} s; load average now "
+          f"{os.getloadavg()[0]:.1f}")
     return 0
 
 

@@ -280,21 +280,15 @@ def dense_sites(
         frame.position, dtype=np.float64
     )
 
-    # Obstacle altitude: highest world z near each site, from per-block maxima (blocks of
-    # site_stride pixels) dilated by the footprint + margin projected at the median site
-    # depth; conservative (covers at least that disc around every site).
-    h, w = frame.depth.shape
-    hb, wb = -(-h // stride), -(-w // stride)
-    valid_z = np.full((h, w), -np.inf, dtype=np.float32)
+    # Obstacle altitude: highest world z in the square window circumscribing the footprint
+    # + margin disc projected at the median site depth (one rectangular dilation: OpenCV's
+    # is linear-time in the kernel size).
+    radius_px = int(np.ceil(f * (s.vehicle_radius + s.obstacle_margin) / float(np.median(d))))
+    valid_z = np.full(frame.depth.shape, -np.inf, dtype=np.float32)
     cv2.copyTo(maps.world_z, maps.valid.view(np.uint8), valid_z)
-    z = np.full((hb * stride, wb * stride), -np.inf, dtype=np.float32)
-    z[:h, :w] = valid_z
-    block_max = z.reshape(hb, stride, wb, stride).max(axis=(1, 3))
-    radius_px = f * (s.vehicle_radius + s.obstacle_margin) / float(np.median(d))
-    reach = int(np.ceil(radius_px / stride))
-    kernel = np.ones((2 * reach + 1, 2 * reach + 1), dtype=np.uint8)
-    zmax = cv2.dilate(block_max, kernel, borderType=cv2.BORDER_REPLICATE)
-    obstacle = np.maximum(zmax[rows // stride, cols // stride].astype(np.float64), positions[:, 2])
+    kernel = cv2.getStructuringElement(cv2.MORPH_RECT, (2 * radius_px + 1, 2 * radius_px + 1))
+    zmax = cv2.dilate(valid_z, kernel, borderType=cv2.BORDER_REPLICATE)
+    obstacle = np.maximum(zmax[rows, cols].astype(np.float64), positions[:, 2])
 
     if frame.sigma is not None:
         sig = np.asarray(frame.sigma, dtype=np.float64)[rows, cols]
