@@ -6,9 +6,9 @@ voxel-grid filter -> k-d tree -> Algorithm 1 on search points (random as in the 
 grid covering the cloud) -> reject z-std above sigma_max -> grade (eq. 6) -> register; the
 registered spots are re-graded as the vehicle moves and the best one is the emergency output.
 
-Algorithm 1 is batched over search points: each radius step queries the neighbourhoods of all
-still-growing search points at once and fits their planes with one stacked ``eigh``, so the only
-Python loop is over the few radius steps.
+Algorithm 1 is batched over search points: one horizontal k-d tree query collects every search
+point's vertical cylinder, per-shell moment sums (``np.bincount``) give the PCA of every sphere
+radius at once (one stacked ``eigh``), and the only Python loop is over the few radius steps.
 
 Grades (the paper leaves the 0..20 mapping open; ours is linear):
 
@@ -449,8 +449,9 @@ def spot_grades(
 ) -> np.ndarray:
     """Spot grade (paper eq. 6) of every spot, ``(K,)`` in [0, 1], higher is better.
 
-    Without a vehicle position the distance grade is 20 for every spot.
+    Without a (finite) vehicle position the distance grade is 20 for every spot.
     """
+    vehicle_position = _finite_or_none(vehicle_position)
     w = settings.weights
     g_r = 20.0 * np.clip(spots.radius / settings.r_max, 0.0, 1.0)
     g_s = 20.0 * np.clip(1.0 - spots.slope / settings.theta_max, 0.0, 1.0)
@@ -463,6 +464,14 @@ def spot_grades(
         g_d = 20.0 * np.clip(1.0 - d / settings.distance_scale, 0.0, 1.0)
     num = g_r * w.radius + g_s * w.slope + g_z * w.sigma + g_d * w.distance
     return num / (20.0 * (w.radius + w.slope + w.sigma + w.distance))
+
+
+def _finite_or_none(position: np.ndarray | None) -> np.ndarray | None:
+    """A (3,) finite position, or None (bad pose data is ignored, not raised)."""
+    if position is None:
+        return None
+    pos = np.asarray(position, dtype=np.float64).reshape(-1)
+    return pos if pos.size >= 3 and np.isfinite(pos[:3]).all() else None
 
 
 def _dedupe(spots: SpotTable, settings: LidarPcaSettings) -> SpotTable:
@@ -608,6 +617,7 @@ class LidarPcaDetector:
         s = self.settings
         if len(spots) == 0:
             return []
+        vehicle_position = _finite_or_none(vehicle_position)
         roughness = np.clip(spots.sigma / s.sigma_max, 0.0, 1.0)
         fewness = np.clip(s.n_min / np.maximum(spots.count, 1), 0.0, 1.0)
         uncertainty = np.clip(1.0 - (1.0 - spots.planarity) * (1.0 - fewness), 0.0, 1.0)

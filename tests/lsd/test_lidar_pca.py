@@ -290,3 +290,11 @@ def test_thin_by_distance_equals_sequential_greedy():
         if all(np.linalg.norm(pts[i] - pts[k]) > 1.0 for k in kept):
             kept.append(i)
     np.testing.assert_array_equal(np.flatnonzero(keep), kept)
+
+
+def test_a_nan_vehicle_position_is_ignored_not_propagated():
+    g = grid(-5, 5, -5, 5)
+    det = LidarPcaDetector(SETTINGS, rng=0)
+    obs = det.process(np.c_[g, np.zeros(len(g))], vehicle_position=np.array([0, np.nan, 9.0]))
+    assert obs and all(np.isfinite(o.observation_altitude) for o in obs)
+    assert np.isfinite(det.grades(np.array([np.nan, 0.0, 0.0]))).all()
