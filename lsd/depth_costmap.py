@@ -423,6 +423,7 @@ class DepthCostmapDetector:
             "pixels_invalid": 0,
             "dense_sites": 0,
             "sites_listed": 0,
+            "sites_not_listed": 0,  # the global list was full (max_sites)
         }
 
     def process(self, frame: DepthFrame) -> list[SiteObservation]:
@@ -441,6 +442,7 @@ class DepthCostmapDetector:
         before = len(self.site_list)
         ids = self.site_list.add(dense, frame.timestamp)
         self.counters["sites_listed"] += len(self.site_list) - before
+        self.counters["sites_not_listed"] += int((ids < 0).sum())
         if len(self.site_list) == 0:
             return []
         self.labels = cluster_sites(
