@@ -13,18 +13,15 @@ import argparse
 import csv
 import math
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-from pydantic import ValidationError
-from scipy.spatial import cKDTree
 
 from autonomy.errors import UserError
-from lsd.depth_costmap import DepthCostmapDetector, DepthCostmapSettings
-from lsd.frames import DepthFrame, Intrinsics
-from lsd.io import DataFileError, class_name, read_depth_image, read_point_cloud
-from lsd.lidar_pca import LidarPcaDetector, LidarPcaSettings, spot_grades
-from lsd.pointcloud import clean_points
-from lsm.records import SiteObservation
+
+if TYPE_CHECKING:  # the detectors are imported when the command runs (fast `lander --help`)
+    from lsd.frames import DepthFrame
+    from lsm.records import SiteObservation
 
 NADIR = np.array([[1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, -1.0]])
 CSV_FIELDS = (
@@ -36,6 +33,8 @@ MAX_PLOTTED_POINTS = 200_000
 
 def _settings(model: type, values: dict, flag_of: dict[str, str]):
     """Build a settings model from the flags that were given; a bad value names its flag."""
+    from pydantic import ValidationError
+
     try:
         return model(**{k: v for k, v in values.items() if v is not None})
     except ValidationError as exc:
@@ -74,6 +73,10 @@ def parse_pose(text: str | None) -> tuple[np.ndarray, np.ndarray]:
 
 def _classes(raw: np.ndarray, codes: np.ndarray, obs: list[SiteObservation]) -> list[str]:
     """Majority class of the raw points within each site's radius (horizontal), with share."""
+    from scipy.spatial import cKDTree
+
+    from lsd.io import class_name
+
     if not obs:
         return []
     tree = cKDTree(raw[:, :2])
@@ -186,6 +189,10 @@ def _overlay_depth(path: Path, frame: DepthFrame, obs: list[SiteObservation]) ->
 
 
 def run_lidar(args: argparse.Namespace, out_dir: Path) -> int:
+    from lsd.io import DataFileError, read_point_cloud
+    from lsd.lidar_pca import LidarPcaDetector, LidarPcaSettings, spot_grades
+    from lsd.pointcloud import clean_points
+
     settings = _settings(
         LidarPcaSettings,
         {
@@ -242,6 +249,10 @@ def run_lidar(args: argparse.Namespace, out_dir: Path) -> int:
 
 
 def run_depth(args: argparse.Namespace, out_dir: Path) -> int:
+    from lsd.depth_costmap import DepthCostmapDetector, DepthCostmapSettings
+    from lsd.frames import DepthFrame, Intrinsics
+    from lsd.io import DataFileError, read_depth_image
+
     for flag in ("fx", "fy", "cx", "cy"):
         value = getattr(args, flag)
         if value is None:
