@@ -327,11 +327,15 @@ def load_mission(path: str | os.PathLike[str]) -> Mission:
     except (OSError, UnicodeDecodeError) as exc:
         reason = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
         raise MissionFileError([f"{path}: cannot read mission file: {reason}"]) from None
-    return parse_mission(text, str(path))
+    return parse_mission(text, str(path), base_dir=path.parent)
 
 
-def parse_mission(text: str, name: str = "<mission>") -> Mission:
-    """Validate mission YAML ``text``; ``name`` is used in the messages (see load_mission)."""
+def parse_mission(text: str, name: str = "<mission>", base_dir: Path | None = None) -> Mission:
+    """Validate mission YAML ``text``; ``name`` is used in the messages (see load_mission).
+
+    A relative ``world.path`` (elevation file) is taken relative to ``base_dir`` (the mission
+    file's directory) when given.
+    """
     loader = yaml.SafeLoader(text)
     try:
         node = loader.get_single_node()
@@ -351,6 +355,10 @@ def parse_mission(text: str, name: str = "<mission>") -> Mission:
         line = node.start_mark.line + 1
         raise MissionFileError([f"{name}:{line}: a mission file is a mapping of sections"])
     problems = _duplicate_keys(node, name)
+    world = data.get("world")
+    if (base_dir is not None and isinstance(world, dict) and world.get("kind") == "file"
+            and isinstance(world.get("path"), str) and not Path(world["path"]).is_absolute()):
+        data["world"] = {**world, "path": str(base_dir / world["path"])}
     try:
         mission = Mission.model_validate(data)
     except ValidationError as exc:

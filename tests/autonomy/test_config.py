@@ -177,3 +177,14 @@ def test_shipped_missions_validate(name):
         pytest.skip(f"{name} not written yet")
     mission = load_mission(path)
     assert mission.vehicle.connection == "sim://"
+
+
+def test_file_world_path_is_relative_to_the_mission_file(tmp_path):
+    import numpy as np
+
+    (tmp_path / "maps").mkdir()
+    np.save(tmp_path / "maps" / "dem.npy", np.zeros((50, 50), dtype=np.float32))
+    path = write(tmp_path, GOOD + "world: {kind: file, path: maps/dem.npy, "
+                 "source_cell_size: 1.0}\n")
+    mission = load_mission(path)
+    assert Path(mission.world.path) == tmp_path / "maps" / "dem.npy"
