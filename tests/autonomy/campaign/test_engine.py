@@ -2,6 +2,7 @@
 
 import json
 import socket
+import sys
 
 import pytest
 
@@ -132,3 +133,16 @@ def test_unreachable_scheduler_is_a_user_error(fakes, tmp_path):
         campaign(fakes, tmp_path, runs=1, scheduler=f"tcp://127.0.0.1:{port}",
                  connect_timeout=1)
     assert not (tmp_path / "runs.jsonl").exists()
+
+
+def test_scheduler_without_distributed_installed_is_a_user_error(fakes, tmp_path, monkeypatch):
+    monkeypatch.setitem(sys.modules, "distributed", None)
+    with pytest.raises(UserError, match=r"landing-autonomy\[cluster\]"):
+        campaign(fakes, tmp_path, runs=1, scheduler="tcp://127.0.0.1:8786")
+
+
+@pytest.mark.parametrize("address", ["127.0.0.1:8786", "tcp://"])
+def test_malformed_scheduler_address_is_a_user_error(fakes, tmp_path, address):
+    pytest.importorskip("distributed")
+    with pytest.raises(UserError, match="expected tcp://HOST:PORT"):
+        campaign(fakes, tmp_path, runs=1, scheduler=address)
