@@ -3,8 +3,10 @@
 ``KEY`` is a dotted mission key (``landing.verification_altitude``, ``sitl.wind.speed``).
 ``SPEC`` is one of:
 
-- a list ``V1,V2,...``: each value is read as a YAML scalar, so ``2.5`` is a number,
-  ``true`` a boolean and ``mars`` a string (``2.5,5,10``; a single value is a list of one);
+- a list ``V1,V2,...``, read as a YAML flow sequence: ``2.5`` is a number, ``true`` a
+  boolean, ``mars`` a string, ``null`` None and ``[40,30]`` a list, for settings that are
+  lists (``2.5,5,10``; ``[40,30],[80,60]``; a single value is a list of one). Quote a
+  string that contains ``:`` or ``,``;
 - an integer range ``A:B`` with integers ``A <= B``: every integer from A to B inclusive
   (``0:8`` is 0, 1, ..., 8);
 - an evenly spaced range ``A:B:N``: N >= 2 values from A to B inclusive, like
@@ -86,17 +88,25 @@ def _number(text: str, what: str) -> int | float:
     return value
 
 
-def _scalar(text: str, what: str) -> Any:
-    text = text.strip()
-    if not text:
-        raise UserError(f"{what}: empty value in the list")
-    try:
-        value = yaml.safe_load(text)
-    except yaml.YAMLError:
-        value = text
-    if isinstance(value, (dict, list)) or value is None:
-        raise UserError(f"{what}: {text!r} is not a single value")
+def _numeric(value: Any) -> Any:
+    """YAML 1.1 reads ``1e3`` as a string: make such strings numbers."""
+    if isinstance(value, str):
+        try:
+            number = float(value)
+        except ValueError:
+            return value
+        return number if math.isfinite(number) else value
     return value
+
+
+def _list(spec: str, what: str) -> tuple[Any, ...]:
+    try:
+        values = yaml.safe_load(f"[{spec}]")
+    except yaml.YAMLError:
+        raise UserError(f"{what}: cannot read {spec!r} as a comma-separated list") from None
+    if any(isinstance(v, dict) for v in values):
+        raise UserError(f"{what}: {spec!r}: a value cannot be a mapping")
+    return tuple(_numeric(v) for v in values)
 
 
 def parse_values(spec: str, what: str = "--vary") -> tuple[Any, ...]:
@@ -104,8 +114,8 @@ def parse_values(spec: str, what: str = "--vary") -> tuple[Any, ...]:
     spec = spec.strip()
     if not spec:
         raise UserError(f"{what}: no values after '='")
-    if ":" not in spec:
-        return tuple(_scalar(part, what) for part in spec.split(","))
+    if ":" not in spec or any(c in spec for c in ",[]'\""):
+        return _list(spec, what)
     parts = spec.split(":")
     if len(parts) not in (2, 3):
         raise UserError(f"{what}: range {spec!r} must be A:B or A:B:N")

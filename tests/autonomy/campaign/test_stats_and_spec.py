@@ -52,6 +52,10 @@ def test_paired_interval_is_narrower_than_independent_for_correlated_runs():
         ("world.kind=mars,flat", "world.kind", ("mars", "flat")),
         ("landing.enabled=true", "landing.enabled", (True,)),
         ("a.b=-2:2:3", "a.b", (-2, 0, 2)),
+        ("landing.search_rectangle=[40,30],[80,60]", "landing.search_rectangle",
+         ([40, 30], [80, 60])),
+        ("world.path='C:/a.npy',b.npy", "world.path", ("C:/a.npy", "b.npy")),
+        ("weights.size=1e-1,2", "weights.size", (0.1, 2)),
     ],
 )
 def test_spec_grammar(option, key, values):
@@ -64,7 +68,8 @@ def test_spec_grammar(option, key, values):
 @pytest.mark.parametrize(
     "option",
     ["landing.verification_altitude", "=1,2", "a b=1", "x=", "x=1,,2", "x=8:0", "x=0:8:1",
-     "x=0:8:two", "x=a:b", "x=0.5:2", "x=1:2:3:4", "x=1,1", "x=nan:1:3"],
+     "x=0:8:two", "x=a:b", "x=0.5:2", "x=1:2:3:4", "x=1,1", "x=nan:1:3", "x=[1,2",
+     "x={a: 1}"],
 )
 def test_malformed_specs_are_user_errors(option):
     with pytest.raises(UserError):
