@@ -118,7 +118,7 @@ def _apply(apply_overrides: OverrideFunction, mission: Any, overrides: dict[str,
         raise UserError(f"--vary: {exc}") from None
     except ValueError as exc:  # pydantic's ValidationError is a ValueError
         shown = ", ".join(f"{k}={v}" for k, v in overrides.items())
-        raise UserError(f"--vary {shown}: {exc}".splitlines()[0]) from None
+        raise UserError(f"--vary {shown}: {' '.join(str(exc).split())}") from None
 
 
 def run_campaign(
@@ -176,20 +176,20 @@ def run_campaign(
         if t.identity not in recorded
         or (retry_errors and recorded[t.identity].get("outcome") == "error")
     ]
+    own_backend = None
+    if todo and backend is None:  # made before anything is written: it may refuse
+        backend = own_backend = make_backend(workers, scheduler, connect_timeout)
     out.mkdir(parents=True, exist_ok=True)
-    if todo:
-        own_backend = backend is None
-        backend = backend or make_backend(workers, scheduler, connect_timeout)
+    try:
         meter = None if quiet else Progress(len(todo), progress, label=name or "campaign")
-        try:
-            for record in backend.run(todo):
-                log.append(record)
-                recorded[(record["mission"], record["variant_key"], record["seed"])] = record
-                if meter is not None:
-                    meter.update(record)
-        finally:
-            if own_backend:
-                backend.close()
+        for record in backend.run(todo) if todo else ():
+            log.append(record)
+            recorded[(record["mission"], record["variant_key"], record["seed"])] = record
+            if meter is not None:
+                meter.update(record)
+    finally:
+        if own_backend is not None:
+            own_backend.close()
     records = [recorded[t.identity] for t in tasks]
     rows = summarise_variants(records, chosen)
     meta = {
