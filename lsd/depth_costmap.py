@@ -13,7 +13,9 @@ Per frame (H x W depth image, pinhole intrinsics, camera pose):
   (1 - normalised distance) so that, like the others, higher is better.
 - J (eq. 7) = c1 J_DE + c2 J_FL + c3 J_N + c4 J_EC after min-max normalising J_DE, J_FL and
   J_EC over the valid pixels. Sites: J >= threshold and J_FL (pixels) >= the vehicle radius
-  projected at the pixel's depth (f r / D), sampled every ``site_stride`` pixels.
+  projected at the pixel's depth (f r / D), sampled on a pixel grid whose ground spacing is
+  ``site_spacing`` (the paper keeps every pixel; the sampling bounds the list and the
+  clustering cost while neighbouring sites still link).
 - 3D positions from the depth and pose; a global list keeps a site only if no listed site is
   within ``dedup_distance`` (k-d tree); single-linkage agglomerative clustering on euclidean
   distance and z difference yields the sparse sites (cluster centroids, eq. 8).
@@ -254,21 +256,35 @@ def dense_sites(
     frame: DepthFrame, maps: Costmaps, settings: DepthCostmapSettings
 ) -> DenseSites:
     """Thresholded, footprint-checked candidate sites of one frame, sampled every
-    ``site_stride`` pixels."""
+    ``site_spacing`` metres on the ground (or every ``site_stride`` pixels)."""
     s = settings
     k = frame.intrinsics
     f = min(k.fx, k.fy)
-    stride = s.site_stride
-    off = stride // 2
-    # Only the sampled pixels are tested: every stride-th row and column.
-    sub = (slice(off, None, stride), slice(off, None, stride))
-    depth = np.asarray(frame.depth, dtype=np.float32)[sub]
-    with np.errstate(invalid="ignore", divide="ignore"):
-        mask = (
-            maps.valid[sub]
-            & (maps.decision[sub] >= s.threshold)
-            & (maps.flatness_px[sub] * depth >= np.float32(f * s.vehicle_radius))
-        )
+    depth_full = np.asarray(frame.depth, dtype=np.float32)
+    if not maps.valid.any():
+        return DenseSites()
+    if s.site_stride is not None:
+        stride = s.site_stride
+    else:
+        coarse = depth_full[::8, ::8][maps.valid[::8, ::8]]
+        if coarse.size == 0:
+            coarse = depth_full[maps.valid]
+        stride = max(1, int(f * s.site_spacing / float(np.median(coarse))))
+    while True:
+        off = stride // 2
+        # Only the sampled pixels are tested: every stride-th row and column.
+        sub = (slice(off, None, stride), slice(off, None, stride))
+        depth = depth_full[sub]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            mask = (
+                maps.valid[sub]
+                & (maps.decision[sub] >= s.threshold)
+                & (maps.flatness_px[sub] * depth >= np.float32(f * s.vehicle_radius))
+            )
+        n = int(np.count_nonzero(mask))
+        if n <= s.max_dense_sites:
+            break
+        stride = max(stride + 1, int(np.ceil(stride * np.sqrt(n / s.max_dense_sites))))
     rb, cb = np.nonzero(mask)
     if len(rb) == 0:
         return DenseSites()
@@ -281,9 +297,11 @@ def dense_sites(
     )
 
     # Obstacle altitude: highest world z in the square window circumscribing the footprint
-    # + margin disc projected at the median site depth (one rectangular dilation: OpenCV's
-    # is linear-time in the kernel size).
-    radius_px = int(np.ceil(f * (s.vehicle_radius + s.obstacle_margin) / float(np.median(d))))
+    # + margin disc projected at the frame's nearest depth (nearer things look bigger, so
+    # this window covers the disc for any obstacle height); one rectangular dilation,
+    # linear-time in the kernel size.
+    nearest = max(maps.depth_range[0], 1e-6)
+    radius_px = int(np.ceil(f * (s.vehicle_radius + s.obstacle_margin) / nearest))
     valid_z = np.full(frame.depth.shape, -np.inf, dtype=np.float32)
     cv2.copyTo(maps.world_z, maps.valid.view(np.uint8), valid_z)
     kernel = cv2.getStructuringElement(cv2.MORPH_RECT, (2 * radius_px + 1, 2 * radius_px + 1))

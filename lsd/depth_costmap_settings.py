@@ -52,9 +52,21 @@ class DepthCostmapSettings(BaseModel):
         "Canny, so noisy depth (stereo or SfM) does not turn every pixel into an edge; 0: off",
     )
     normal_window: int = Field(5, ge=1, description="box window (px) averaging 3D gradients")
-    site_stride: int = Field(8, ge=1, description="dense sites are sampled every N pixels")
+    site_spacing: float = Field(
+        0.3,
+        gt=0,
+        description="ground spacing (m) of the dense sites: candidate pixels are sampled every "
+        "f * site_spacing / D pixels (D the frame's median depth, at least 1 px); keep it below "
+        "cluster_distance / sqrt(2) so neighbouring sites link, and above dedup_distance",
+    )
+    site_stride: int | None = Field(
+        None, ge=1, description="fixed pixel stride of the dense sites instead of site_spacing"
+    )
+    max_dense_sites: int = Field(
+        5000, ge=1, description="most dense sites per frame (the stride grows to fit)"
+    )
     dedup_distance: float = Field(
-        0.25, ge=0, description="a site with a listed neighbour this close (m) is not added"
+        0.2, ge=0, description="a site with a listed neighbour this close (m) is not added"
     )
     cluster_distance: float = Field(0.5, gt=0, description="clustering euclidean threshold (m)")
     cluster_dz: float = Field(0.01, gt=0, description="clustering z-difference threshold (m)")

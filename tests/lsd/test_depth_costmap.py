@@ -278,7 +278,7 @@ def test_image_size_not_a_multiple_of_the_stride():
     obs = det.process(frame(depth, position=pos, k=k))
     assert obs
     gap = horizontal_distance_to_box(det.last_sites.positions, (4.0, 0.0, 0.5, 1.0))
-    near, far = gap < 3.5, gap > 6.0
+    near, far = gap < 3.0, gap > 6.0
     assert near.any() and far.any()
     np.testing.assert_allclose(det.last_sites.obstacle_altitude[near], 1.0, atol=1e-3)
     np.testing.assert_allclose(det.last_sites.obstacle_altitude[far], 0.0, atol=1e-3)
