@@ -29,6 +29,7 @@ CSV_FIELDS = (
     "class",
 )  # fmt: skip
 MAX_PLOTTED_POINTS = 200_000
+MAX_DRAWN_SITES = 200  # the best ones; all are in sites.csv
 
 
 def _settings(model: type, values: dict, flag_of: dict[str, str]):
@@ -150,14 +151,14 @@ def _overlay_cloud(path: Path, cloud: np.ndarray, obs: list[SiteObservation], se
     fig, ax = plt.subplots(figsize=(8, 8))
     sc = ax.scatter(pts[:, 0], pts[:, 1], c=pts[:, 2], s=0.5, cmap="terrain", linewidths=0)
     fig.colorbar(sc, ax=ax, label="z (m)", shrink=0.8)
-    for i, o in enumerate(obs):
+    for i, o in enumerate(obs[:MAX_DRAWN_SITES]):
         ax.add_patch(Circle((o.x, o.y), o.size, fill=False, ec="red", lw=1.2))
         if i < 20:
             ax.annotate(str(i + 1), (o.x, o.y), color="red", fontsize=7, ha="center")
     ax.set_aspect("equal")
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
-    ax.set_title(f"{len(obs)} landing sites (red: radius)")
+    ax.set_title(f"{len(obs)} landing sites (red: radius; best {MAX_DRAWN_SITES} drawn)")
     fig.savefig(path, dpi=110, bbox_inches="tight")
     plt.close(fig)
 
@@ -175,7 +176,7 @@ def _overlay_depth(path: Path, frame: DepthFrame, obs: list[SiteObservation]) ->
     im = ax.imshow(world_z, cmap="terrain")
     fig.colorbar(im, ax=ax, label="world z (m)", shrink=0.8)
     rot, pos = np.asarray(frame.rotation), np.asarray(frame.position)
-    for i, o in enumerate(obs):
+    for i, o in enumerate(obs[:MAX_DRAWN_SITES]):
         cam = rot.T @ (np.array(o.position) - pos)
         if cam[2] <= 0:
             continue
@@ -183,7 +184,7 @@ def _overlay_depth(path: Path, frame: DepthFrame, obs: list[SiteObservation]) ->
         ax.add_patch(Circle((u, v), k.fx * o.size / cam[2], fill=False, ec="red", lw=1.2))
         if i < 20:
             ax.annotate(str(i + 1), (u, v), color="red", fontsize=7, ha="center")
-    ax.set_title(f"{len(obs)} landing sites (red: radius)")
+    ax.set_title(f"{len(obs)} landing sites (red: radius; best {MAX_DRAWN_SITES} drawn)")
     fig.savefig(path, dpi=110, bbox_inches="tight")
     plt.close(fig)
 
