@@ -158,7 +158,7 @@ def compute_costmaps(frame: DepthFrame, settings: DepthCostmapSettings) -> Costm
     Surface normals: for a pinhole camera the cross product of the 3D gradients
     dP/du x dP/dv of P = D (xn, yn, 1) is proportional to
     n_cam = (-fx D_u, -fy D_v, D + fx xn D_u + fy yn D_v), so box-averaged depth gradients
-    (one separable filter each) give the averaged 3D-gradient normals without building
+    (a box blur, then central differences) give the averaged 3D-gradient normals without building
     the point image; the world z of the normal is R[2] . n_cam.
     """
     s = settings
