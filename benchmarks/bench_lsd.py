@@ -107,7 +107,7 @@ def main() -> None:
     os.environ.setdefault("OMP_NUM_THREADS", str(args.threads))
 
     terrain = make_terrain({"kind": "mars", "size": [300.0, 300.0]}, seed=11)
-    print("elevation-map LSD, 256 x 256 depth frames, Mars world (80 m map at 0.25 m)")
+    print("elevation-map LSD, 256 x 256 depth frames, Mars world (32 m map at 0.1 m)")
     print(f"{'AGL m':>6} {'source':>7} {'ms/frame wall':>14} {'ms CPU':>7} {'sites':>6}")
     for agl, source in ((100.0, "sfm"), (30.0, "sfm"), (10.0, "stereo"), (2.5, "stereo")):
         wall, cpu, sites = frame_times(terrain, agl, args.repeats)

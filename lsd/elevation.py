@@ -8,9 +8,11 @@ size, non-maximum suppression picks sites, and a maximum filter gives each site'
 altitude. Sites come out as :class:`lsm.SiteObservation` records, already threshold-filtered.
 
 ``observation_altitude`` is the camera's current height above the site, or, if larger, the
-greatest height from which any cell within ``footprint_radius`` of the site was best
-seen: a site redetected at 2.5 m whose surroundings were only seen from
-20 m is not reported as seen from 2.5 m, which keeps verification meaningful.
+greatest height from which any cell within ``footprint_radius`` of the site was best seen:
+a site redetected at 2.5 m whose surroundings were only seen from 20 m is not reported as
+seen from 2.5 m, which keeps verification meaningful. A site that passes the step test near
+it only thanks to the noise tolerance is reported as seen from no lower than
+``doubtful_altitude``.
 
 Normalisation of the emitted values (so they can enter the loss unaltered):
 ``roughness = roughness_m / max_roughness`` and ``uncertainty = sigma_m / max_uncertainty``,
@@ -37,7 +39,13 @@ from lsd.elevation_map import ElevationMap
 from lsd.elevation_settings import DetectorSettings, ElevationMapSettings
 from lsd.frames import DepthFrame
 from lsd.plane_fit import PlaneFit, fit_planes
-from lsd.site_selection import obstacle_altitude, safe_mask, select_sites, site_size
+from lsd.site_selection import (
+    doubtful_mask,
+    obstacle_altitude,
+    safe_mask,
+    select_sites,
+    site_size,
+)
 from lsm.records import SiteObservation
 
 
@@ -163,7 +171,9 @@ class ElevationDetector:
             self.last_analysis = None
             return []
         r = m.resolution
-        fit = fit_planes(m.mean, m.variance, r, s.footprint_radius, top=m.top)
+        fit = fit_planes(
+            m.mean, m.variance, r, s.footprint_radius, top=m.top, tolerance=s.noise_tolerance
+        )
         safe = safe_mask(fit, s, r)
         size = site_size(safe, r)
         origin = (int(m.origin_index[0]), int(m.origin_index[1]))
@@ -189,6 +199,10 @@ class ElevationDetector:
         roughness = np.clip(fit.roughness[i, j] / s.max_roughness, 0.0, 1.0)
         uncertainty = np.clip(fit.sigma[i, j] / s.max_uncertainty, 0.0, 1.0)
         altitude = np.maximum(float(camera_position[2]) - z, farthest_look[i, j])
+        # A site that is safe only because noise forgives a step near it is no proof of a
+        # close look: it may not verify, nor overwrite a conclusive look.
+        doubtful = doubtful_mask(fit, s, r)[i, j]
+        altitude = np.where(doubtful, np.maximum(altitude, s.doubtful_altitude), altitude)
         label = f"{s.source}:{source}" if source else s.source
         observations = [
             SiteObservation(

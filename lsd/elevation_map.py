@@ -15,6 +15,9 @@ import numpy as np
 
 from lsd.elevation_settings import ElevationMapSettings
 
+TOP_QUANTILE = 0.9  # which percentile of a cell's points is its top
+TOP_NOISE_LIFT = 1.2816  # the standard normal's 90th percentile
+
 
 def _shifted(array: np.ndarray, di: int, dj: int, fill: float) -> np.ndarray:
     """``out[i, j] = array[i + di, j + dj]`` where that exists, ``fill`` elsewhere."""
@@ -36,8 +39,9 @@ class ElevationMap:
     Attributes:
         settings: the :class:`ElevationMapSettings`.
         mean: (n, n) float64 fused height, ENU z metres; NaN where unobserved.
-        top: (n, n) float64 fused highest point of the cell, ENU z metres (NaN where
-            unobserved): catches rocks smaller than a cell, which the mean averages away.
+        top: (n, n) float64 fused top of the cell (90th percentile of its points less the
+            noise's share), ENU z metres (NaN where unobserved): catches rocks smaller than
+            a cell, which the mean averages away.
         variance: (n, n) float64 variance of ``mean``, m^2; inf where unobserved.
         closest: (n, n) float64 smallest height of the camera above the cell at which the
             cell was measured, metres; inf where unobserved (or the camera was unknown).
@@ -135,8 +139,8 @@ class ElevationMap:
         then updates the cell estimate as a 1-D Kalman filter. A measurement farther than
         ``outlier_gate`` sigmas from the estimate is not averaged in: the cell keeps
         whichever of the two has the smaller variance (a close-range look replaces a
-        far one; a far noisy look cannot spoil a close one). The cell's highest point is
-        fused with the same gains, less the excess that the noise of its points explains.
+        far one; a far noisy look cannot spoil a close one). The cell's top (90th percentile
+        of its points less the noise's share) is fused with the same gains.
 
         Args:
             points: (N, 3) world points, ENU metres.
@@ -159,15 +163,16 @@ class ElevationMap:
         w_sum = np.bincount(flat, weights=weight, minlength=n0 * n1)
         wz_sum = np.bincount(flat, weights=weight * z, minlength=n0 * n1)
         cells = np.flatnonzero(w_sum > 0)
-        highest = np.full(n0 * n1, -np.inf)
-        np.maximum.at(highest, flat, z)
         meas = wz_sum[cells] / w_sum[cells]
-        # The highest of n noisy points overshoots by about sigma * sqrt(2 ln n): remove
-        # that expected excess so that noise alone does not look like a rock.
+        # The cell's top: the 90th percentile of its points (sorted by cell, then height),
+        # less the 1.28 sigma by which noise alone lifts that percentile. A rock smaller
+        # than a cell barely moves the cell's mean but shows in its top.
         count = np.bincount(flat, minlength=n0 * n1)[cells]
+        order = np.lexsort((z, flat))
+        first = np.concatenate(([0], np.cumsum(count)[:-1]))
+        percentile = z[order[first + np.floor(TOP_QUANTILE * (count - 1)).astype(np.int64)]]
         point_var = np.bincount(flat, weights=variance[inside], minlength=n0 * n1)[cells] / count
-        excess = np.sqrt(point_var * 2.0 * np.log(count))
-        meas_top = np.maximum(highest[cells] - excess, meas)
+        meas_top = np.maximum(percentile - TOP_NOISE_LIFT * np.sqrt(point_var), meas)
         meas_var = np.maximum(1.0 / w_sum[cells], self.settings.min_sigma**2)
 
         mean = self.mean.reshape(-1)

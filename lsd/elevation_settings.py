@@ -16,8 +16,8 @@ class ElevationMapSettings(BaseModel):
 
     model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
-    size: float = Field(80.0, gt=0, description="side of the square map window (m)")
-    resolution: float = Field(0.25, gt=0, description="cell side (m)")
+    size: float = Field(32.0, gt=0, description="side of the square map window (m)")
+    resolution: float = Field(0.1, gt=0, description="cell side (m)")
     max_age: float = Field(
         30.0, gt=0, description="a cell not observed for this long (s) is forgotten"
     )
@@ -72,7 +72,7 @@ class DetectorSettings(BaseModel):
         0.05, gt=0, description="largest RMS residual of the footprint plane fit (m)"
     )
     max_step: float = Field(
-        0.08,
+        0.06,
         gt=0,
         description="largest height of a cell above or below its footprint plane (m): rocks, holes",
     )
@@ -80,7 +80,7 @@ class DetectorSettings(BaseModel):
         1.5, gt=0, description="largest RMS 1-sigma height error over the footprint (m)"
     )
     min_observed_fraction: float = Field(
-        0.5, gt=0, le=1, description="least fraction of observed cells in the footprint window"
+        0.1, gt=0, le=1, description="least fraction of observed cells in the footprint window"
     )
     noise_tolerance: float = Field(
         3.0,
@@ -88,11 +88,17 @@ class DetectorSettings(BaseModel):
         description="slope, roughness and step limits are widened by this many standard errors "
         "of the estimates, so that noisy high-altitude maps still yield (uncertain) sites",
     )
+    doubtful_altitude: float = Field(
+        10.0,
+        ge=0,
+        description="observation altitude (m) reported, at least, for a site near a step "
+        "beyond max_step that only the noise tolerance forgives",
+    )
     site_spacing: float = Field(
         4.0, gt=0, description="side of the world-aligned blocks that hold at most one site (m)"
     )
     clearance_margin: float = Field(
-        0.5, ge=0, description="rotor clearance: a rock or hole this close (m) makes a cell unsafe"
+        1.0, ge=0, description="rotor clearance: a rock or hole this close (m) makes a cell unsafe"
     )
     obstacle_radius: float = Field(
         5.0, ge=0, description="radius around a site searched for the obstacle altitude (m)"

@@ -59,10 +59,16 @@ class DepthFrame:
         valid = np.isfinite(depth) & (depth > 0)
         v, u = np.nonzero(valid)
         z = depth[v, u]
-        cam = np.stack(((u - k.cx) / k.fx * z, (v - k.cy) / k.fy * z, z), axis=1)
-        points = cam @ np.asarray(self.rotation, dtype=np.float64).T + np.asarray(
-            self.position, dtype=np.float64
-        )
+        xn = (u - k.cx) / k.fx
+        yn = (v - k.cy) / k.fy
+        rotation = np.asarray(self.rotation, dtype=np.float64)
+        position = np.asarray(self.position, dtype=np.float64)
+        # One axis at a time: a (N, 3) @ (3, 3) product would go through multi-threaded
+        # BLAS, which costs more than it saves on a busy machine.
+        points = np.empty((len(z), 3))
+        for axis in range(3):
+            r = rotation[axis]
+            points[:, axis] = z * (r[0] * xn + r[1] * yn + r[2]) + position[axis]
         if self.sigma is None:
             sigma = np.zeros(len(z))
         else:

@@ -27,9 +27,9 @@ class PlaneFit:
             is the harmonic mean of the cell variances, metres (NaN if no fit).
         roughness_error: approximate 1-sigma error of ``roughness**2`` from the measurement
             noise, ``noise_var * sqrt(2 / (cells - 3))``, m^2.
-        step: ``max(|cell height - plane height|, cell top - plane height)`` at the cell
-            itself, metres (NaN where the cell is unobserved): how far the cell sticks out
-            of (or into) its footprint plane.
+        step: ``|cell height - plane height|`` or ``cell top - plane height`` at the cell
+            itself, whichever stands out more beyond its error, metres (NaN where the cell
+            is unobserved): how far the cell sticks out of (or into) its footprint plane.
         step_error: 1-sigma error of ``step``, metres.
         sigma: RMS 1-sigma height error of the window's observed cells, metres.
         observed_fraction: fraction of the window's cells that are observed, [0, 1].
@@ -52,6 +52,7 @@ def fit_planes(
     resolution: float,
     radius: float,
     top: np.ndarray | None = None,
+    tolerance: float = 0.0,
 ) -> PlaneFit:
     """Fit a plane in the square window of half-side ``radius`` around every cell.
 
@@ -60,7 +61,9 @@ def fit_planes(
         variance: (n, m) variance of the heights, m^2 (ignored where ``height`` is NaN).
         resolution: cell side, metres.
         radius: half-side of the window, metres (rounded to whole cells, at least one).
-        top: (n, m) highest point of each cell, metres, or None (only ``step`` uses it).
+        top: (n, m) top of each cell, metres, or None (only ``step`` uses it).
+        tolerance: how many standard errors the step test will forgive; decides whether
+            the mean's or the top's step (each less that many errors) is the larger.
 
     Returns:
         a :class:`PlaneFit`. A cell gets a fit only when its window holds at least three
@@ -77,11 +80,15 @@ def fit_planes(
     z = np.where(observed, height - ref, 0.0)
     var = np.where(observed, variance, 0.0)
     n0, n1 = height.shape
-    x = (np.arange(n0, dtype=np.float64) * resolution)[:, None] * np.ones((1, n1))
-    y = (np.arange(n1, dtype=np.float64) * resolution)[None, :] * np.ones((n0, 1))
+    # Coordinates from the grid centre, like the heights from their median, keep the
+    # moments small enough for single precision (the filters' own sums are double).
+    x = ((np.arange(n0) - n0 // 2) * resolution)[:, None] * np.ones((1, n1))
+    y = ((np.arange(n1) - n1 // 2) * resolution)[None, :] * np.ones((n0, 1))
     wx, wy, wz = w * x, w * y, w * z
     stack = np.stack((o, var, w, wx, wy, wz, wx * x, wx * y, wy * y, wz * x, wz * y, wz * z))
-    m = ndimage.uniform_filter(stack, size=(1, size, size), mode="constant", cval=0.0)
+    m = ndimage.uniform_filter(
+        stack.astype(np.float32), size=(1, size, size), mode="constant", cval=0.0
+    ).astype(np.float64)
     frac, svar, sw, sx, sy, sz, sxx, sxy, syy, sxz, syz, szz = m
     count = frac * size * size
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -111,9 +118,14 @@ def fit_planes(
         roughness = np.sqrt(np.maximum(residual - noise_var, 0.0))
         roughness_error = noise_var * np.sqrt(2.0 / np.maximum(count - 3.0, 1.0))
         step = np.abs(z - plane)
-        if top is not None:
-            step = np.maximum(step, np.where(observed, top - ref, 0.0) - plane)
         step_error = np.sqrt(np.where(observed, variance, np.inf) + 1.0 / weight)
+        if top is not None:
+            # A percentile scatters about 1.7 times as much as the mean of the same points.
+            top_step = np.where(observed, top - ref, 0.0) - plane
+            top_error = np.sqrt(3.0 * np.where(observed, variance, np.inf) + 1.0 / weight)
+            use_top = top_step - tolerance * top_error > step - tolerance * step_error
+            step = np.where(use_top, top_step, step)
+            step_error = np.where(use_top, top_error, step_error)
         sigma = np.sqrt(svar / frac)
     nan = np.nan
     return PlaneFit(

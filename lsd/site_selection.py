@@ -42,6 +42,17 @@ def safe_mask(fit: PlaneFit, settings: DetectorSettings, resolution: float) -> n
     return safe
 
 
+def doubtful_mask(fit: PlaneFit, settings: DetectorSettings, resolution: float) -> np.ndarray:
+    """(n, n) bool: cells within ``clearance_margin`` of a step beyond ``max_step`` that
+    only the noise tolerance forgives (the data can neither confirm nor rule out a rock)."""
+    with np.errstate(invalid="ignore"):
+        doubt = fit.step > settings.max_step
+    margin = int(np.ceil(settings.clearance_margin / resolution - 1e-9))
+    if margin > 0:
+        doubt = ndimage.maximum_filter(doubt, size=2 * margin + 1, mode="constant", cval=False)
+    return doubt
+
+
 def site_size(safe: np.ndarray, resolution: float) -> np.ndarray:
     """(n, n) radius in metres of the largest circle of safe cells centred on each cell.
 

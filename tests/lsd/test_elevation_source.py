@@ -9,7 +9,7 @@ import pytest
 from autonomy.perception.base import SiteSource
 from autonomy.perception.elevation import ElevationMapSource
 from behaviors.ports import VehicleState
-from sitl.terrain import make_terrain
+from sitl.terrain import is_safe, make_terrain
 
 
 @pytest.fixture(scope="module")
@@ -60,3 +60,46 @@ def test_cruise_flight_gives_uncertain_sites_from_structure_from_motion(flat_wor
     assert all(o.source == "elevation:sfm" for o in observations)
     assert all(o.observation_altitude > 95 for o in observations)
     assert np.median([o.uncertainty for o in observations]) > 0.2
+
+
+@pytest.fixture(scope="module")
+def mars_flight():
+    """Observations of a short Mars mission: a cruise pass at 100 m, then stereo descents to
+    2.5 m over the three best sites the pass found; with the ground-truth safety of each."""
+    world = make_terrain({"kind": "mars", "size": [240.0, 240.0]}, seed=22)
+    source = ElevationMapSource.from_settings(world, rng=np.random.default_rng(22))
+    seen = []
+    t = 0.0
+    for k in range(12):  # 8 m/s at 2 Hz
+        t += 0.5
+        seen += source.update(VehicleState(position=(-40.0 + 4.0 * k, 5.0, 100.0)), t)
+    assert seen, "the cruise pass found no site"
+    best = sorted(seen, key=lambda o: o.roughness + o.uncertainty - o.size / 10.0)
+    chosen = []
+    for o in best:
+        if all(np.hypot(o.x - c.x, o.y - c.y) > 10.0 for c in chosen):
+            chosen.append(o)
+    for site in chosen[:3]:
+        for height in (15.0, 11.0, 8.0, 6.0, 4.5, 3.5, 3.0, 2.5, 2.5):
+            t += 0.5
+            state = VehicleState(position=(site.x, site.y, site.z + height))
+            seen += source.update(state, t)
+        t += 60.0  # fly on
+    safe = is_safe(world, [o.x for o in seen], [o.y for o in seen])
+    altitude = np.array([o.observation_altitude for o in seen])
+    return altitude, np.asarray(safe, dtype=bool)
+
+
+def test_sites_seen_from_below_5_m_are_safe_on_mars(mars_flight):
+    altitude, safe = mars_flight
+    low = altitude < 5.0
+    assert low.sum() >= 5, "descents to 2.5 m must re-detect sites"
+    assert safe[low].mean() >= 0.99
+
+
+def test_sites_seen_from_cruise_altitude_are_mostly_safe_on_mars(mars_flight):
+    altitude, safe = mars_flight
+    high = altitude > 60.0
+    assert high.sum() >= 20
+    # Well above the world's safe share (about a third), though noisy from 100 m.
+    assert safe[high].mean() >= 0.6
