@@ -40,11 +40,11 @@ from lsd.elevation_settings import DetectorSettings, ElevationMapSettings
 from lsd.frames import DepthFrame
 from lsd.plane_fit import PlaneFit, fit_planes
 from lsd.site_selection import (
-    doubtful_mask,
     obstacle_altitude,
     safe_mask,
     select_sites,
     site_size,
+    step_hazards,
 )
 from lsm.records import SiteObservation
 
@@ -174,7 +174,8 @@ class ElevationDetector:
         fit = fit_planes(
             m.mean, m.variance, r, s.footprint_radius, top=m.top, tolerance=s.noise_tolerance
         )
-        safe = safe_mask(fit, s, r)
+        hazard, doubtful = step_hazards(fit, s, r)
+        safe = safe_mask(fit, s, hazard)
         size = site_size(safe, r)
         origin = (int(m.origin_index[0]), int(m.origin_index[1]))
         self.last_analysis = MapAnalysis(fit, safe, size, origin, r)
@@ -201,8 +202,7 @@ class ElevationDetector:
         altitude = np.maximum(float(camera_position[2]) - z, farthest_look[i, j])
         # A site that is safe only because noise forgives a step near it is no proof of a
         # close look: it may not verify, nor overwrite a conclusive look.
-        doubtful = doubtful_mask(fit, s, r)[i, j]
-        altitude = np.where(doubtful, np.maximum(altitude, s.doubtful_altitude), altitude)
+        altitude = np.where(doubtful[i, j], np.maximum(altitude, s.doubtful_altitude), altitude)
         label = f"{s.source}:{source}" if source else s.source
         observations = [
             SiteObservation(

@@ -16,7 +16,7 @@ from scipy import ndimage
 
 @dataclass(frozen=True)
 class PlaneFit:
-    """Per-cell results of the window plane fit; every array is (n, n) float64.
+    """Per-cell results of the window plane fit; every array is (n, n) float32.
 
     Attributes:
         height: fitted plane height at the cell centre, ENU z metres (NaN if no fit).
@@ -72,23 +72,21 @@ def fit_planes(
     half = max(1, int(round(radius / resolution)))
     size = 2 * half + 1
     observed = np.isfinite(height) & np.isfinite(variance) & (variance > 0)
-    o = observed.astype(np.float64)
+    f32 = np.float32
+    o = observed.astype(f32)
     # Inverse-variance weights: a cell seen by few or far points counts less.
-    w = np.where(observed, 1.0 / np.where(observed, variance, 1.0), 0.0)
-    # Heights relative to a reference keep the second moments well conditioned.
+    w = np.where(observed, 1.0 / np.where(observed, variance, 1.0), 0.0).astype(f32)
+    # Heights from their median and coordinates from the grid centre keep the moments
+    # small enough for single precision (the filters' own running sums are double).
     ref = float(np.median(height[observed])) if observed.any() else 0.0
-    z = np.where(observed, height - ref, 0.0)
-    var = np.where(observed, variance, 0.0)
+    z = np.where(observed, height - ref, 0.0).astype(f32)
+    var = np.where(observed, variance, 0.0).astype(f32)
     n0, n1 = height.shape
-    # Coordinates from the grid centre, like the heights from their median, keep the
-    # moments small enough for single precision (the filters' own sums are double).
-    x = ((np.arange(n0) - n0 // 2) * resolution)[:, None] * np.ones((1, n1))
-    y = ((np.arange(n1) - n1 // 2) * resolution)[None, :] * np.ones((n0, 1))
+    x = ((np.arange(n0, dtype=f32) - n0 // 2) * f32(resolution))[:, None] * np.ones((1, n1), f32)
+    y = ((np.arange(n1, dtype=f32) - n1 // 2) * f32(resolution))[None, :] * np.ones((n0, 1), f32)
     wx, wy, wz = w * x, w * y, w * z
     stack = np.stack((o, var, w, wx, wy, wz, wx * x, wx * y, wy * y, wz * x, wz * y, wz * z))
-    m = ndimage.uniform_filter(
-        stack.astype(np.float32), size=(1, size, size), mode="constant", cval=0.0
-    ).astype(np.float64)
+    m = ndimage.uniform_filter(stack, size=(1, size, size), mode="constant", cval=0.0)
     frac, svar, sw, sx, sy, sz, sxx, sxy, syy, sxz, syz, szz = m
     count = frac * size * size
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -103,7 +101,7 @@ def fit_planes(
         czz = szz * inv - mz * mz
         det = cxx * cyy - cxy * cxy
         # Collinear or too few cells: no plane (det is ~0 relative to the spread).
-        ok = (count > 2.5) & (det > 1e-9 * resolution**4)
+        ok = (count > 2.5) & (det > 1e-6 * resolution**4)
         b = (cyy * cxz - cxy * cyz) / det
         c = (cxx * cyz - cxy * cxz) / det
         residual = czz - b * cxz - c * cyz
@@ -118,24 +116,29 @@ def fit_planes(
         roughness = np.sqrt(np.maximum(residual - noise_var, 0.0))
         roughness_error = noise_var * np.sqrt(2.0 / np.maximum(count - 3.0, 1.0))
         step = np.abs(z - plane)
-        step_error = np.sqrt(np.where(observed, variance, np.inf) + 1.0 / weight)
+        cell_var = np.where(observed, var, np.inf)
+        step_error = np.sqrt(cell_var + 1.0 / weight)
         if top is not None:
             # A percentile scatters about 1.7 times as much as the mean of the same points.
-            top_step = np.where(observed, top - ref, 0.0) - plane
-            top_error = np.sqrt(3.0 * np.where(observed, variance, np.inf) + 1.0 / weight)
+            top_step = np.where(observed, top - ref, 0.0).astype(f32) - plane
+            top_error = np.sqrt(3.0 * cell_var + 1.0 / weight)
             use_top = top_step - tolerance * top_error > step - tolerance * step_error
             step = np.where(use_top, top_step, step)
             step_error = np.where(use_top, top_error, step_error)
         sigma = np.sqrt(svar / frac)
-    nan = np.nan
+    for array in (plane, slope, slope_error, roughness, roughness_error, step, step_error, sigma):
+        array[~ok] = np.nan
+    step[~observed] = np.nan
+    step_error[~observed] = np.nan
+    plane += f32(ref)
     return PlaneFit(
-        height=np.where(ok, plane + ref, nan),
-        slope=np.where(ok, slope, nan),
-        slope_error=np.where(ok, slope_error, nan),
-        roughness=np.where(ok, roughness, nan),
-        roughness_error=np.where(ok, roughness_error, nan),
-        step=np.where(ok & observed, step, nan),
-        step_error=np.where(ok & observed, step_error, nan),
-        sigma=np.where(ok, sigma, nan),
+        height=plane,
+        slope=slope,
+        slope_error=slope_error,
+        roughness=roughness,
+        roughness_error=roughness_error,
+        step=step,
+        step_error=step_error,
+        sigma=sigma,
         observed_fraction=np.clip(frac, 0.0, 1.0),
     )

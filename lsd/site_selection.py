@@ -12,45 +12,49 @@ from lsd.elevation_settings import DetectorSettings
 from lsd.plane_fit import PlaneFit
 
 
-def safe_mask(fit: PlaneFit, settings: DetectorSettings, resolution: float) -> np.ndarray:
+def step_hazards(
+    fit: PlaneFit, settings: DetectorSettings, resolution: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Cells near rocks and holes, each (n, n) bool, both grown by ``clearance_margin``.
+
+    Returns:
+        hazard: a cell within ``clearance_margin`` of a cell that sticks out of its own
+            footprint plane by more than ``max_step`` plus ``noise_tolerance`` standard
+            errors (an unobserved cell has no step: its window's tests stand for it).
+        doubtful: a cell within ``clearance_margin`` of a step beyond ``max_step`` that
+            only the noise tolerance forgives (the data neither confirm nor rule out a rock).
+    """
+    with np.errstate(invalid="ignore"):
+        level = (fit.step > settings.max_step).astype(np.uint8)
+        level += fit.step - settings.noise_tolerance * fit.step_error > settings.max_step
+    margin = int(np.ceil(settings.clearance_margin / resolution - 1e-9))
+    if margin > 0:  # one maximum filter grows both masks
+        level = ndimage.maximum_filter(level, size=2 * margin + 1, mode="constant", cval=0)
+    return level >= 2, level >= 1
+
+
+def safe_mask(fit: PlaneFit, settings: DetectorSettings, hazard: np.ndarray) -> np.ndarray:
     """(n, n) bool: cells that are valid landing area.
 
     A cell is safe when its footprint window is observed enough, its plane is no steeper
     than ``max_slope`` and no rougher than ``max_roughness``, its heights are certain to
-    ``max_uncertainty``, and no cell within ``clearance_margin`` of it sticks out of its own
-    plane by more than ``max_step`` (a rock or hole; an unobserved cell has no step and its
-    window's tests stand for it). Slope, roughness and step limits are widened by
-    ``noise_tolerance`` standard errors of their estimates (nothing at close range, much at
-    high altitude). The outermost ring of cells is never safe (beyond it the terrain is
-    unknown).
+    ``max_uncertainty``, and it is not a step ``hazard`` (from :func:`step_hazards`).
+    Slope and roughness limits are widened by ``noise_tolerance`` standard errors of their
+    estimates (nothing at close range, much at high altitude). The outermost ring of cells
+    is never safe (beyond it the terrain is unknown).
     """
     k = settings.noise_tolerance
     with np.errstate(invalid="ignore"):
-        hazard = fit.step - k * fit.step_error > settings.max_step
         safe = (
             (fit.observed_fraction >= settings.min_observed_fraction)
             & (fit.slope - k * fit.slope_error <= settings.max_slope_rad)
             & (fit.roughness**2 - k * fit.roughness_error <= settings.max_roughness**2)
             & (fit.sigma <= settings.max_uncertainty)
+            & ~hazard
         )
-    margin = int(np.ceil(settings.clearance_margin / resolution - 1e-9))
-    if margin > 0:
-        hazard = ndimage.maximum_filter(hazard, size=2 * margin + 1, mode="constant", cval=False)
-    safe &= ~hazard
     safe[0, :] = safe[-1, :] = False
     safe[:, 0] = safe[:, -1] = False
     return safe
-
-
-def doubtful_mask(fit: PlaneFit, settings: DetectorSettings, resolution: float) -> np.ndarray:
-    """(n, n) bool: cells within ``clearance_margin`` of a step beyond ``max_step`` that
-    only the noise tolerance forgives (the data can neither confirm nor rule out a rock)."""
-    with np.errstate(invalid="ignore"):
-        doubt = fit.step > settings.max_step
-    margin = int(np.ceil(settings.clearance_margin / resolution - 1e-9))
-    if margin > 0:
-        doubt = ndimage.maximum_filter(doubt, size=2 * margin + 1, mode="constant", cval=False)
-    return doubt
 
 
 def site_size(safe: np.ndarray, resolution: float) -> np.ndarray:
