@@ -41,7 +41,6 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from lsd.depth_costmap import (  # noqa: E402
     DepthCostmapDetector,
     DepthCostmapSettings,
-    cluster_sites,
     compute_costmaps,
     dense_sites,
 )
@@ -333,9 +332,7 @@ def bench_table_i(frames):
             dense, td = timed(dense_sites, f, maps, s)
             t_map, t_site = min(t_map, tm), min(t_site, td)
         t2 = time.perf_counter()
-        det.site_list.add(dense, f.timestamp)
-        cluster_sites(det.site_list.sites.positions, s.cluster_distance, s.cluster_dz,
-                      s.hierarchy_limit)
+        det.add_sites(dense, f.timestamp)  # k-d tree list + clustering near the frame
         t3 = time.perf_counter()
         t_maps.append(t_map)
         t_dense.append(t_site)

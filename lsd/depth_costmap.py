@@ -456,35 +456,60 @@ class DepthCostmapDetector:
         dense = dense_sites(frame, maps, s)
         self.last_maps, self.last_sites = maps, dense
         self.counters["pixels_invalid"] += int((~maps.valid).sum())
+        return self.add_sites(dense, frame.timestamp)
+
+    def add_sites(self, dense: DenseSites, now: float = 0.0) -> list[SiteObservation]:
+        """Add one frame's dense sites to the global list and return the observations of
+        the clusters they fell in (the de-duplication and clustering stage)."""
+        s = self.settings
         self.counters["dense_sites"] += len(dense)
         before = len(self.site_list)
-        ids = self.site_list.add(dense, frame.timestamp)
+        ids = self.site_list.add(dense, now)
         self.counters["sites_listed"] += len(self.site_list) - before
         self.counters["sites_not_listed"] += int((ids < 0).sum())
-        if len(self.site_list) == 0:
+        listed = ids[ids >= 0]
+        if len(listed) == 0:
             return []
+        # Re-cluster only the listed sites near this frame's: the per-frame cost stays bounded
+        # as the list grows over a flight (a chain is cut cluster_window beyond the frame).
+        pos = self.site_list.sites.positions
+        lo = pos[listed, :2].min(axis=0) - s.cluster_window
+        hi = pos[listed, :2].max(axis=0) + s.cluster_window
+        window = np.flatnonzero(
+            (pos[:, 0] >= lo[0]) & (pos[:, 0] <= hi[0]) & (pos[:, 1] >= lo[1])
+            & (pos[:, 1] <= hi[1])
+        )
+        labels = cluster_sites(pos[window], s.cluster_distance, s.cluster_dz, s.hierarchy_limit)
+        touched = np.unique(labels[np.searchsorted(window, listed)])
+        return self._observations(window, labels, touched)
+
+    def clusters(self) -> list[SiteObservation]:
+        """Every cluster of the whole global list as an observation (the sparse sites);
+        :attr:`labels` then holds each listed site's cluster."""
+        n = len(self.site_list)
+        if n == 0:
+            return []
+        s = self.settings
         self.labels = cluster_sites(
             self.site_list.sites.positions, s.cluster_distance, s.cluster_dz, s.hierarchy_limit
         )
-        touched = np.unique(self.labels[ids[ids >= 0]])
-        return self._observations(touched)
+        return self._observations(
+            np.arange(n), self.labels, np.arange(int(self.labels.max()) + 1)
+        )
 
-    def clusters(self) -> list[SiteObservation]:
-        """Every cluster of the global list as an observation (the sparse sites)."""
-        if len(self.site_list) == 0:
-            return []
-        return self._observations(np.arange(int(self.labels.max()) + 1))
-
-    def _observations(self, which: np.ndarray) -> list[SiteObservation]:
-        """Cluster centroids (eq. 8) with aggregated properties: mean roughness and
+    def _observations(
+        self, members: np.ndarray, labels: np.ndarray, which: np.ndarray
+    ) -> list[SiteObservation]:
+        """Cluster centroids (eq. 8) of the listed sites ``members`` (indices) labelled
+        ``labels``, for the clusters ``which``, with aggregated properties: mean roughness and
         uncertainty, the size of the member nearest the centroid, highest obstacle, lowest
         observation altitude, latest time. A centroid
         farther than ``cluster_distance`` from every member (a chained, non-convex cluster)
         is replaced by the member nearest to it, so the site stays on detected ground."""
         if len(which) == 0:
             return []
-        sites = self.site_list.sites
-        labels = self.labels
+        sites = self.site_list.sites.take(members)
+        stamps = self.site_list.timestamp[members]
         n = int(labels.max()) + 1
         count = np.bincount(labels, minlength=n).astype(np.float64)
 
@@ -502,7 +527,7 @@ class DepthCostmapDetector:
         obs_alt = np.full(n, np.inf)
         np.minimum.at(obs_alt, labels, sites.observation_altitude)
         stamp = np.full(n, -np.inf)
-        np.maximum.at(stamp, labels, self.site_list.timestamp)
+        np.maximum.at(stamp, labels, stamps)
         rough, unc = mean(sites.roughness), mean(sites.uncertainty)
         size = sites.size[nearest]  # the inscribed circle at the member nearest the centre
         rows = zip(

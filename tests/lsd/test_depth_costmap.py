@@ -293,3 +293,16 @@ def test_edge_blur_recovers_sites_from_noisy_depth():
     assert det.process(frame(noisy))
     # Still clear of the box.
     assert horizontal_distance_to_box(det.last_sites.positions).min() >= 1.0 - 0.2
+
+
+def test_a_frame_reports_only_clusters_near_it_and_clusters_covers_the_whole_list():
+    det = DepthCostmapDetector()
+    first = det.process(frame(render(position=(0.0, 0.0, ALT)), position=(0.0, 0.0, ALT)))
+    far = (200.0, 0.0, ALT)
+    second = det.process(frame(render(position=far), position=far))
+    assert first and second
+    assert all(abs(o.x) < 30 for o in first) and all(abs(o.x - 200.0) < 30 for o in second)
+    everything = det.clusters()
+    xs = np.array([o.x for o in everything])
+    assert (xs < 100).any() and (xs > 100).any()
+    assert len(det.labels) == len(det.site_list)
