@@ -18,7 +18,8 @@ Per frame (H x W depth image, pinhole intrinsics, camera pose):
   clustering cost while neighbouring sites still link).
 - 3D positions from the depth and pose; a global list keeps a site only if no listed site is
   within ``dedup_distance`` (k-d tree); single-linkage agglomerative clustering on euclidean
-  distance and z difference yields the sparse sites (cluster centroids, eq. 8).
+  distance and z difference yields the sparse sites (cluster centroids, eq. 8); per frame
+  only the listed sites within ``cluster_window`` of the frame's are re-clustered.
 
 Observation fields: size = J_FL * D / f (metric radius of the inscribed circle); roughness =
 1 - J_N (0 on level ground); uncertainty = sigma / sigma_ref when the frame carries depth
