@@ -244,9 +244,16 @@ class ElevationDetector:
         )
         return False
 
-    @staticmethod
-    def _frame_problem(frame: DepthFrame) -> str | None:
+    @classmethod
+    def _frame_problem(cls, frame: DepthFrame) -> str | None:
         """Why the frame cannot be used at all, or None."""
+        try:
+            return cls._check_frame(frame)
+        except (TypeError, ValueError, AttributeError):  # fields of the wrong kind
+            return "malformed_frame"
+
+    @staticmethod
+    def _check_frame(frame: DepthFrame) -> str | None:
         depth = np.asarray(frame.depth)
         if depth.ndim != 2 or depth.size == 0:
             return "empty_frame"

@@ -239,8 +239,9 @@ def test_unusable_frames_are_skipped_with_a_reason():
     empty = dataclasses.replace(good, depth=np.zeros((0, 0), np.float32), sigma=None)
     all_nan = dataclasses.replace(good, depth=np.full_like(good.depth, np.nan))
     wrong_sigma = dataclasses.replace(good, sigma=np.ones((3, 3), np.float32))
+    no_time = dataclasses.replace(good, timestamp=None)
     detector = ElevationDetector()
-    for frame in (nan_pose, bad_rotation, empty, all_nan, wrong_sigma):
+    for frame in (nan_pose, bad_rotation, empty, all_nan, wrong_sigma, no_time):
         assert detector.process(frame) == []
     c = detector.counters()
     assert c["frames_skipped_bad_pose"] == 2
@@ -254,6 +255,7 @@ def test_unusable_frames_are_skipped_with_a_reason():
         "empty_frame",
         "no_valid_depth",
         "shape_mismatch",
+        "malformed_frame",
     ]
     assert all(e["event"] == "frame_skipped" for e in events)
     assert detector.drain_events() == []
