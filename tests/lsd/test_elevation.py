@@ -143,13 +143,13 @@ def test_sites_keep_a_footprint_away_from_a_rock():
     assert near and all(o.obstacle_altitude >= 2.45 for o in near)
 
 
-PEBBLE = (0.9, -0.6)  # centre of a rock smaller than a map cell
+PEBBLE = (1.95, 1.95)  # a rock inside one map cell, where the flat ground has a site
 
 
 def pebble(x, y):
-    """Flat ground at z=2 with one 0.15 m tall rock of 0.16 m diameter."""
+    """Flat ground at z=2 with one 0.15 m tall rock of 0.07 m diameter."""
     r = np.hypot(x - PEBBLE[0], y - PEBBLE[1])
-    return 2.0 + np.where(r < 0.08, 0.15, 0.0)
+    return 2.0 + np.where(r < 0.035, 0.15, 0.0)
 
 
 def test_a_rock_smaller_than_a_cell_still_keeps_sites_away():
