@@ -96,10 +96,11 @@ class PlaneSearch:
         spots: accepted spots (before registration), obstacle altitude filled in.
         seeds: (S,) indices of the search points in the downsampled cloud.
         accepted: (S,) bool, the search point yielded a spot.
-        rejected_slope, rejected_points, rejected_step, rejected_clearance, rejected_sigma:
-            why the others failed (too steep at r_min, fewer than n_min points, a point off the
-            plane by more than max_step at r_min, an obstacle closer than r_min horizontally,
-            z-std above sigma_max).
+        rejected_slope, rejected_points, rejected_step, rejected_edge, rejected_clearance,
+            rejected_sigma: why the others failed (too steep at r_min, fewer than n_min
+            points, a point off the plane by more than max_step at r_min, the r_min sphere
+            runs off the data, an obstacle closer than r_min horizontally, z-std above
+            sigma_max).
         pca_fits: PCA fits performed (one per search point and radius step).
     """
 
@@ -109,6 +110,7 @@ class PlaneSearch:
     rejected_slope: int = 0
     rejected_points: int = 0
     rejected_step: int = 0
+    rejected_edge: int = 0
     rejected_clearance: int = 0
     rejected_sigma: int = 0
     pca_fits: int = 0
@@ -264,15 +266,16 @@ class _Growth:
 
 def _grow(pairs: _Pairs, radii: np.ndarray, settings: LidarPcaSettings, max_step: float):
     """Grow every search point's sphere over ``radii`` (the Algorithm 1 loop, batched): a
-    point stays alive while each larger sphere has n_min points, slope <= theta_max and no
-    point farther than max_step from its plane."""
+    point stays alive while each larger sphere has n_min points, slope <= theta_max, no
+    point farther than max_step from its plane and its centroid within max_offset * r
+    (horizontally) of the search point."""
     s = pairs.n
     count, mean, evals, normal, zstd, shell = _shell_pca(pairs, radii)
     slope = np.arccos(np.clip(normal[..., 2], 0.0, 1.0))
     enough = count >= settings.n_min
     steep = enough & (slope > settings.theta_max)
     level = np.full(s, -1)
-    first_fail = np.zeros(s, dtype=np.int8)  # 1 points, 2 slope, 3 step (at r_min)
+    first_fail = np.zeros(s, dtype=np.int8)  # at r_min: 1 points, 2 slope, 3 step, 4 edge
     alive = np.ones(s, dtype=bool)
     fits = 0
     for j in range(len(radii)):  # a handful of radius steps, all search points at once
@@ -291,11 +294,16 @@ def _grow(pairs: _Pairs, radii: np.ndarray, settings: LidarPcaSettings, max_step
             )
             first = np.flatnonzero(np.diff(own, prepend=-1))
             off[own[first]] = np.maximum.reduceat(res, first) > max_step
+        lopsided = np.zeros(s, dtype=bool)
+        if settings.max_offset is not None:
+            shift = np.hypot(mean[:, j, 0], mean[:, j, 1])  # centroid relative to the seed
+            lopsided = ok & ~off & (shift > settings.max_offset * radii[j])
         if j == 0:
             first_fail[~enough[:, 0]] = 1
             first_fail[steep[:, 0]] = 2
             first_fail[off] = 3
-        ok &= ~off
+            first_fail[lopsided] = 4
+        ok &= ~off & ~lopsided
         level[ok] = j
         alive = ok
         if not alive.any():
@@ -410,6 +418,7 @@ def detect_planes(
         rejected_slope=int((first_fail == 2).sum()),
         rejected_points=int((first_fail == 1).sum()),
         rejected_step=int((first_fail == 3).sum()),
+        rejected_edge=int((first_fail == 4).sum()),
         rejected_clearance=int((grown & ~clear).sum()),
         rejected_sigma=int((clear & ~sigma_ok).sum()),
         pca_fits=fits,

@@ -67,6 +67,14 @@ class LidarPcaSettings(BaseModel):
         description="beyond the paper: stop growing when a point lies farther than this from "
         "the fitted plane (m); None disables",
     )
+    max_offset: float | None = Field(
+        0.15,
+        gt=0,
+        lt=1,
+        description="beyond the paper: stop growing when the neighbourhood's horizontal "
+        "centroid is farther than this fraction of the radius from the search point (the "
+        "sphere runs off the data: a cloud edge or a hole); None disables",
+    )
     weights: SpotWeights = SpotWeights()
     distance_scale: float = Field(
         100.0, gt=0, description="horizontal distance (m) at which the distance grade is 0"

@@ -235,7 +235,8 @@ def run_lidar(args: argparse.Namespace, out_dir: Path) -> int:
         f"{search.n_rejected if search else 0} rejected"
         + (
             f" (slope {search.rejected_slope}, too few points {search.rejected_points}, "
-            f"off-plane {search.rejected_step}, obstacle {search.rejected_clearance}, "
+            f"off-plane {search.rejected_step}, off the data {search.rejected_edge}, "
+            f"obstacle {search.rejected_clearance}, "
             f"sigma {search.rejected_sigma})"
             if search
             else ""

@@ -298,3 +298,19 @@ def test_a_nan_vehicle_position_is_ignored_not_propagated():
     obs = det.process(np.c_[g, np.zeros(len(g))], vehicle_position=np.array([0, np.nan, 9.0]))
     assert obs and all(np.isfinite(o.observation_altitude) for o in obs)
     assert np.isfinite(det.grades(np.array([np.nan, 0.0, 0.0]))).all()
+
+
+def test_spheres_running_off_the_cloud_edge_stop_growing():
+    g = grid(-10, 10, -10, 10)
+    cloud = np.c_[g, np.zeros(len(g))]
+
+    def worst_overhang(settings):
+        search = detect_planes(cloud, settings, np.random.default_rng(0))
+        c, r = search.spots.centre, search.spots.radius
+        to_edge = 10.0 - np.abs(c[:, :2]).max(axis=1)
+        return search, float(((r - to_edge) / r).max())
+
+    paper, paper_overhang = worst_overhang(SETTINGS.model_copy(update={"max_offset": None}))
+    ours, overhang = worst_overhang(SETTINGS)  # max_offset 0.15
+    assert paper.rejected_edge == 0 and ours.rejected_edge > 0
+    assert overhang <= 0.3 < paper_overhang
