@@ -1,6 +1,7 @@
 # Two entry points for a new user: `make demo` and `make test`.
 # Both create .venv on first use; re-running is fast because the install step
-# is redone only when pyproject.toml changes.
+# is redone only when pyproject.toml or this Makefile changes. The test install takes
+# the optional extras too (Dask distributed, laspy) so their code paths are tested.
 PYTHON ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
@@ -11,9 +12,9 @@ STAMP := $(VENV)/.installed
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
 
-$(STAMP): pyproject.toml | $(BIN)/python
+$(STAMP): pyproject.toml Makefile | $(BIN)/python
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e '.[test]'
+	$(BIN)/python -m pip install --quiet -e '.[test,cluster,las]'
 	touch $(STAMP)
 
 demo: $(STAMP)
