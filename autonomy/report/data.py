@@ -94,6 +94,7 @@ class FlightData:
     sites_verified: int
     lsm_counters: dict[str, int]
     perception_counters: dict[str, int]
+    chosen_verified: bool | None = None  # the chosen site counted as verified at the end
     energy_wh: float | None = None
     wall_time: float = 0.0
     terrain: Any = None  # sitl.terrain.Terrain or None (flat)

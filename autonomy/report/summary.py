@@ -63,6 +63,7 @@ def build_summary(data: FlightData) -> dict[str, Any]:
             "id": site.id, "x": site.x, "y": site.y, "z": site.z,
             "roughness": site.roughness, "uncertainty": site.uncertainty, "size": site.size,
             "verification_altitude": site.verification_altitude,
+            "verified": data.chosen_verified,
         },
         "touchdown": None if data.touchdown is None else {
             "x": data.touchdown[0], "y": data.touchdown[1], "z": data.touchdown[2],

@@ -242,6 +242,7 @@ def _flight_data(mission: Mission, seed: int, flight: Flight, terrain: Any,
     safe = None
     if touchdown is not None and lockstep:
         safe = judge_touchdown(terrain, touchdown[0], touchdown[1])
+    chosen = flight.read(bb.LANDING_SITE)
     energy = None
     _, _, battery = flight.trace.arrays()
     known = battery[~np.isnan(battery)]
@@ -260,7 +261,8 @@ def _flight_data(mission: Mission, seed: int, flight: Flight, terrain: Any,
         stop_reason=stop_reason,
         sites=sites,
         ban_zones=list(lsm.ban_zones()),
-        chosen_site=flight.read(bb.LANDING_SITE),
+        chosen_site=chosen,
+        chosen_verified=None if chosen is None else bool(lsm.is_verified(chosen)),
         touchdown=touchdown,
         touchdown_time=flight.touchdown_time,
         touchdown_speed=flight.touchdown_speed,

@@ -34,6 +34,7 @@ def test_demo_lands_on_the_chosen_site_on_safe_ground(demo_flights):
     site, touchdown = summary["chosen_site"], summary["touchdown"]
     assert math.hypot(touchdown["x"] - site["x"], touchdown["y"] - site["y"]) <= 1.0
     assert summary["touchdown_error"] <= 1.0
+    assert site["verified"] is True
     # The demo's best-looking site never verifies: it is banned and the next one is used.
     assert summary["sites_banned"] == 1
     assert summary["verification_attempts"] == 2
