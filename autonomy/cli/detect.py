@@ -12,6 +12,8 @@ from __future__ import annotations
 import argparse
 import csv
 import math
+import os
+import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -218,6 +220,8 @@ def run_lidar(args: argparse.Namespace, out_dir: Path) -> int:
             f"{args.lidar}: only {len(cloud)} valid points ({dropped} with NaN/inf dropped); "
             f"need at least {settings.n_min}"
         )
+    if args.paper:  # the paper's Algorithm 1 only: no off-plane, off-data or obstacle cuts
+        settings = settings.model_copy(update={"max_step": None, "max_offset": None})
     det = LidarPcaDetector(settings, rng=args.seed)
     det.process(cloud)
     obs = det.observations()
@@ -312,6 +316,15 @@ def run_depth(args: argparse.Namespace, out_dir: Path) -> int:
 
 
 def run(args: argparse.Namespace) -> int:
+    try:
+        return _run(args)
+    except BrokenPipeError:  # e.g. `lander detect ... | head`: stop quietly
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        return 0
+
+
+def _run(args: argparse.Namespace) -> int:
     if (args.lidar is None) == (args.depth is None):
         raise UserError("give exactly one of --lidar FILE or --depth FILE")
     out_dir = Path(args.out)
@@ -348,6 +361,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     lidar.add_argument("--r-step", type=float, help="radius step (m), default 0.5")
     lidar.add_argument("--sigma-max", type=float, help="largest z std (m), default 0.2")
     lidar.add_argument("--theta-max", type=float, help="steepest slope (deg), default 15")
+    lidar.add_argument("--paper", action="store_true",
+                       help="the paper's checks only (no off-plane, off-the-data or obstacle "
+                       "cuts of the radius)")
     depth = parser.add_argument_group("depth costmap detector")
     for flag in ("fx", "fy", "cx", "cy"):
         depth.add_argument(f"--{flag}", type=float, help="intrinsics (pixels)")

@@ -237,3 +237,14 @@ def test_edge_blur_flag_recovers_sites_from_noisy_depth(tmp_path):
     assert lander(*args, "--edge-blur", 4, "--normal-window", 9, "--out", tmp_path / "b") == 0
     assert len(read_sites(tmp_path / "a")) == 0 < len(read_sites(tmp_path / "b"))
     assert lander(*args, "--edge-blur", 99, "--out", tmp_path / "c") == 2  # out of range
+
+
+def test_paper_flag_drops_the_checks_beyond_the_paper(tmp_path):
+    cloud, _ = box_cloud()
+    np.save(tmp_path / "c.npy", cloud)
+    args = ("--lidar", tmp_path / "c.npy", "--voxel", 0.2, "--seeding", "grid")
+    assert lander(*args, "--out", tmp_path / "ours") == 0
+    assert lander(*args, "--paper", "--out", tmp_path / "paper") == 0
+    ours, paper = read_sites(tmp_path / "ours"), read_sites(tmp_path / "paper")
+    assert len(paper) > len(ours)
+    assert box_distance(paper).min() < box_distance(ours).min()
