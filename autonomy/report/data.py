@@ -94,6 +94,7 @@ class FlightData:
     sites_verified: int
     lsm_counters: dict[str, int]
     perception_counters: dict[str, int]
+    lockstep: bool = True  # simulated time (False: a live flight on wall time)
     chosen_verified: bool | None = None  # the chosen site counted as verified at the end
     energy_wh: float | None = None
     wall_time: float = 0.0

@@ -53,6 +53,7 @@ def build_summary(data: FlightData) -> dict[str, Any]:
         "autopilot": data.autopilot,
         "world": data.world,
         "detector": data.detector,
+        "mode": "lockstep" if data.lockstep else "live",
         "outcome": classify(data),
         "tree_status": data.status,
         "stop_reason": data.stop_reason,
@@ -90,7 +91,9 @@ def build_summary(data: FlightData) -> dict[str, Any]:
         "lsm_counters": counters,
         "perception": dict(sorted(data.perception_counters.items())),
         "wall_time": data.wall_time,
-        "realtime_factor": (data.end_time / data.wall_time) if data.wall_time > 0 else None,
+        "realtime_factor": (
+            data.end_time / data.wall_time if data.lockstep and data.wall_time > 0 else None
+        ),
     }
     return _clean(summary)
 

@@ -62,6 +62,7 @@ def test_ctrl_c_in_live_mode_lands_the_vehicle(served_sitl, tmp_path):
     assert airborne.is_set()
     summary = result.summary
     assert summary["outcome"] == "aborted"
+    assert summary["mode"] == "live" and summary["realtime_factor"] is None
     assert summary["stop_reason"].startswith("interrupted (land")
     truth = sitl.truth
     assert truth.landed and not truth.armed and not truth.crashed
