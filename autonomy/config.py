@@ -193,6 +193,15 @@ class Mission(BaseModel):
             mission._source = copy.deepcopy(dict(source))
         return mission
 
+    @model_validator(mode="after")
+    def _rates(self) -> Mission:
+        if self.perception.rate > self.tick_rate:
+            raise ValueError(
+                f"perception.rate: {self.perception.rate} Hz is faster than tick_rate "
+                f"({self.tick_rate} Hz); perception runs at most once per tick"
+            )
+        return self
+
     def waypoints_enu(self) -> list[tuple[float, float, float]]:
         """The waypoints as ENU metres about home."""
         out = []
@@ -395,6 +404,13 @@ def _locate(err: Mapping[str, Any], root: yaml.Node, name: str) -> str:
     """One message for one pydantic error, at the YAML node its location points to."""
     node, mark_node, parts = root, root, []
     loc = list(err.get("loc", ()))
+    msg = str(err.get("msg", "invalid")).removeprefix("Value error, ")
+    # Model-level checks name the field they are about first ("search_rectangle: ..."):
+    # point at that field.
+    named = re.match(r"([A-Za-z_][\w.]*): ", msg)
+    if named and err.get("type") == "value_error":
+        loc += named.group(1).split(".")
+        msg = msg[named.end():]
     for i, item in enumerate(loc):
         last = i == len(loc) - 1
         if isinstance(node, yaml.MappingNode) and isinstance(item, str):
@@ -416,11 +432,12 @@ def _locate(err: Mapping[str, Any], root: yaml.Node, name: str) -> str:
         elif isinstance(item, int) and isinstance(node, yaml.ScalarNode):
             parts.append(str(item))  # an item of a scalar that should be a list
     field = ".".join(parts) or "(mission)"
-    msg = str(err.get("msg", "invalid")).removeprefix("Value error, ")
     value = err.get("input")
     if err.get("type") == "extra_forbidden":
         msg = "unknown setting"
-    elif err.get("type") != "missing" and isinstance(value, (int, float, str, bool)):
+    elif err.get("type") not in ("missing", "value_error") and isinstance(
+        value, (int, float, str, bool)
+    ):
         msg = f"{msg} (got {value!r})"
     return f"{name}:{mark_node.start_mark.line + 1}: {field}: {msg}"
 

@@ -188,3 +188,13 @@ def test_file_world_path_is_relative_to_the_mission_file(tmp_path):
                  "source_cell_size: 1.0}\n")
     mission = load_mission(path)
     assert Path(mission.world.path) == tmp_path / "maps" / "dem.npy"
+
+
+def test_model_level_checks_point_at_the_field_they_name(tmp_path):
+    rate = write(tmp_path, GOOD + "tick_rate: 5\nperception:\n  detector: scripted\n"
+                 "  rate: 10\n")
+    (message,) = problems(rate)
+    assert message.startswith(f"{rate}:9: perception.rate: 10.0 Hz is faster than tick_rate")
+    rectangle = write(tmp_path, GOOD + "landing:\n  search_rectangle: [0, 3]\n")
+    (message,) = problems(rectangle)
+    assert message.startswith(f"{rectangle}:7: landing.search_rectangle: width and height")
