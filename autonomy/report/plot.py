@@ -10,13 +10,15 @@ matplotlib.use("Agg")  # files only, no display
 
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
-from matplotlib.colors import LightSource  # noqa: E402
+from matplotlib.colors import LightSource, ListedColormap  # noqa: E402
 from matplotlib.patches import Circle  # noqa: E402
 
 from autonomy.report.data import FlightData  # noqa: E402
 
 _MAX_PIXELS = 600  # map raster side after striding the terrain grid
 _PHASE_COLOURS = plt.get_cmap("tab20").colors
+# Land colours only (gist_earth without its sea blues), low to high.
+_GROUND = ListedColormap(plt.get_cmap("gist_earth")(np.linspace(0.35, 0.95, 256)))
 
 
 def _map_window(data: FlightData, xyz: np.ndarray) -> tuple[float, float, float, float]:
@@ -45,7 +47,7 @@ def _draw_terrain(ax, terrain, window) -> None:
     grid = np.asarray(terrain.grid[i0:i1:step, j0:j1:step], dtype=np.float64)
     lo, hi = float(grid.min()), float(grid.max())
     shaded = LightSource(azdeg=315, altdeg=45).shade(
-        grid, cmap=plt.get_cmap("gist_earth"), blend_mode="overlay",
+        grid, cmap=_GROUND, blend_mode="overlay",
         vmin=lo - 0.5, vmax=max(hi, lo + 5.0),  # a flat world is a plain colour, not black
         vert_exag=1.0, dx=terrain.cell_size * step, dy=terrain.cell_size * step,
     )
@@ -73,7 +75,7 @@ def write_report_png(data: FlightData, path: Path, *, outcome: str = "") -> None
     if data.sites:
         sites = np.array([(s.x, s.y, s.loss) for s in data.sites])
         sc = ax_map.scatter(
-            sites[:, 0], sites[:, 1], c=sites[:, 2], cmap="viridis_r", s=40,
+            sites[:, 0], sites[:, 1], c=sites[:, 2], cmap="plasma_r", s=40,
             edgecolors="k", linewidths=0.5, zorder=4, label="candidate sites",
         )
         fig.colorbar(sc, ax=ax_map, shrink=0.8, label="site loss (lower is better)")
