@@ -40,11 +40,14 @@ from autonomy.perception.scripted import ScriptedSettings, ScriptedSite
 from autonomy.vehicle.connection import signing_key_from_text
 from autonomy.vehicle.settings import VehicleLinkSettings
 from behaviors.settings import LandingSettings, MissionPlan
+from lsd.depth_costmap_settings import DepthCostmapSettings
 from lsd.elevation_settings import DetectorSettings, ElevationMapSettings
+from lsd.lidar_pca_settings import LidarPcaSettings
 from lsm.settings import LossWeights, LsmSettings
 from sitl import SitlSettings
 from sitl.copter import HomeSettings
 from sitl.sensors import DepthCameraSettings, RangeFinderSettings
+from sitl.sensors.lidar import LidarSettings
 from sitl.terrain import TerrainSettings
 
 # WGS-84, for the local tangent plane about home.
@@ -130,13 +133,15 @@ class PerceptionConfig(BaseModel):
 
     ``elevation_map``: the simulated depth camera (``camera``, with its ``rangefinder``
     switching SfM/stereo) feeding the elevation-map detector (``elevation_map`` grid,
-    ``detection`` thresholds). ``scripted``: the sites listed under ``sites`` in the mission,
-    seen with the ``scripted`` sensor model.
+    ``detection`` thresholds). ``depth_costmap``: the same camera feeding the depth-image
+    costmap detector (``depth_costmap``). ``lidar_pca``: the simulated ``lidar`` feeding the
+    PCA landing-spot detector (``lidar_pca``). ``scripted``: the sites listed under ``sites``
+    in the mission, seen with the ``scripted`` sensor model.
     """
 
     model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
-    detector: Literal["elevation_map", "scripted"] = Field(
+    detector: Literal["elevation_map", "depth_costmap", "lidar_pca", "scripted"] = Field(
         "elevation_map", description="the site source"
     )
     rate: float = Field(2.0, gt=0, le=100, description="perception updates per second, Hz")
@@ -144,6 +149,9 @@ class PerceptionConfig(BaseModel):
     rangefinder: RangeFinderSettings = RangeFinderSettings()
     elevation_map: ElevationMapSettings = ElevationMapSettings()
     detection: DetectorSettings = DetectorSettings()
+    depth_costmap: DepthCostmapSettings = DepthCostmapSettings()
+    lidar: LidarSettings = LidarSettings()
+    lidar_pca: LidarPcaSettings = LidarPcaSettings()
     scripted: ScriptedSettings = ScriptedSettings()
 
 

@@ -55,6 +55,19 @@ def build_source(mission: Mission, terrain: Any, rng: np.random.Generator) -> Si
             terrain, rng=rng, camera=perception.camera, rangefinder=perception.rangefinder,
             elevation_map=perception.elevation_map, detector=perception.detection,
         )
+    if perception.detector == "depth_costmap":
+        from autonomy.perception.costmap import DepthCostmapSource
+
+        return DepthCostmapSource.from_settings(
+            terrain, rng=rng, camera=perception.camera, rangefinder=perception.rangefinder,
+            detector=perception.depth_costmap,
+        )
+    if perception.detector == "lidar_pca":
+        from autonomy.perception.lidar import LidarPcaSource
+
+        return LidarPcaSource.from_settings(
+            terrain, rng=rng, lidar=perception.lidar, detector=perception.lidar_pca
+        )
     raise UserError(f"perception.detector: unknown detector {perception.detector!r}")
 
 
