@@ -20,6 +20,7 @@ import py_trees
 
 from autonomy.clock import SimClock, WallClock
 from autonomy.config import Mission
+from autonomy.errors import UserError
 from autonomy.report import (
     EventLog,
     FlightData,
@@ -94,7 +95,11 @@ def fly(
     lockstep = mission.vehicle.lockstep
     out = Path(out_dir) if out_dir is not None else None
     if out is not None:
-        out.mkdir(parents=True, exist_ok=True)
+        try:
+            out.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise UserError(f"{out}: cannot create the report directory "
+                            f"({exc.strerror or exc})") from None
     wall_start = time.perf_counter()
 
     terrain = build_terrain(mission, seeds.terrain)

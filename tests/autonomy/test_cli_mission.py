@@ -100,3 +100,11 @@ def test_demo_flies_and_prints_where_the_report_is(tmp_path, capsys):
     assert "outcome: landed" in text
     assert f"report: {out / 'report.png'}" in text
     assert (out / "report.png").exists()
+
+
+def test_fly_unusable_out_dir_exits_2(tmp_path, capsys):
+    blocker = tmp_path / "file"
+    blocker.write_text("not a directory")
+    assert main(["fly", str(demo_mission_path()), "--out", str(blocker / "out")]) == 2
+    (line,) = capsys.readouterr().err.strip().splitlines()
+    assert "cannot create the report directory" in line
