@@ -80,8 +80,11 @@ class ElevationDetector:
         map_settings: ElevationMapSettings | None = None,
         settings: DetectorSettings | None = None,
     ) -> None:
-        self.map = ElevationMap(map_settings or ElevationMapSettings())
+        map_settings = map_settings or ElevationMapSettings()
+        self.map = ElevationMap(map_settings)
+        self.fine_map = ElevationMap(map_settings.fine())
         self.settings = settings or DetectorSettings()
+        self.agl: float | None = None  # camera height above the ground of the last frame
         self.last_analysis: MapAnalysis | None = None
         self._counters: Counter[str] = Counter()
         self._events: list[dict[str, Any]] = []
@@ -90,6 +93,11 @@ class ElevationDetector:
     @property
     def map_settings(self) -> ElevationMapSettings:
         return self.map.settings
+
+    @property
+    def low(self) -> bool:
+        """Whether the last frame came from below ``fine_below`` (the fine map is in use)."""
+        return self.agl is not None and self.agl < self.map_settings.fine_below
 
     def counters(self) -> dict[str, int]:
         """Counts of frames, pixels, points and observations by fate (a copy)."""
@@ -145,11 +153,16 @@ class ElevationDetector:
 
         now = float(frame.timestamp)
         self._last_skip = None
-        self.map.recentre(position[0], position[1])
-        self._counters["cells_forgotten"] += self.map.forget_older_than(now)
-        fused = self.map.fuse(points, variance, now, camera_height=float(position[2]))
-        self._counters["points_fused"] += fused
-        self._counters["points_outside_map"] += len(points) - fused
+        # Height above the ground from a subsample of the points (a median is robust).
+        self.agl = float(position[2] - np.median(points[:: max(1, len(points) // 4096), 2]))
+        maps = (self.map, self.fine_map) if self.low else (self.map,)
+        for index, grid in enumerate(maps):
+            grid.recentre(position[0], position[1])
+            self._counters["cells_forgotten"] += grid.forget_older_than(now)
+            fused = grid.fuse(points, variance, now, camera_height=float(position[2]))
+            if index == 0:
+                self._counters["points_fused"] += fused
+                self._counters["points_outside_map"] += len(points) - fused
         self._counters["frames_fused"] += 1
         return True
 
@@ -158,6 +171,9 @@ class ElevationDetector:
     ) -> list[SiteObservation]:
         """Analyse the map and return its landing sites, best first.
 
+        The fine map is analysed while the last frame came from below ``fine_below``,
+        the coarse map otherwise.
+
         Args:
             camera_position: (3,) ENU metres, for the observation altitude.
             now: clock seconds stamped on the observations; cells older than ``max_age``
@@ -165,7 +181,7 @@ class ElevationDetector:
             source: depth source appended to the observations' source (``"elevation:sfm"``).
         """
         s = self.settings
-        m = self.map
+        m = self.fine_map if self.low else self.map
         self._counters["cells_forgotten"] += m.forget_older_than(now)
         if not m.observed.any():
             self.last_analysis = None

@@ -12,12 +12,26 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 
 class ElevationMapSettings(BaseModel):
-    """The robot-centric 2.5D elevation grid and how depth points are fused into it."""
+    """The robot-centric 2.5D elevation grids and how depth points are fused into them.
+
+    Two grids: a wide, coarse one that every frame feeds and that is analysed while the
+    camera is high, and a narrow, fine one (``fine_*``) that frames feed and that is
+    analysed while the camera is less than ``fine_below`` above the ground, where depth is
+    dense and precise enough to show rocks smaller than a coarse cell.
+    """
 
     model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
-    size: float = Field(32.0, gt=0, description="side of the square map window (m)")
-    resolution: float = Field(0.1, gt=0, description="cell side (m)")
+    size: float = Field(80.0, gt=0, description="side of the square coarse map window (m)")
+    resolution: float = Field(0.25, gt=0, description="coarse cell side (m)")
+    fine_size: float = Field(32.0, gt=0, description="side of the square fine map window (m)")
+    fine_resolution: float = Field(0.1, gt=0, description="fine cell side (m)")
+    fine_below: float = Field(
+        20.0,
+        ge=0,
+        description="camera height above the ground (m) below which the fine map is fed "
+        "and analysed (0: coarse map only)",
+    )
     max_age: float = Field(
         30.0, gt=0, description="a cell not observed for this long (s) is forgotten"
     )
@@ -44,14 +58,20 @@ class ElevationMapSettings(BaseModel):
     def _check(self) -> ElevationMapSettings:
         if self.size < 4 * self.resolution:
             raise ValueError("size: must be at least 4 cells (4 * resolution)")
+        if self.fine_size < 4 * self.fine_resolution:
+            raise ValueError("fine_size: must be at least 4 cells (4 * fine_resolution)")
         if self.max_range <= self.min_range:
             raise ValueError("max_range: must be greater than min_range")
         return self
 
     @property
     def cells(self) -> int:
-        """Number of cells along each side of the window."""
+        """Number of cells along each side of the (coarse) window."""
         return int(math.ceil(self.size / self.resolution - 1e-9))
+
+    def fine(self) -> ElevationMapSettings:
+        """These settings with the fine grid's size and resolution as the grid's."""
+        return self.model_copy(update={"size": self.fine_size, "resolution": self.fine_resolution})
 
 
 class DetectorSettings(BaseModel):
@@ -80,7 +100,7 @@ class DetectorSettings(BaseModel):
         1.5, gt=0, description="largest RMS 1-sigma height error over the footprint (m)"
     )
     min_observed_fraction: float = Field(
-        0.1, gt=0, le=1, description="least fraction of observed cells in the footprint window"
+        0.3, gt=0, le=1, description="least fraction of observed cells in the footprint window"
     )
     noise_tolerance: float = Field(
         3.0,

@@ -116,7 +116,7 @@ def test_flat_plane_gives_large_sites_all_over_the_view():
     assert len(observations) >= 20
     xy = np.array([(o.x, o.y) for o in observations])
     # Spread over the whole 24 m x 24 m view, not bunched in one place.
-    assert np.ptp(xy[:, 0]) > 12 and np.ptp(xy[:, 1]) > 12
+    assert np.ptp(xy[:, 0]) > 10 and np.ptp(xy[:, 1]) > 10
     assert max(o.size for o in observations) >= 4.0
     for o in observations:
         assert o.z == pytest.approx(2.0, abs=0.01)
@@ -131,7 +131,7 @@ def test_sites_keep_a_footprint_away_from_a_rock():
     detector = ElevationDetector(settings=settings)
     observations = detector.process(render(rock, (0.0, 0.0, 8.0), n=256))
     assert_valid(observations, settings)
-    assert len(observations) >= 5
+    assert len(observations) >= 3
     rock_radius = 0.75
     for o in observations:
         gap = math.hypot(o.x - ROCK[0], o.y - ROCK[1]) - rock_radius
@@ -170,8 +170,8 @@ def test_a_rock_smaller_than_a_cell_still_keeps_sites_away():
 
 
 def test_a_30_degree_ramp_has_no_sites_but_a_10_degree_ramp_does():
-    steep = ElevationDetector().process(render(ramp(30.0), (0.0, 0.0, 15.0)))
-    gentle = ElevationDetector().process(render(ramp(10.0), (0.0, 0.0, 15.0)))
+    steep = ElevationDetector().process(render(ramp(30.0), (0.0, 0.0, 15.0), n=256))
+    gentle = ElevationDetector().process(render(ramp(10.0), (0.0, 0.0, 15.0), n=256))
     assert steep == []
     assert len(gentle) >= 10
 
@@ -339,3 +339,16 @@ def test_settings_are_validated_by_field():
         DetectorSettings(max_slope=95.0)
     with pytest.raises(ValidationError, match="footprint_radius"):
         DetectorSettings(footprint_radius=float("nan"))
+
+
+def test_the_fine_map_takes_over_below_fine_below():
+    settings = ElevationMapSettings(fine_below=20.0)
+    detector = ElevationDetector(settings)
+    detector.process(render(flat, (0.0, 0.0, 52.0), n=256, f=256))
+    assert not detector.low
+    assert detector.last_analysis.resolution == settings.resolution
+    assert not detector.fine_map.observed.any()  # too sparse up there: not fed
+    detector.process(render(flat, (0.0, 0.0, 12.0), n=256, timestamp=1.0))
+    assert detector.low
+    assert detector.last_analysis.resolution == settings.fine_resolution
+    assert detector.fine_map.observed.any() and detector.map.observed.any()
