@@ -12,6 +12,7 @@
    observation altitude (the altitude a verification would credit it with).
 
     .venv/bin/python benchmarks/bench_lsd.py [--seeds 3] [--sites 6] [--repeats 15]
+        [--focal-px 256]
 """
 
 from __future__ import annotations
@@ -39,11 +40,13 @@ SEED003_MS = 167.5  # seed 003, table I: per 640 x 480 frame, its costmap detect
 DESCENT = (20.0, 16.0, 13.0, 11.0, 9.0, 7.5, 6.0, 5.0, 4.2, 3.5, 3.0, 2.7, 2.5, 2.5, 2.5)
 
 
-def frame_times(terrain: Terrain, agl: float, repeats: int) -> dict[str, float]:
+def frame_times(
+    terrain: Terrain, agl: float, repeats: int, camera_settings: DepthCameraSettings
+) -> dict[str, float]:
     """Median ms of one frame at ``agl`` over the terrain, flying east at 8 m/s (2 Hz
     frames): render (wall and CPU), detector update + detection (wall and CPU), their sum,
     and the median number of sites per frame."""
-    camera = DepthCamera(terrain, DepthCameraSettings(), rng=np.random.default_rng(1))
+    camera = DepthCamera(terrain, camera_settings, rng=np.random.default_rng(1))
     detector = ElevationDetector()
     rows = []
     for k in range(-2, repeats):  # two warm-up frames (SfM baseline, allocations)
@@ -63,10 +66,12 @@ def frame_times(terrain: Terrain, agl: float, repeats: int) -> dict[str, float]:
     return out
 
 
-def fly_and_judge(terrain: Terrain, seed: int, n_sites: int) -> list[tuple[float, bool]]:
+def fly_and_judge(
+    terrain: Terrain, seed: int, n_sites: int, camera_settings: DepthCameraSettings
+) -> list[tuple[float, bool]]:
     """Cruise pass then descents over the best sites; (observation altitude, safe) pairs."""
     rng = np.random.default_rng(seed)
-    camera = DepthCamera(terrain, DepthCameraSettings(), rng=rng)
+    camera = DepthCamera(terrain, camera_settings, rng=rng)
     detector = ElevationDetector()
     judged: list[tuple[float, bool]] = []
     t = 0.0
@@ -108,15 +113,20 @@ def main() -> None:
     parser.add_argument("--seeds", type=int, default=3, help="Mars worlds flown")
     parser.add_argument("--sites", type=int, default=6, help="descents per world")
     parser.add_argument("--repeats", type=int, default=15, help="frames timed per altitude")
+    parser.add_argument("--focal-px", type=float, default=256.0, help="camera focal length")
     args = parser.parse_args()
     cv2.setNumThreads(1)
 
     terrain = make_terrain({"kind": "mars", "size": [300.0, 300.0]}, seed=11)
-    print("elevation-map LSD, 256 x 256 depth frames, Mars world (32 m map at 0.1 m)")
+    camera = DepthCameraSettings(focal_px=args.focal_px)
+    print(
+        f"elevation-map LSD, 256 x 256 depth frames (f = {args.focal_px:.0f} px), Mars world; "
+        "map 80 m at 0.25 m, below 20 m AGL 32 m at 0.1 m"
+    )
     print("median ms per frame, wall/CPU (CPU: this process; on a loaded machine the steadier)")
     print(f"{'AGL m':>6} {'source':>7} {'render':>11} {'LSD':>11} {'total':>11} {'sites':>6}")
     for agl, source in ((100.0, "sfm"), (30.0, "sfm"), (10.0, "stereo"), (2.5, "stereo")):
-        t = frame_times(terrain, agl, args.repeats)
+        t = frame_times(terrain, agl, args.repeats, camera)
         render = f"{t['render_wall']:5.0f}/{t['render_cpu']:<5.0f}"
         lsd = f"{t['lsd_wall']:5.0f}/{t['lsd_cpu']:<5.0f}"
         total = f"{t['total_wall']:5.0f}/{t['total_cpu']:<5.0f}"
@@ -127,7 +137,7 @@ def main() -> None:
     judged: list[tuple[float, bool]] = []
     for seed in range(args.seeds):
         world = make_terrain({"kind": "mars", "size": [300.0, 300.0]}, seed=100 + seed)
-        judged += fly_and_judge(world, seed, args.sites)
+        judged += fly_and_judge(world, seed, args.sites, camera)
     altitude = np.array([a for a, _ in judged])
     safe = np.array([s for _, s in judged], dtype=bool)
     print(
