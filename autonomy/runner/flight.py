@@ -164,15 +164,10 @@ class Flight:
 
     def _track_touchdown(self, now: float, truth: Any, state: Any) -> None:
         if truth is not None:
-            td = getattr(truth, "touchdown", None)
+            td = truth.touchdown  # sitl.Touchdown(x, y, z, speed) of the last touchdown
             if td is not None and td != self._last_touchdown:
                 self._last_touchdown = td
-                x, y, z = (float(getattr(td, k)) if hasattr(td, k) else float(td[i])
-                           for i, k in enumerate("xyz"))
-                speed = getattr(td, "speed", None)
-                if speed is None and not hasattr(td, "x") and len(td) > 3:
-                    speed = td[3]
-                self._touch(now, (x, y, z), None if speed is None else float(speed))
+                self._touch(now, (float(td.x), float(td.y), float(td.z)), float(td.speed))
             return
         # Live: the autopilot's landed state going from air to ground is the touchdown.
         if state.landed_state in (LandedState.IN_AIR, LandedState.LANDING):
