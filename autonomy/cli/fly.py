@@ -4,17 +4,40 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
+from typing import Any
+
+import yaml
 
 from autonomy.cli.validate import load_or_explain
 from autonomy.config import apply_overrides
+from autonomy.errors import UserError
+
+
+def parse_settings(items: list[str]) -> dict[str, Any]:
+    """``KEY=VALUE`` strings to overrides; values are read as YAML (``5``, ``[1, 2]``,
+    ``false``, ``text``)."""
+    overrides: dict[str, Any] = {}
+    for item in items:
+        key, sep, text = item.partition("=")
+        if not sep or not key.strip():
+            raise UserError(f"--set {item}: expected KEY=VALUE, e.g. landing.verification_"
+                            "altitude=5")
+        try:
+            overrides[key.strip()] = yaml.safe_load(text) if text.strip() else ""
+        except yaml.YAMLError:
+            raise UserError(f"--set {item}: the value is not valid YAML") from None
+    return overrides
 
 
 def run(args: argparse.Namespace) -> int:
     mission = load_or_explain("fly", args.mission)
     if mission is None:
         return 2
+    overrides = parse_settings(args.set or [])
     if args.connect is not None:
-        mission = apply_overrides(mission, {"vehicle.connection": args.connect})
+        overrides["vehicle.connection"] = args.connect
+    if overrides:
+        mission = apply_overrides(mission, overrides)
     out = Path(args.out) if args.out else Path("out") / Path(args.mission).stem
     from autonomy.runner import fly
 
@@ -38,6 +61,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                         help="vehicle connection (sim://, udp:HOST:PORT, tcp:HOST:PORT, ...); "
                         "overrides vehicle.connection")
     parser.add_argument("--seed", type=int, help="overrides the mission's seed")
+    parser.add_argument("--set", action="append", metavar="KEY=VALUE",
+                        help="override a mission setting by its dotted name, e.g. "
+                        "--set landing.verification_altitude=5 (repeatable)")
     parser.add_argument("--out", metavar="DIR", help="report directory (default out/MISSION)")
     parser.add_argument("--quiet", action="store_true",
                         help="no per-phase lines, only the outcome and the report path")

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import pytest
@@ -108,3 +109,17 @@ def test_fly_unusable_out_dir_exits_2(tmp_path, capsys):
     assert main(["fly", str(demo_mission_path()), "--out", str(blocker / "out")]) == 2
     (line,) = capsys.readouterr().err.strip().splitlines()
     assert "cannot create the report directory" in line
+
+
+def test_fly_set_overrides_settings(tmp_path, capsys):
+    out = tmp_path / "out"
+    code = main(["fly", str(demo_mission_path()), "--out", str(out), "--quiet",
+                 "--set", "time_limit=15", "--set", "vehicle.autopilot=px4"])
+    assert code == 1  # the time limit cuts the flight short
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["outcome"] == "aborted" and summary["autopilot"] == "px4"
+    capsys.readouterr()
+    assert main(["fly", str(demo_mission_path()), "--set", "landing.nope=1"]) == 2
+    assert "landing.nope: unknown setting" in capsys.readouterr().err
+    assert main(["fly", str(demo_mission_path()), "--set", "novalue"]) == 2
+    assert "expected KEY=VALUE" in capsys.readouterr().err
