@@ -4,6 +4,9 @@ from __future__ import annotations
 
 import json
 import math
+import os
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -88,3 +91,15 @@ def test_demo_lands_with_the_px4_personality():
     summary = fly(mission).summary
     assert summary["autopilot"] == "px4"
     assert summary["outcome"] == "landed" and summary["touchdown_error"] <= 1.0
+
+
+def test_events_are_identical_in_another_process(demo_flights, tmp_path):
+    first, _ = demo_flights
+    out = tmp_path / "subprocess"
+    env = {**os.environ, "PYTHONHASHSEED": "12345"}
+    done = subprocess.run(
+        [sys.executable, "-m", "autonomy", "fly", str(DEMO), "--out", str(out), "--quiet"],
+        env=env, capture_output=True, text=True, timeout=300,
+    )
+    assert done.returncode == 0, done.stderr
+    assert (out / "events.jsonl").read_bytes() == (first.out_dir / "events.jsonl").read_bytes()
