@@ -344,7 +344,10 @@ def load_mission(path: str | os.PathLike[str]) -> Mission:
     except (OSError, UnicodeDecodeError) as exc:
         reason = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
         raise MissionFileError([f"{path}: cannot read mission file: {reason}"]) from None
-    return parse_mission(text, str(path), base_dir=path.parent)
+    mission = parse_mission(text, str(path), base_dir=path.parent)
+    if not mission.name:  # reports are titled with the file's name then
+        mission = apply_overrides(mission, {"name": path.stem})
+    return mission
 
 
 def parse_mission(text: str, name: str = "<mission>", base_dir: Path | None = None) -> Mission:

@@ -198,3 +198,9 @@ def test_model_level_checks_point_at_the_field_they_name(tmp_path):
     rectangle = write(tmp_path, GOOD + "landing:\n  search_rectangle: [0, 3]\n")
     (message,) = problems(rectangle)
     assert message.startswith(f"{rectangle}:7: landing.search_rectangle: width and height")
+
+
+def test_unnamed_mission_takes_the_file_name(tmp_path):
+    assert load_mission(write(tmp_path, GOOD.replace("name: t\n", ""), "survey.yaml")).name \
+        == "survey"
+    assert load_mission(write(tmp_path, GOOD)).name == "t"
