@@ -19,7 +19,7 @@ perception:
   detector: elevation_map
   rate: 1.0
   camera: {width: 64, height: 64, focal_px: 32.0}
-  elevation_map: {size: 30.0, resolution: 0.5}
+  elevation_map: {size: 30.0, resolution: 0.5, fine_below: 0.0}  # coarse map only: quick
 seed: 3
 """
 
