@@ -92,7 +92,7 @@ class DetectorSettings(BaseModel):
         0.05, gt=0, description="largest RMS residual of the footprint plane fit (m)"
     )
     max_step: float = Field(
-        0.06,
+        0.05,
         gt=0,
         description="largest height of a cell above or below its footprint plane (m): rocks, holes",
     )
