@@ -9,12 +9,14 @@ seeds of the runs already flown.
 from __future__ import annotations
 
 import hashlib
+import json
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
+from autonomy import __version__
 from autonomy.campaign.spec import Variant
 
 #: ``fly(mission, seed=..., out_dir=None)`` returning an object with a ``summary`` dict.
@@ -31,10 +33,19 @@ def run_seed(seed: int, index: int) -> int:
 
 
 def mission_digest(mission: Any) -> str:
-    """Short stable fingerprint of a mission (its validated content, not its file's bytes)."""
-    dump = getattr(mission, "model_dump_json", None)
-    text = dump() if callable(dump) else repr(mission)
-    return hashlib.sha256(text.encode()).hexdigest()[:16]
+    """Short fingerprint of a mission as its user wrote it (``Mission.source_data()``: the
+    file's settings, not its comments), with the package version.
+
+    Defaults are left out on purpose, so that a schema growing new defaulted settings does
+    not orphan the runs already recorded for an unchanged mission file.
+    """
+    source = getattr(mission, "source_data", None)
+    if callable(source):
+        text = json.dumps(source(), sort_keys=True, default=str)
+    else:
+        dump = getattr(mission, "model_dump_json", None)
+        text = dump() if callable(dump) else repr(mission)
+    return hashlib.sha256(f"{__version__}\n{text}".encode()).hexdigest()[:16]
 
 
 @dataclass(frozen=True)

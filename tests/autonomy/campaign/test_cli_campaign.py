@@ -129,3 +129,14 @@ def test_unreachable_scheduler_exits_2_before_any_run(tmp_path, capsys):
 def test_bad_options_exit_2(tmp_path, args, capsys):
     assert lander(*args, "--out", tmp_path) == 2
     assert "lander campaign: error:" in capsys.readouterr().err
+
+
+def test_the_mission_fingerprint_follows_the_file_not_the_schema_defaults():
+    from autonomy.campaign.plan import mission_digest
+    from autonomy.config import apply_overrides, load_mission, parse_mission
+
+    text = DEMO.read_text()
+    demo = load_mission(DEMO)
+    assert mission_digest(demo) == mission_digest(parse_mission(text + "\n# a comment\n"))
+    changed = apply_overrides(demo, {"landing.verification_altitude": 5.0})
+    assert mission_digest(changed) != mission_digest(demo)
