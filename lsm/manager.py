@@ -24,6 +24,7 @@ from operator import attrgetter
 from typing import overload
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from lsm.loss import site_loss, site_loss_scalar
 from lsm.records import LandingSite, SiteObservation
@@ -48,6 +49,8 @@ _OBS_FIELDS = attrgetter(
 )
 _BATCH = 1024  # observations processed per lock acquisition by the worker
 _KEY_STRIDE = 1 << 32  # spatial-hash key = ix * stride + iy (|iy| < 2**31 cells)
+_TREE_K = 2  # nearest snapshot entries examined per observation
+_SNAPSHOT_MIN = 64  # changed sites tolerated in the hash before the k-d tree is rebuilt
 
 
 @dataclass(frozen=True, slots=True)
@@ -158,9 +161,16 @@ class LandingSiteManager:
         self._version: list[int] = [0] * cap  # heap entries of older versions are stale
         self._free: list[int] = list(range(cap - 1, -1, -1))
         self._slot_of: dict[int, int] = {}
-        # Spatial hash of sites; cells are 2 match radii wide, so a match circle overlaps at
-        # most 2 x 2 cells. Key = ix * _KEY_STRIDE + iy.
+        # Redetection lookup: a k-d tree over a snapshot of site positions, queried for a
+        # whole batch at once, plus a spatial hash of the sites inserted or moved since that
+        # snapshot (their tree entries are stale: the slot version changed). Hash cells are
+        # 2 match radii wide, so a match circle overlaps at most 2 x 2 cells.
+        self._tree: cKDTree | None = None
+        self._tree_slots = np.zeros(0, dtype=np.int64)
+        self._tree_versions = np.zeros(0, dtype=np.int64)
         self._cells: dict[int, list[int]] = {}
+        self._dirty_key: list[int | None] = [None] * cap
+        self._dirty_count = 0
         self._cell_size = 2.0 * self.settings.match_radius
         # Redetections that only bump last_seen/count are applied in bulk (np.add.at).
         self._pending_slots: list[int] = []
@@ -425,12 +435,59 @@ class LandingSiteManager:
             iy = np.floor((xy[:, 1] - r) / c).astype(np.int64)
         return (ix * _KEY_STRIDE + iy).tolist()
 
-    def _nearest_within_match(self, x: float, y: float, key: int) -> int | None:
+    def _snapshot_tree(self) -> None:
+        """Index every site in a fresh k-d tree and empty the hash of changed sites."""
+        slots = self._active_slots()
+        self._tree = cKDTree(self._pos[slots, :2]) if len(slots) else None
+        self._tree_slots = slots
+        self._tree_versions = np.array(self._version, dtype=np.int64)[slots]
+        self._cells.clear()
+        self._dirty_key = [None] * self.settings.capacity
+        self._dirty_count = 0
+
+    def _tree_candidates(self, xy: np.ndarray) -> tuple[list, list] | None:
+        """The _TREE_K nearest snapshot sites within the match radius of each observation,
+        as flat (slots, versions) lists, row i at [i * _TREE_K, (i + 1) * _TREE_K); -1 where
+        there are fewer."""
+        if self._tree is None:
+            return None
+        n = len(self._tree_slots)
+        with np.errstate(invalid="ignore"):
+            _, idx = self._tree.query(np.nan_to_num(xy), k=_TREE_K,
+                                      distance_upper_bound=self.settings.match_radius)
+        found = idx < n
+        idx = np.minimum(idx, n - 1)
+        slots = np.where(found, self._tree_slots[idx], -1)
+        versions = np.where(found, self._tree_versions[idx], -1)
+        return slots.ravel().tolist(), versions.ravel().tolist()
+
+    def _nearest_within_match(self, x: float, y: float, key: int, tree_slots: list | None,
+                              tree_versions: list | None, row: int = 0) -> int | None:
+        """The retained site within match_radius nearest to (x, y); ties go to the older
+        (smaller id) site. None when there is none."""
         r2 = self.settings.match_radius * self.settings.match_radius
         best, best_d2 = None, r2
-        cells = self._cells
         xy = self._xy
         ids = self._ids
+        if tree_slots is not None:
+            version = self._version
+            any_valid = False
+            for j in range(row * _TREE_K, (row + 1) * _TREE_K):
+                slot = tree_slots[j]
+                if slot < 0:
+                    break
+                if version[slot] != tree_versions[j]:
+                    continue  # changed since the snapshot: in the hash if still retained
+                any_valid = True
+                sx, sy = xy[slot]
+                d2 = (sx - x) * (sx - x) + (sy - y) * (sy - y)
+                if d2 < best_d2 or (d2 == best_d2 and (best is None or ids[slot] < ids[best])):
+                    best, best_d2 = slot, d2
+            else:
+                if not any_valid:
+                    # Every near snapshot entry is stale and more may lie beyond: search all.
+                    return self._nearest_by_scan(x, y)
+        cells = self._cells
         for k in (key, key + 1, key + _KEY_STRIDE, key + _KEY_STRIDE + 1):
             members = cells.get(k)
             if not members:
@@ -438,22 +495,37 @@ class LandingSiteManager:
             for slot in members:
                 sx, sy = xy[slot]
                 d2 = (sx - x) * (sx - x) + (sy - y) * (sy - y)
-                # Nearest wins; equal distances go to the older (smaller id) site.
                 if d2 < best_d2 or (d2 == best_d2 and (best is None or ids[slot] < ids[best])):
                     best, best_d2 = slot, d2
         return best
 
-    def _hash_add(self, slot: int) -> None:
-        x, y = self._xy[slot]
-        self._cells.setdefault(self._cell_key(x, y), []).append(slot)
+    def _nearest_by_scan(self, x: float, y: float) -> int | None:
+        slots = self._active_slots()
+        d = self._pos[slots, :2] - (x, y)
+        d2 = d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1]
+        inside = d2 <= self.settings.match_radius * self.settings.match_radius
+        if not inside.any():
+            return None
+        slots, d2 = slots[inside], d2[inside]
+        return int(slots[np.lexsort((self._ids[slots], d2))[0]])
 
-    def _hash_remove(self, slot: int) -> None:
+    def _hash_add(self, slot: int) -> None:
+        """Record a site inserted or moved since the tree snapshot."""
         x, y = self._xy[slot]
         key = self._cell_key(x, y)
+        self._cells.setdefault(key, []).append(slot)
+        self._dirty_key[slot] = key
+        self._dirty_count += 1
+
+    def _hash_remove(self, slot: int) -> None:
+        key = self._dirty_key[slot]
+        if key is None:
+            return
         members = self._cells[key]
         members.remove(slot)
         if not members:
             del self._cells[key]
+        self._dirty_key[slot] = None
 
     def _distance(self, x: float, y: float) -> float:
         """Horizontal distance to the drone, computed exactly as :meth:`_losses` does."""
@@ -600,14 +672,21 @@ class LandingSiteManager:
         vals, reasons = self._validate(batch)
         self._counts["received"] += len(batch)
         rows = vals.tolist()
+        if self._dirty_count > max(_SNAPSHOT_MIN, len(self._slot_of) // 8):
+            self._snapshot_tree()
         keys = self._match_keys(vals)
+        candidates = self._tree_candidates(vals[:, :2])
+        cand_slots, cand_versions = candidates if candidates else (None, None)
         nearest = self._nearest_within_match
         for i, reason in enumerate(reasons):
             row = rows[i]
             if reason is not None:
                 self._reject(reason, row[8] if reason != "malformed" else 0.0)
                 continue
-            slot = nearest(row[0], row[1], keys[i])
+            if cand_slots is None:
+                slot = nearest(row[0], row[1], keys[i], None, None)
+            else:
+                slot = nearest(row[0], row[1], keys[i], cand_slots, cand_versions, i)
             if slot is None:
                 self._insert(row, batch[i].source)
             elif row[7] < self._veralt[slot]:

@@ -5,9 +5,11 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from hypothesis import given, settings
+import pytest
+from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+import lsm.manager
 from lsm import LandingSiteManager, LossWeights, LsmSettings, SiteObservation, site_loss
 
 SETTINGS = LsmSettings(capacity=4, match_radius=2.0, max_distance=60.0, ban_radius=3.0,
@@ -107,9 +109,19 @@ step = st.one_of(
 )
 
 
-@settings(max_examples=400, deadline=None)
-@given(st.lists(step, min_size=5, max_size=60))
-def test_same_retained_sites_and_ranking_as_the_reference(steps):
+@pytest.fixture(params=["hash", "tree"])
+def lookup(request, monkeypatch):
+    """Run the property both with the redetection lookup in the spatial hash only (small
+    stores) and through the k-d tree snapshot rebuilt at every batch."""
+    if request.param == "tree":
+        monkeypatch.setattr(lsm.manager, "_SNAPSHOT_MIN", -1)
+    return request.param
+
+
+@settings(max_examples=300, deadline=None,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(steps=st.lists(step, min_size=5, max_size=60))
+def test_same_retained_sites_and_ranking_as_the_reference(lookup, steps):
     m = LandingSiteManager(SETTINGS, WEIGHTS)
     ref = ReferenceLsm()
     for kind, arg in steps:
