@@ -168,7 +168,10 @@ class ElevationMap:
         # less the 1.28 sigma by which noise alone lifts that percentile. A rock smaller
         # than a cell barely moves the cell's mean but shows in its top.
         count = np.bincount(flat, minlength=n0 * n1)[cells]
-        order = np.lexsort((z, flat))
+        # One float key sorts by cell, then by height within the cell (heights scaled
+        # into [0, 0.5) so they never reach the next cell's key).
+        low, span = float(z.min()), float(np.ptp(z)) + 1e-9
+        order = np.argsort(flat + (z - low) * (0.5 / span))
         first = np.concatenate(([0], np.cumsum(count)[:-1]))
         percentile = z[order[first + np.floor(TOP_QUANTILE * (count - 1)).astype(np.int64)]]
         point_var = np.bincount(flat, weights=variance[inside], minlength=n0 * n1)[cells] / count
