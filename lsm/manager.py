@@ -453,8 +453,10 @@ class LandingSiteManager:
             return None
         n = len(self._tree_slots)
         with np.errstate(invalid="ignore"):
-            _, idx = self._tree.query(np.nan_to_num(xy), k=_TREE_K,
-                                      distance_upper_bound=self.settings.match_radius)
+            # The bound is strict and the tree's distances are rounded: pad it; the exact
+            # d2 <= r2 test in _nearest_within_match decides.
+            bound = self.settings.match_radius * (1 + 1e-9) + 1e-12
+            _, idx = self._tree.query(np.nan_to_num(xy), k=_TREE_K, distance_upper_bound=bound)
         found = idx < n
         idx = np.minimum(idx, n - 1)
         slots = np.where(found, self._tree_slots[idx], -1)
