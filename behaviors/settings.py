@@ -31,6 +31,10 @@ class LandingSettings(BaseModel):
         1.0, gt=0, description="a waypoint is reached within this distance (m, horizontal and "
         "vertical)"
     )
+    centring_radius: float = Field(
+        0.5, gt=0, description="after verification the vehicle centres over the verified "
+        "site to within this distance (m) before landing"
+    )
     search_rectangle: tuple[float, float] = Field(
         (60.0, 40.0), description="width (east) x height (north) of the search pattern, m"
     )

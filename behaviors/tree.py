@@ -23,6 +23,7 @@
              │   ├─ NavigateToSite             [clear altitude, over the site]
              │   ├─ ChangeAltitudeLS           [verification altitude above the site]
              │   ├─ LandingSiteVerification    [bans the site on failure]
+             │   ├─ Centre over verified site  [ChangeAltitudeLS to the verified record]
              │   └─ Land
              └─ Land in place                  [OUTCOME_HINT "no_site"]
 
@@ -231,6 +232,20 @@ def build_mission_tree(
                 clock,
                 duration=s.verification_duration,
                 match_radius=lsm.settings.match_radius,
+            ),
+            # The verified record comes from the low, accurate look and may lie up to the
+            # match radius from where the descent aimed: centre over it before landing.
+            _within(
+                ChangeAltitudeLS(
+                    "Centre over verified site",
+                    vehicle,
+                    clock,
+                    s.verification_altitude,
+                    acceptance_radius=s.centring_radius,
+                    command_timeout=cmd,
+                ),
+                clock,
+                nav,
             ),
             _within(Land("Land", vehicle, clock, command_timeout=cmd), clock, nav),
         ],

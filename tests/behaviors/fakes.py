@@ -203,6 +203,7 @@ class ScriptedSite:
     size: float = 5.0
     obstacle_altitude: float = 5.0
     fails_verification: bool = False
+    high_offset: tuple[float, float] = (0.0, 0.0)  # position error of looks from up high
 
 
 @dataclass
@@ -227,10 +228,11 @@ class ScriptedDetector:
                 continue
             if site.fails_verification and altitude < self.low_altitude:
                 continue
+            dx, dy = site.high_offset if altitude >= self.low_altitude else (0.0, 0.0)
             out.append(
                 SiteObservation(
-                    x=site.x,
-                    y=site.y,
+                    x=site.x + dx,
+                    y=site.y + dy,
                     z=site.z,
                     roughness=site.roughness,
                     uncertainty=site.uncertainty,

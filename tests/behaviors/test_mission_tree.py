@@ -71,6 +71,18 @@ def assert_landed_at(m: Mission, flight: Flight, site: ScriptedSite) -> None:
     assert xy_distance(m.vehicle.position, (site.x, site.y)) <= m.plan.landing.acceptance_radius
 
 
+def test_lands_on_the_verified_position_not_the_high_altitude_estimate():
+    # Seen from 100 m the site appears 0.8 m east of where it is; the low look that
+    # verifies it moves the record, and the vehicle centres over it before landing.
+    site = ScriptedSite(120.0, 10.0, high_offset=(0.8, 0.0))
+    m = make_mission([(0, 0, 100), (150, 0, 100)], [site])
+
+    flight = m.fly()
+
+    assert flight.status == Status.SUCCESS
+    assert xy_distance(m.vehicle.position, (site.x, site.y)) <= m.plan.landing.centring_radius
+
+
 def test_nominal_mission_lands_at_the_best_verified_site():
     good = ScriptedSite(120.0, 10.0, roughness=0.05)
     poor = ScriptedSite(60.0, -15.0, roughness=0.7, size=1.0)
