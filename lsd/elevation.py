@@ -33,13 +33,13 @@ from typing import Any
 
 import cv2
 import numpy as np
-from scipy import ndimage
 
 from lsd.elevation_map import ElevationMap
 from lsd.elevation_settings import DetectorSettings, ElevationMapSettings
 from lsd.frames import DepthFrame
 from lsd.plane_fit import PlaneFit, fit_planes
 from lsd.site_selection import (
+    maximum_box,
     obstacle_altitude,
     safe_mask,
     select_sites,
@@ -183,35 +183,51 @@ class ElevationDetector:
         s = self.settings
         m = self.fine_map if self.low else self.map
         self._counters["cells_forgotten"] += m.forget_older_than(now)
-        if not m.observed.any():
+        r = m.resolution
+        # Only the cells within a footprint window of an observed cell can get a fit, and
+        # so be safe: analyse the bounding box of the observed cells grown by that window
+        # plus one ring (never safe), which gives the same sites as the whole grid.
+        half = max(1, int(round(s.footprint_radius / r)))
+        reach = int(np.ceil(s.footprint_radius / r - 1e-9))
+        box = _observed_box(m.observed, max(half, reach) + 1)
+        if box is None:
             self.last_analysis = None
             return []
-        r = m.resolution
+        window = (slice(box[0], box[1]), slice(box[2], box[3]))
         fit = fit_planes(
-            m.mean, m.variance, r, s.footprint_radius, top=m.top, tolerance=s.noise_tolerance
+            m.mean[window],
+            m.variance[window],
+            r,
+            s.footprint_radius,
+            top=m.top[window],
+            tolerance=s.noise_tolerance,
         )
         hazard, doubtful = step_hazards(fit, s, r)
         safe = safe_mask(fit, s, hazard)
         size = site_size(safe, r)
         origin = (int(m.origin_index[0]), int(m.origin_index[1]))
-        self.last_analysis = MapAnalysis(fit, safe, size, origin, r)
+        self.last_analysis = MapAnalysis(
+            *_embedded(fit, safe, size, m.shape, window), origin, r
+        )
         # A site is only as trustworthy as the farthest look at the ground under its
         # footprint (the smallest camera height each cell was seen from, largest over the
         # footprint).
-        reach = int(np.ceil(s.footprint_radius / r - 1e-9))
-        looks = np.where(np.isfinite(m.closest), m.closest, 0.0)  # unobserved: no say
-        farthest_look = ndimage.maximum_filter(looks, size=2 * reach + 1, mode="nearest")
+        closest = m.closest[window]
+        looks = np.where(np.isfinite(closest), closest, 0.0)  # unobserved: no say
+        farthest_look = maximum_box(looks, 2 * reach + 1)
         with np.errstate(invalid="ignore"):
             # Between equally roomy cells prefer the best-seen one (so that a low hover
             # redetects the site right below it), then the smoothest and most certain.
             quality = 0.7 * np.exp(-farthest_look / 10.0) + 0.3 * (
                 1.0 - 0.5 * (fit.roughness / s.max_roughness + fit.sigma / s.max_uncertainty)
             )
-        i, j = select_sites(size, np.nan_to_num(quality), origin, r, s)
+        box_origin = (origin[0] + box[0], origin[1] + box[2])
+        i, j = select_sites(size, np.nan_to_num(quality), box_origin, r, s)
         if len(i) == 0:
             return []
-        top = obstacle_altitude(m.top, m.variance, r, s.obstacle_radius)[i, j]
+        top = obstacle_altitude(m.top[window], m.variance[window], r, s.obstacle_radius)[i, j]
         xs, ys = m.cell_centres()
+        xs, ys = xs[window[0]], ys[window[1]]
         z = fit.height[i, j]
         roughness = np.clip(fit.roughness[i, j] / s.max_roughness, 0.0, 1.0)
         uncertainty = np.clip(fit.sigma[i, j] / s.max_uncertainty, 0.0, 1.0)
@@ -327,3 +343,42 @@ def _placement_depth(depth: np.ndarray, valid: np.ndarray, kernel: int) -> np.nd
     with np.errstate(divide="ignore", invalid="ignore"):
         smooth = (total / share).astype(np.float64)
     return np.where(valid & (share > 0), smooth, depth)
+
+
+def _observed_box(observed: np.ndarray, margin: int) -> tuple[int, int, int, int] | None:
+    """(i0, i1, j0, j1): the bounding box of the observed cells grown by ``margin`` cells
+    on each side and clipped to the grid, or None when no cell is observed."""
+    rows = np.flatnonzero(observed.any(axis=1))
+    if len(rows) == 0:
+        return None
+    cols = np.flatnonzero(observed.any(axis=0))
+    n0, n1 = observed.shape
+    return (
+        max(int(rows[0]) - margin, 0),
+        min(int(rows[-1]) + 1 + margin, n0),
+        max(int(cols[0]) - margin, 0),
+        min(int(cols[-1]) + 1 + margin, n1),
+    )
+
+
+def _embedded(
+    fit: PlaneFit,
+    safe: np.ndarray,
+    size: np.ndarray,
+    shape: tuple[int, int],
+    window: tuple[slice, slice],
+) -> tuple[PlaneFit, np.ndarray, np.ndarray]:
+    """The analysis of ``window`` placed in whole-grid arrays (no fit, unsafe elsewhere)."""
+    if all(w.start == 0 and w.stop == n for w, n in zip(window, shape, strict=True)):
+        return fit, safe, size
+
+    def embed(array: np.ndarray, fill: float) -> np.ndarray:
+        out = np.full(shape, fill, dtype=array.dtype)
+        out[window] = array
+        return out
+
+    fields = {
+        f.name: embed(getattr(fit, f.name), 0.0 if f.name == "observed_fraction" else np.nan)
+        for f in dataclasses.fields(fit)
+    }
+    return PlaneFit(**fields), embed(safe, False), embed(size, 0.0)

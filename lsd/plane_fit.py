@@ -2,16 +2,17 @@
 
 For every cell the inverse-variance weighted least-squares plane ``z = a + b x + c y``
 through the observed cells of the window centred on it is found from windowed first and
-second moments (one :func:`scipy.ndimage.uniform_filter` pass over a stack of masked
-products), so the cost is independent of the window size and there is no loop over cells.
+second moments (an OpenCV box filter, :func:`cv2.boxFilter`, over each of a stack of masked
+single-precision products; its running sums are double), so the cost is independent of the
+window size and there is no loop over cells.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
-from scipy import ndimage
 
 
 @dataclass(frozen=True)
@@ -85,9 +86,12 @@ def fit_planes(
     x = ((np.arange(n0, dtype=f32) - n0 // 2) * f32(resolution))[:, None] * np.ones((1, n1), f32)
     y = ((np.arange(n1, dtype=f32) - n1 // 2) * f32(resolution))[None, :] * np.ones((n0, 1), f32)
     wx, wy, wz = w * x, w * y, w * z
-    stack = np.stack((o, var, w, wx, wy, wz, wx * x, wx * y, wy * y, wz * x, wz * y, wz * z))
-    m = ndimage.uniform_filter(stack, size=(1, size, size), mode="constant", cval=0.0)
-    frac, svar, sw, sx, sy, sz, sxx, sxy, syy, sxz, syz, szz = m
+    # Window means with zeros beyond the grid (as scipy.ndimage.uniform_filter, mode
+    # "constant"); one channel at a time is faster than one multi-channel pass.
+    frac, svar, sw, sx, sy, sz, sxx, sxy, syy, sxz, syz, szz = (
+        cv2.boxFilter(channel, -1, (size, size), borderType=cv2.BORDER_CONSTANT)
+        for channel in (o, var, w, wx, wy, wz, wx * x, wx * y, wy * y, wz * x, wz * y, wz * z)
+    )
     count = frac * size * size
     with np.errstate(divide="ignore", invalid="ignore"):
         weight = sw * size * size  # sum of the window's weights

@@ -5,11 +5,34 @@ All functions are pure and work on (n, n) grids whose axis 0 is x and axis 1 is 
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 from scipy import ndimage
 
 from lsd.elevation_settings import DetectorSettings
 from lsd.plane_fit import PlaneFit
+
+
+def maximum_box(array: np.ndarray, size: int) -> np.ndarray:
+    """Maximum over the ``size`` x ``size`` square centred on each cell, cells beyond the
+    grid ignored (as :func:`scipy.ndimage.maximum_filter` with ``mode="nearest"``, or
+    ``"constant"`` with a ``cval`` no larger than any cell), by an OpenCV dilation.
+
+    Args:
+        array: (n, m) uint8 or float32 (both run vectorised; float64 is converted to float32).
+        size: odd window side, cells.
+
+    Returns:
+        (n, m) array of ``array``'s dtype (float32 for float64 input).
+    """
+    if array.dtype == np.float64:
+        array = array.astype(np.float32)
+    if size <= 1:
+        return array.copy()
+    # A rectangle dilates as a row pass then a column pass; OpenCV's default border for
+    # dilation is -inf, so cells beyond the grid never win.
+    row = cv2.dilate(array, np.ones((1, size), np.uint8))
+    return cv2.dilate(row, np.ones((size, 1), np.uint8))
 
 
 def step_hazards(
@@ -29,7 +52,7 @@ def step_hazards(
         level += fit.step - settings.noise_tolerance * fit.step_error > settings.max_step
     margin = int(np.ceil(settings.clearance_margin / resolution - 1e-9))
     if margin > 0:  # one maximum filter grows both masks
-        level = ndimage.maximum_filter(level, size=2 * margin + 1, mode="constant", cval=0)
+        level = maximum_box(level, 2 * margin + 1)
     return level >= 2, level >= 1
 
 
@@ -60,11 +83,16 @@ def safe_mask(fit: PlaneFit, settings: DetectorSettings, hazard: np.ndarray) -> 
 def site_size(safe: np.ndarray, resolution: float) -> np.ndarray:
     """(n, n) radius in metres of the largest circle of safe cells centred on each cell.
 
-    One Euclidean distance transform of the safe mask: distance from the cell centre to the
-    nearest unsafe cell centre, less half a cell (to that cell's near edge). 0 where unsafe.
+    One exact Euclidean distance transform of the safe mask (:func:`cv2.distanceTransform`,
+    precise mask): distance from the cell centre to the nearest unsafe cell centre, less half
+    a cell (to that cell's near edge). 0 where unsafe. Cells beyond the grid count as unsafe
+    only through the grid's own border cells.
     """
-    distance = ndimage.distance_transform_edt(safe)
-    return np.where(safe, np.maximum(distance - 0.5, 0.0) * resolution, 0.0)
+    safe = np.asarray(safe, dtype=bool)
+    if safe.all():  # no unsafe cell at all: as scipy's transform, distance to the border
+        return np.asarray(ndimage.distance_transform_edt(safe) - 0.5, np.float64) * resolution
+    distance = cv2.distanceTransform(safe.view(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
+    return np.where(safe, np.maximum(distance.astype(np.float64) - 0.5, 0.0) * resolution, 0.0)
 
 
 def obstacle_altitude(
@@ -77,7 +105,7 @@ def obstacle_altitude(
     """
     half = max(0, int(round(radius / resolution)))
     top = np.where(np.isfinite(height), height + 2.0 * np.sqrt(variance), -np.inf)
-    return ndimage.maximum_filter(top, size=2 * half + 1, mode="constant", cval=-np.inf)
+    return maximum_box(top.astype(np.float32), 2 * half + 1).astype(np.float64)
 
 
 def select_sites(
@@ -143,7 +171,8 @@ def select_sites(
     winners = np.full(size.shape, -np.inf)
     winners[i, j] = key[i, j]
     window = 2 * (block // 2) + 1
-    strongest = ndimage.maximum_filter(winners, size=window, mode="constant", cval=-np.inf)
+    # float64 keeps the tie-breaks; OpenCV's dilation ignores cells beyond the grid.
+    strongest = cv2.dilate(winners, np.ones((window, window), np.uint8))
     keep = winners[i, j] >= strongest[i, j]
     i, j = i[keep], j[keep]
     order = np.argsort(-key[i, j], kind="stable")[: settings.max_sites]
