@@ -72,68 +72,80 @@ def fit_planes(
     """
     half = max(1, int(round(radius / resolution)))
     size = 2 * half + 1
-    observed = np.isfinite(height) & np.isfinite(variance) & (variance > 0)
+    area = float(size * size)
     f32 = np.float32
-    o = observed.astype(f32)
+    with np.errstate(invalid="ignore"):
+        observed = np.isfinite(height) & np.isfinite(variance) & (variance > 0)
+    hidden = ~observed
+    # Heights from a median and coordinates from the grid centre keep the moments small
+    # enough for single precision (the filters' own running sums are double). The median
+    # of an even subsample of the observed cells is as good a reference and much cheaper.
+    cells = np.flatnonzero(observed)
+    sample = height.reshape(-1)[cells[:: max(1, len(cells) // 4096)]]
+    ref = float(np.median(sample)) if len(cells) else 0.0
+    z = np.subtract(height, ref, dtype=f32)
+    z[hidden] = 0.0
+    var = variance.astype(f32)
+    var[hidden] = 0.0
     # Inverse-variance weights: a cell seen by few or far points counts less.
-    w = np.where(observed, 1.0 / np.where(observed, variance, 1.0), 0.0).astype(f32)
-    # Heights from their median and coordinates from the grid centre keep the moments
-    # small enough for single precision (the filters' own running sums are double).
-    ref = float(np.median(height[observed])) if observed.any() else 0.0
-    z = np.where(observed, height - ref, 0.0).astype(f32)
-    var = np.where(observed, variance, 0.0).astype(f32)
+    w = np.zeros(height.shape, f32)
+    np.divide(f32(1.0), var, out=w, where=observed)
     n0, n1 = height.shape
-    x = ((np.arange(n0, dtype=f32) - n0 // 2) * f32(resolution))[:, None] * np.ones((1, n1), f32)
-    y = ((np.arange(n1, dtype=f32) - n1 // 2) * f32(resolution))[None, :] * np.ones((n0, 1), f32)
+    x = ((np.arange(n0, dtype=f32) - n0 // 2) * f32(resolution))[:, None]
+    y = ((np.arange(n1, dtype=f32) - n1 // 2) * f32(resolution))[None, :]
     wx, wy, wz = w * x, w * y, w * z
-    # Window means with zeros beyond the grid (as scipy.ndimage.uniform_filter, mode
-    # "constant"); one channel at a time is faster than one multi-channel pass.
-    frac, svar, sw, sx, sy, sz, sxx, sxy, syy, sxz, syz, szz = (
-        cv2.boxFilter(channel, -1, (size, size), borderType=cv2.BORDER_CONSTANT)
-        for channel in (o, var, w, wx, wy, wz, wx * x, wx * y, wy * y, wz * x, wz * y, wz * z)
-    )
-    count = frac * size * size
+
+    def box(channel: np.ndarray) -> np.ndarray:
+        # Window mean with zeros beyond the grid (scipy.ndimage.uniform_filter's
+        # mode="constant"); one channel at a time is faster than one multi-channel pass.
+        return cv2.boxFilter(channel, cv2.CV_32F, (size, size), borderType=cv2.BORDER_CONSTANT)
+
+    frac = box(observed.view(np.uint8))
+    sw, sx, sy, sz = box(w), box(wx), box(wy), box(wz)
     with np.errstate(divide="ignore", invalid="ignore"):
-        weight = sw * size * size  # sum of the window's weights
         inv = 1.0 / sw
         mx, my, mz = sx * inv, sy * inv, sz * inv
-        cxx = sxx * inv - mx * mx
-        cxy = sxy * inv - mx * my
-        cyy = syy * inv - my * my
-        cxz = sxz * inv - mx * mz
-        cyz = syz * inv - my * mz
-        czz = szz * inv - mz * mz
+        # Weighted covariances of the window: E[ab] - E[a] E[b].
+        cxx = box(wx * x) * inv - mx * mx
+        cxy = box(wx * y) * inv - mx * my
+        cyy = box(wy * y) * inv - my * my
+        cxz = box(wz * x) * inv - mx * mz
+        cyz = box(wz * y) * inv - my * mz
+        czz = box(wz * z) * inv - mz * mz
         det = cxx * cyy - cxy * cxy
         # Collinear or too few cells: no plane (det is ~0 relative to the spread).
-        ok = (count > 2.5) & (det > 1e-6 * resolution**4)
-        b = (cyy * cxz - cxy * cyz) / det
-        c = (cxx * cyz - cxy * cxz) / det
+        count = frac * f32(area)
+        failed = ~((count > 2.5) & (det > 1e-6 * resolution**4))
+        inv_det = 1.0 / det
+        b = (cyy * cxz - cxy * cyz) * inv_det
+        c = (cxx * cyz - cxy * cxz) * inv_det
         residual = czz - b * cxz - c * cyz
+        inv_weight = inv * f32(1.0 / area)  # 1 / sum of the window's weights
         # The weighted mean squared residual that noise alone produces: count / sum(w).
-        noise_var = count / weight
+        noise_var = count * inv_weight
         plane = mz + b * (x - mx) + c * (y - my)
-        gradient = np.hypot(b, c)
-        slope = np.arctan(gradient)
+        gradient2 = b * b + c * c
+        slope = np.arctan(np.sqrt(gradient2))
         # Standard error of the gradient of a weighted least-squares plane.
-        gradient_error = np.sqrt(1.0 / (weight * np.maximum(0.5 * (cxx + cyy), 1e-12)))
-        slope_error = gradient_error / (1.0 + gradient * gradient)
+        spread = np.maximum(f32(0.5) * (cxx + cyy), f32(1e-12))
+        slope_error = np.sqrt(inv_weight / spread) / (1.0 + gradient2)
         roughness = np.sqrt(np.maximum(residual - noise_var, 0.0))
         roughness_error = noise_var * np.sqrt(2.0 / np.maximum(count - 3.0, 1.0))
         step = np.abs(z - plane)
-        cell_var = np.where(observed, var, np.inf)
-        step_error = np.sqrt(cell_var + 1.0 / weight)
+        step_error = np.sqrt(var + inv_weight)
         if top is not None:
             # A percentile scatters about 1.7 times as much as the mean of the same points.
-            top_step = np.where(observed, top - ref, 0.0).astype(f32) - plane
-            top_error = np.sqrt(3.0 * cell_var + 1.0 / weight)
+            top_step = np.subtract(top, ref, dtype=f32) - plane
+            top_error = np.sqrt(3.0 * var + inv_weight)
             use_top = top_step - tolerance * top_error > step - tolerance * step_error
-            step = np.where(use_top, top_step, step)
-            step_error = np.where(use_top, top_error, step_error)
-        sigma = np.sqrt(svar / frac)
+            use_top &= observed
+            np.copyto(step, top_step, where=use_top)
+            np.copyto(step_error, top_error, where=use_top)
+        sigma = np.sqrt(box(var) / frac)
     for array in (plane, slope, slope_error, roughness, roughness_error, step, step_error, sigma):
-        array[~ok] = np.nan
-    step[~observed] = np.nan
-    step_error[~observed] = np.nan
+        array[failed] = np.nan
+    step[hidden] = np.nan
+    step_error[hidden] = np.nan
     plane += f32(ref)
     return PlaneFit(
         height=plane,
