@@ -155,26 +155,38 @@ class ElevationMap:
         n0, n1 = self.shape
         i, j = self.cell_of(points[:, 0], points[:, 1])
         inside = (i >= 0) & (i < n0) & (j >= 0) & (j < n1)
-        if not np.any(inside):
+        flat = i * n1 + j
+        z = points[:, 2]
+        fused = int(np.count_nonzero(inside))
+        if fused == 0:
             return 0
-        flat = i[inside] * n1 + j[inside]
-        weight = 1.0 / variance[inside]
-        z = points[inside, 2]
+        if fused < len(inside):
+            flat, z, variance = flat[inside], z[inside], variance[inside]
+        weight = 1.0 / variance
         w_sum = np.bincount(flat, weights=weight, minlength=n0 * n1)
         wz_sum = np.bincount(flat, weights=weight * z, minlength=n0 * n1)
-        cells = np.flatnonzero(w_sum > 0)
-        meas = wz_sum[cells] / w_sum[cells]
-        # The cell's top: the 90th percentile of its points (sorted by cell, then height),
-        # less the 1.28 sigma by which noise alone lifts that percentile. A rock smaller
-        # than a cell barely moves the cell's mean but shows in its top.
-        count = np.bincount(flat, minlength=n0 * n1)[cells]
-        # One float key sorts by cell, then by height within the cell (heights scaled
-        # into [0, 0.5) so they never reach the next cell's key).
+        v_sum = np.bincount(flat, weights=variance, minlength=n0 * n1)
+        # The cell's top: the 90th percentile of its points, less the 1.28 sigma by which
+        # noise alone lifts that percentile. A rock smaller than a cell barely moves the
+        # cell's mean but shows in its top. One integer key holds the cell in its high
+        # bits and the height, quantised far below any noise, in its low bits: sorting
+        # the keys themselves (no argsort) orders the points by cell, then by height.
+        cell_bits = max(1, (n0 * n1 - 1).bit_length())
+        height_bits = min(50, 62 - cell_bits)
         low, span = float(z.min()), float(np.ptp(z)) + 1e-9
-        order = np.argsort(flat + (z - low) * (0.5 / span))
-        first = np.concatenate(([0], np.cumsum(count)[:-1]))
-        percentile = z[order[first + np.floor(TOP_QUANTILE * (count - 1)).astype(np.int64)]]
-        point_var = np.bincount(flat, weights=variance[inside], minlength=n0 * n1)[cells] / count
+        quantum = span / float(1 << height_bits)
+        level = ((z - low) * (1.0 / quantum)).astype(np.int64)
+        np.minimum(level, (1 << height_bits) - 1, out=level)
+        key = np.sort((flat << height_bits) | level)
+        cell_of_key = key >> height_bits
+        first = np.flatnonzero(np.diff(cell_of_key)) + 1
+        first = np.concatenate(([0], first))
+        cells = cell_of_key[first]
+        count = np.diff(np.append(first, len(key)))
+        pick = first + np.floor(TOP_QUANTILE * (count - 1)).astype(np.int64)
+        percentile = low + (key[pick] & ((1 << height_bits) - 1)) * quantum
+        meas = wz_sum[cells] / w_sum[cells]
+        point_var = v_sum[cells] / count
         meas_top = np.maximum(percentile - TOP_NOISE_LIFT * np.sqrt(point_var), meas)
         meas_var = np.maximum(1.0 / w_sum[cells], self.settings.min_sigma**2)
 
@@ -204,7 +216,7 @@ class ElevationMap:
         if camera_height is not None:
             closest = self.closest.reshape(-1)
             closest[cells] = np.minimum(closest[cells], np.maximum(camera_height - meas, 0.0))
-        return int(np.count_nonzero(inside))
+        return fused
 
     def forget_older_than(self, now: float) -> int:
         """Forget cells last measured more than ``max_age`` seconds before ``now``.
