@@ -138,17 +138,31 @@ class ElevationDetector:
         # height: placing each point with its own noisy depth would crowd the
         # short-depth (high) points towards the nadir and bias cells upwards by about
         # 2 sigma^2 / depth.
-        placed = dataclasses.replace(frame, depth=np.where(valid, placement, np.nan))
-        points, sigma = placed.to_points()
         position = np.asarray(frame.position, dtype=np.float64)
         rotation = np.asarray(frame.rotation, dtype=np.float64)
-        ratio = depth[valid] / placement[valid]  # same row-major order as to_points
-        points[:, 2] = position[2] + ratio * (points[:, 2] - position[2])
+        k = frame.intrinsics
+        v, u = np.nonzero(valid)  # row-major, as DepthFrame.to_points
+        xn = (u - k.cx) / k.fx
+        yn = (v - k.cy) / k.fy
+        own = depth[v, u]
+        placed = placement[v, u]
+        # Back-projection one axis at a time (no BLAS): world offset = depth * R @ ray.
+        ray = [r[0] * xn + r[1] * yn + r[2] for r in rotation]
+        points = np.empty((len(own), 3))
+        points[:, 0] = placed * ray[0] + position[0]
+        points[:, 1] = placed * ray[1] + position[1]
+        drop = own * ray[2]  # vertical offset of the point below (or above) the camera
+        points[:, 2] = drop + position[2]
         # The ray error sigma is along the optical axis; its vertical part scales the depth
         # error by |dz| / depth (|dz| = height of the camera above the point).
-        offset = points - position
-        along_axis = offset @ rotation[:, 2]
-        vertical_sigma = sigma * np.abs(offset[:, 2]) / along_axis
+        along_axis = (
+            placed * (ray[0] * rotation[0, 2] + ray[1] * rotation[1, 2]) + drop * rotation[2, 2]
+        )
+        if frame.sigma is None:
+            sigma = np.zeros(len(own))
+        else:
+            sigma = np.asarray(frame.sigma, dtype=np.float64)[v, u]
+        vertical_sigma = sigma * np.abs(drop) / along_axis
         variance = vertical_sigma**2 + self.map_settings.min_sigma**2
 
         now = float(frame.timestamp)
@@ -206,9 +220,7 @@ class ElevationDetector:
         safe = safe_mask(fit, s, hazard)
         size = site_size(safe, r)
         origin = (int(m.origin_index[0]), int(m.origin_index[1]))
-        self.last_analysis = MapAnalysis(
-            *_embedded(fit, safe, size, m.shape, window), origin, r
-        )
+        self.last_analysis = MapAnalysis(*_embedded(fit, safe, size, m.shape, window), origin, r)
         # A site is only as trustworthy as the farthest look at the ground under its
         # footprint (the smallest camera height each cell was seen from, largest over the
         # footprint).
