@@ -192,23 +192,28 @@ class ElevationMap:
 
         mean = self.mean.reshape(-1)
         var = self.variance.reshape(-1)
-        mu = mean[cells]
-        p = var[cells]
-        known = np.isfinite(mu)
-        total = np.where(known, p + meas_var, 1.0)
-        innovation = np.where(known, meas - mu, 0.0)
-        outlier = known & (innovation**2 > self.settings.outlier_gate**2 * total)
-        gain = np.where(known, p / total, 1.0)
-        new_mu = np.where(known, mu + gain * innovation, meas)
-        new_var = np.where(known, p * meas_var / total, meas_var)
-        replace = outlier & (meas_var < p)
-        keep = outlier & ~replace
-        new_mu = np.where(replace, meas, np.where(keep, mu, new_mu))
-        new_var = np.where(replace, meas_var, np.where(keep, p, new_var))
         top = self.top.reshape(-1)
+        mu = mean[cells]
+        p = var[cells]  # inf where the cell is new
         old_top = top[cells]
-        new_top = np.where(known, old_top + gain * (meas_top - old_top), meas_top)
-        new_top = np.where(replace, meas_top, np.where(keep, old_top, new_top))
+        known = np.isfinite(mu)
+        # A new cell starts from its measurement (zero innovation, gain 1 as p is inf).
+        mu = np.where(known, mu, meas)
+        old_top = np.where(known, old_top, meas_top)
+        total = p + meas_var
+        innovation = meas - mu
+        gain = 1.0 - meas_var / total  # p / total, and 1 for a new cell
+        outlier = innovation * innovation > self.settings.outlier_gate**2 * total
+        if outlier.any():
+            # The estimate with the smaller variance wins: gain 1 replaces, 0 keeps.
+            closer = meas_var < p
+            np.copyto(gain, closer, where=outlier)
+            keep = outlier & ~closer
+        new_mu = mu + gain * innovation
+        new_var = gain * meas_var  # p * meas_var / total; meas_var when replaced
+        if outlier.any():
+            np.copyto(new_var, p, where=keep)
+        new_top = old_top + gain * (meas_top - old_top)
         mean[cells] = new_mu
         top[cells] = np.maximum(new_top, new_mu)
         var[cells] = new_var
