@@ -21,15 +21,20 @@ TOP_NOISE_LIFT = 1.2816  # the standard normal's 90th percentile
 
 def _shifted(array: np.ndarray, di: int, dj: int, fill: float) -> np.ndarray:
     """``out[i, j] = array[i + di, j + dj]`` where that exists, ``fill`` elsewhere."""
-    out = np.full_like(array, fill)
     n0, n1 = array.shape
     if abs(di) >= n0 or abs(dj) >= n1:
-        return out
+        return np.full_like(array, fill)
+    out = np.empty_like(array)
     src_i = slice(max(di, 0), n0 + min(di, 0))
     dst_i = slice(max(-di, 0), n0 - max(di, 0))
     src_j = slice(max(dj, 0), n1 + min(dj, 0))
     dst_j = slice(max(-dj, 0), n1 - max(dj, 0))
     out[dst_i, dst_j] = array[src_i, src_j]
+    # Only the strips that entered the window are filled (each cell is written once).
+    out[: dst_i.start] = fill
+    out[dst_i.stop :] = fill
+    out[dst_i, : dst_j.start] = fill
+    out[dst_i, dst_j.stop :] = fill
     return out
 
 
@@ -162,16 +167,20 @@ class ElevationMap:
             return 0
         if fused < len(inside):
             flat, z, variance = flat[inside], z[inside], variance[inside]
+        # Sums over the span of cells the points fall in (small when the camera is low).
+        base = int(flat.min())
+        flat = flat - base
+        span_cells = int(flat.max()) + 1
         weight = 1.0 / variance
-        w_sum = np.bincount(flat, weights=weight, minlength=n0 * n1)
-        wz_sum = np.bincount(flat, weights=weight * z, minlength=n0 * n1)
-        v_sum = np.bincount(flat, weights=variance, minlength=n0 * n1)
+        w_sum = np.bincount(flat, weights=weight, minlength=span_cells)
+        wz_sum = np.bincount(flat, weights=weight * z, minlength=span_cells)
+        v_sum = np.bincount(flat, weights=variance, minlength=span_cells)
         # The cell's top: the 90th percentile of its points, less the 1.28 sigma by which
         # noise alone lifts that percentile. A rock smaller than a cell barely moves the
         # cell's mean but shows in its top. One integer key holds the cell in its high
         # bits and the height, quantised far below any noise, in its low bits: sorting
         # the keys themselves (no argsort) orders the points by cell, then by height.
-        cell_bits = max(1, (n0 * n1 - 1).bit_length())
+        cell_bits = max(1, (span_cells - 1).bit_length())
         height_bits = min(50, 62 - cell_bits)
         low, span = float(z.min()), float(np.ptp(z)) + 1e-9
         quantum = span / float(1 << height_bits)
@@ -181,14 +190,15 @@ class ElevationMap:
         cell_of_key = key >> height_bits
         first = np.flatnonzero(np.diff(cell_of_key)) + 1
         first = np.concatenate(([0], first))
-        cells = cell_of_key[first]
+        local = cell_of_key[first]  # cell index less base
         count = np.diff(np.append(first, len(key)))
         pick = first + np.floor(TOP_QUANTILE * (count - 1)).astype(np.int64)
         percentile = low + (key[pick] & ((1 << height_bits) - 1)) * quantum
-        meas = wz_sum[cells] / w_sum[cells]
-        point_var = v_sum[cells] / count
+        meas = wz_sum[local] / w_sum[local]
+        point_var = v_sum[local] / count
         meas_top = np.maximum(percentile - TOP_NOISE_LIFT * np.sqrt(point_var), meas)
-        meas_var = np.maximum(1.0 / w_sum[cells], self.settings.min_sigma**2)
+        meas_var = np.maximum(1.0 / w_sum[local], self.settings.min_sigma**2)
+        cells = local + base
 
         mean = self.mean.reshape(-1)
         var = self.variance.reshape(-1)
