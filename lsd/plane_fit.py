@@ -101,47 +101,89 @@ def fit_planes(
         return cv2.boxFilter(channel, cv2.CV_32F, (size, size), borderType=cv2.BORDER_CONSTANT)
 
     frac = box(observed.view(np.uint8))
-    sw, sx, sy, sz = box(w), box(wx), box(wy), box(wz)
+    sw, mx, my, mz = box(w), box(wx), box(wy), box(wz)
+    # In-place arithmetic from here on: fewer fresh (n, m) arrays, less memory traffic.
+    scratch = np.empty_like(w)
+
+    def covariance(a: np.ndarray, b: np.ndarray, mean_a: np.ndarray, mean_b: np.ndarray):
+        # Weighted covariance of the window, E[ab] - E[a] E[b] (a, b already weighted once).
+        out = box(np.multiply(a, b, out=scratch))
+        out *= inv
+        out -= np.multiply(mean_a, mean_b, out=scratch)
+        return out
+
     with np.errstate(divide="ignore", invalid="ignore"):
-        inv = 1.0 / sw
-        mx, my, mz = sx * inv, sy * inv, sz * inv
-        # Weighted covariances of the window: E[ab] - E[a] E[b].
-        cxx = box(wx * x) * inv - mx * mx
-        cxy = box(wx * y) * inv - mx * my
-        cyy = box(wy * y) * inv - my * my
-        cxz = box(wz * x) * inv - mx * mz
-        cyz = box(wz * y) * inv - my * mz
-        czz = box(wz * z) * inv - mz * mz
-        det = cxx * cyy - cxy * cxy
+        inv = np.divide(f32(1.0), sw)
+        mx *= inv
+        my *= inv
+        mz *= inv
+        cxx = covariance(wx, x, mx, mx)
+        cxy = covariance(wx, y, mx, my)
+        cyy = covariance(wy, y, my, my)
+        cxz = covariance(wz, x, mx, mz)
+        cyz = covariance(wz, y, my, mz)
+        czz = covariance(wz, z, mz, mz)
+        det = cxx * cyy
+        det -= np.multiply(cxy, cxy, out=scratch)
         # Collinear or too few cells: no plane (det is ~0 relative to the spread).
         count = frac * f32(area)
         failed = ~((count > 2.5) & (det > 1e-6 * resolution**4))
-        inv_det = 1.0 / det
-        b = (cyy * cxz - cxy * cyz) * inv_det
-        c = (cxx * cyz - cxy * cxz) * inv_det
-        residual = czz - b * cxz - c * cyz
-        inv_weight = inv * f32(1.0 / area)  # 1 / sum of the window's weights
+        inv_det = np.divide(f32(1.0), det, out=det)
+        b = cyy * cxz
+        b -= np.multiply(cxy, cyz, out=scratch)
+        b *= inv_det
+        c = cxx * cyz
+        c -= np.multiply(cxy, cxz, out=scratch)
+        c *= inv_det
+        residual = czz
+        residual -= np.multiply(b, cxz, out=scratch)
+        residual -= np.multiply(c, cyz, out=scratch)
+        inv_weight = inv
+        inv_weight *= f32(1.0 / area)  # 1 / sum of the window's weights
         # The weighted mean squared residual that noise alone produces: count / sum(w).
         noise_var = count * inv_weight
-        plane = mz + b * (x - mx) + c * (y - my)
-        gradient2 = b * b + c * c
-        slope = np.arctan(np.sqrt(gradient2))
+        plane = np.subtract(x, mx, out=mx)
+        plane *= b
+        plane += np.multiply(c, np.subtract(y, my, out=scratch), out=scratch)
+        plane += mz
+        gradient2 = np.multiply(b, b, out=b)
+        gradient2 += np.multiply(c, c, out=c)
+        slope = np.sqrt(gradient2)
+        np.arctan(slope, out=slope)
         # Standard error of the gradient of a weighted least-squares plane.
-        spread = np.maximum(f32(0.5) * (cxx + cyy), f32(1e-12))
-        slope_error = np.sqrt(inv_weight / spread) / (1.0 + gradient2)
-        roughness = np.sqrt(np.maximum(residual - noise_var, 0.0))
-        roughness_error = noise_var * np.sqrt(2.0 / np.maximum(count - 3.0, 1.0))
-        step = np.abs(z - plane)
-        step_error = np.sqrt(var + inv_weight)
+        spread = np.add(cxx, cyy, out=cxx)
+        spread *= f32(0.5)
+        np.maximum(spread, f32(1e-12), out=spread)
+        slope_error = np.divide(inv_weight, spread, out=spread)
+        np.sqrt(slope_error, out=slope_error)
+        gradient2 += f32(1.0)
+        slope_error /= gradient2
+        residual -= noise_var
+        np.maximum(residual, f32(0.0), out=residual)
+        roughness = np.sqrt(residual, out=residual)
+        roughness_error = np.subtract(count, f32(3.0), out=cyy)
+        np.maximum(roughness_error, f32(1.0), out=roughness_error)
+        np.divide(f32(2.0), roughness_error, out=roughness_error)
+        np.sqrt(roughness_error, out=roughness_error)
+        roughness_error *= noise_var
+        step = np.subtract(z, plane, out=cxz)
+        np.abs(step, out=step)
+        step_error = var + inv_weight
+        np.sqrt(step_error, out=step_error)
         if top is not None:
             # A percentile scatters about 1.7 times as much as the mean of the same points.
-            top_step = np.subtract(top, ref, dtype=f32) - plane
-            top_error = np.sqrt(3.0 * var + inv_weight)
+            top_step = np.subtract(top, ref, dtype=f32)
+            top_step -= plane
+            top_error = np.multiply(var, f32(3.0), out=cyz)
+            top_error += inv_weight
+            np.sqrt(top_error, out=top_error)
             use_top = top_step - tolerance * top_error > step - tolerance * step_error
             use_top &= observed
             np.copyto(step, top_step, where=use_top)
             np.copyto(step_error, top_error, where=use_top)
-        sigma = np.sqrt(box(var) / frac)
+        sigma = box(var)
+        sigma /= frac
+        np.sqrt(sigma, out=sigma)
     for array in (plane, slope, slope_error, roughness, roughness_error, step, step_error, sigma):
         array[failed] = np.nan
     step[hidden] = np.nan
