@@ -122,7 +122,7 @@ def select_sites(
     single one at its centre. In each block of ``site_spacing`` the cell with the largest
     capped size wins, ties broken by ``quality`` and then by nearness to the block centre.
     A winner is then suppressed when another block's winner closer than half a block is
-    better (:func:`scipy.ndimage.maximum_filter` over the grid of winners), so two sites never
+    better (a maximum filter over the winners, done on the grid of blocks), so two sites never
     crowd the border between their blocks. Cells smaller than ``footprint_radius`` are never
     sites. Blocks are aligned to world cell indices so that a site redetected from another
     vehicle position keeps its position.
@@ -149,31 +149,47 @@ def select_sites(
     lead = [int(np.mod(o, block)) for o in origin_index]
     pad0 = (lead[0], (-(n0 + lead[0])) % block)
     pad1 = (lead[1], (-(n1 + lead[1])) % block)
-    gi = np.arange(n0)[:, None] + lead[0]
-    gj = np.arange(n1)[None, :] + lead[1]
-    off_centre = ((gi % block) - (block - 1) / 2) ** 2 + ((gj % block) - (block - 1) / 2) ** 2
+    ai = ((np.arange(n0) + lead[0]) % block - (block - 1) / 2) ** 2
+    aj = ((np.arange(n1) + lead[1]) % block - (block - 1) / 2) ** 2
+    off_centre = ai[:, None] + aj[None, :]
+    # Keys are written straight into the padded grid (padding stays -inf).
+    padded = np.full((n0 + sum(pad0), n1 + sum(pad1)), -np.inf)
+    key = padded[pad0[0] : pad0[0] + n0, pad1[0] : pad1[0] + n1]
     # Size dominates (its distinct values differ by far more than the tie-breaks add).
-    key = (
-        capped
-        + 1e-3 * resolution * np.clip(quality, 0.0, 1.0)
-        - 1e-6 * resolution * (off_centre / block**2)
-    )
-    key = np.where(eligible, key, -np.inf)
-    padded = np.pad(key, (pad0, pad1), constant_values=-np.inf)
+    np.add(capped, 1e-3 * resolution * np.clip(quality, 0.0, 1.0), out=key)
+    key -= 1e-6 * resolution * (off_centre / block**2)
+    key[~eligible] = -np.inf
     b0, b1 = padded.shape[0] // block, padded.shape[1] // block
-    blocks = padded.reshape(b0, block, b1, block).transpose(0, 2, 1, 3).reshape(b0, b1, -1)
-    best = blocks.argmax(axis=2)
-    best_key = np.take_along_axis(blocks, best[..., None], axis=2)[..., 0]
+    # Each block's first best cell in row-major order: the best column of every row of
+    # the block, then the first row holding the best of those (no transposed copy).
+    rows = padded.reshape(padded.shape[0], b1, block)
+    col = rows.argmax(axis=2)  # (P0, b1)
+    row_best = np.take_along_axis(rows, col[..., None], axis=2)[..., 0].reshape(b0, block, b1)
+    row = row_best.argmax(axis=1)  # (b0, b1)
+    best_key = np.take_along_axis(row_best, row[:, None, :], axis=1)[:, 0, :]
     bi, bj = np.nonzero(np.isfinite(best_key))
-    flat = best[bi, bj]
-    i = bi * block + flat // block - lead[0]
-    j = bj * block + flat % block - lead[1]
-    winners = np.full(size.shape, -np.inf)
-    winners[i, j] = key[i, j]
-    window = 2 * (block // 2) + 1
-    # float64 keeps the tie-breaks; OpenCV's dilation ignores cells beyond the grid.
-    strongest = cv2.dilate(winners, np.ones((window, window), np.uint8))
-    keep = winners[i, j] >= strongest[i, j]
+    r_in = row[bi, bj]
+    c_in = col.reshape(b0, block, b1)[bi, r_in, bj]
+    i = bi * block + r_in - lead[0]
+    j = bj * block + c_in - lead[1]
+    # A winner closer than half a block (Chebyshev) to a better winner is suppressed; such
+    # a neighbour can only sit in one of the 8 adjacent blocks, so compare block grids.
+    reach = block // 2
+    win_i = np.full((b0 + 2, b1 + 2), -(4 * block), dtype=np.int64)  # far from all
+    win_j = win_i.copy()
+    win_key = np.full((b0 + 2, b1 + 2), -np.inf)
+    win_i[bi + 1, bj + 1], win_j[bi + 1, bj + 1], win_key[bi + 1, bj + 1] = i, j, key[i, j]
+    keep = np.ones(len(i), dtype=bool)
+    for di in (-1, 0, 1):
+        for dj in (-1, 0, 1):
+            if di == 0 and dj == 0:
+                continue
+            ni, nj = bi + 1 + di, bj + 1 + dj
+            keep &= ~(
+                (np.abs(win_i[ni, nj] - i) <= reach)
+                & (np.abs(win_j[ni, nj] - j) <= reach)
+                & (win_key[ni, nj] > win_key[bi + 1, bj + 1])
+            )
     i, j = i[keep], j[keep]
     order = np.argsort(-key[i, j], kind="stable")[: settings.max_sites]
     return i[order].astype(np.int64), j[order].astype(np.int64)
