@@ -18,6 +18,10 @@ class LandingSettings(BaseModel):
     verification_altitude: float = Field(
         2.5, gt=0, description="m above the site to hover at for verification"
     )
+    verify: bool = Field(
+        True, description="re-detect the chosen site from the verification altitude before "
+        "landing (thesis 3.3.1); false lands after the blind descent, for comparisons"
+    )
     verification_duration: float = Field(
         10.0, gt=0, description="s of clock time to wait for the site's re-detection"
     )

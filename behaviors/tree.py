@@ -22,7 +22,7 @@
              │   ├─ GetLandingSite
              │   ├─ NavigateToSite             [clear altitude, over the site]
              │   ├─ ChangeAltitudeLS           [verification altitude above the site]
-             │   ├─ LandingSiteVerification    [bans the site on failure]
+             │   ├─ LandingSiteVerification    [bans the site on failure; landing.verify]
              │   ├─ Centre over verified site  [ChangeAltitudeLS to the verified record]
              │   └─ Land
              └─ Land in place                  [OUTCOME_HINT "no_site"]
@@ -195,6 +195,33 @@ def build_mission_tree(
             new_pattern,
         ],
     )
+    # Re-detect from low altitude, then centre over the verified record (the low look may
+    # move it up to the match radius); skipped when the mission turns verification off.
+    verification = (
+        [
+            LandingSiteVerification(
+                "LandingSiteVerification",
+                lsm,
+                clock,
+                duration=s.verification_duration,
+                match_radius=lsm.settings.match_radius,
+            ),
+            _within(
+                ChangeAltitudeLS(
+                    "Centre over verified site",
+                    vehicle,
+                    clock,
+                    s.verification_altitude,
+                    acceptance_radius=s.centring_radius,
+                    command_timeout=cmd,
+                ),
+                clock,
+                nav,
+            ),
+        ]
+        if s.verify
+        else []
+    )
     attempt = Sequence(
         "Landing attempt",
         memory=True,
@@ -226,27 +253,7 @@ def build_mission_tree(
                 clock,
                 nav,
             ),
-            LandingSiteVerification(
-                "LandingSiteVerification",
-                lsm,
-                clock,
-                duration=s.verification_duration,
-                match_radius=lsm.settings.match_radius,
-            ),
-            # The verified record comes from the low, accurate look and may lie up to the
-            # match radius from where the descent aimed: centre over it before landing.
-            _within(
-                ChangeAltitudeLS(
-                    "Centre over verified site",
-                    vehicle,
-                    clock,
-                    s.verification_altitude,
-                    acceptance_radius=s.centring_radius,
-                    command_timeout=cmd,
-                ),
-                clock,
-                nav,
-            ),
+            *verification,
             _within(Land("Land", vehicle, clock, command_timeout=cmd), clock, nav),
         ],
     )

@@ -4,13 +4,12 @@
 #
 #   benchmarks/campaign_mars.sh                 # 200 seeds, all cores
 #   RUNS=20 WORKERS=2 benchmarks/campaign_mars.sh
-#   SCHEDULER=tcp://10.0.0.5:8786 benchmarks/campaign_mars.sh   # on a Dask cluster
+#   SCHEDULER=tcp://SCHEDULER_HOST:8786 benchmarks/campaign_mars.sh   # on a Dask cluster
 #
-# "Verification off" = verifying at the cruise altitude: every site already counts as
-# verified where it was first detected, so the vehicle descends and lands without the
-# low-altitude re-detection (and never bans a site). Override with VARY=KEY=SPEC if the
-# mission schema grows an explicit switch. Interrupted? Run the same command again: the
-# runs already in $OUT/runs.jsonl are skipped.
+# The two variants are landing.verify=true (the thesis procedure: re-detect the site from
+# 2.5 m before landing, ban it otherwise) and landing.verify=false (land after the blind
+# descent). Override with VARY=KEY=SPEC. Interrupted? Run the same command again: the runs
+# already in $OUT/runs.jsonl are skipped.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -24,11 +23,7 @@ if [ ! -f "$MISSION" ]; then
   echo "campaign_mars.sh: $MISSION not found (set MISSION=...)" >&2
   exit 2
 fi
-ON=$("$PY" -c "from autonomy.config import load_mission; import sys
-print(load_mission(sys.argv[1]).landing.verification_altitude)" "$MISSION")
-CRUISE=$("$PY" -c "from autonomy.config import load_mission; import sys
-print(load_mission(sys.argv[1]).cruise_altitude)" "$MISSION")
-VARY=${VARY:-landing.verification_altitude=$ON,$CRUISE}
+VARY=${VARY:-landing.verify=true,false}
 
 args=(campaign "$MISSION" --runs "$RUNS" --seed "$SEED" --vary "$VARY" --out "$OUT")
 [ -n "${WORKERS:-}" ] && args+=(--workers "$WORKERS")

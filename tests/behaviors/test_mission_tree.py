@@ -138,6 +138,21 @@ def test_failed_verification_bans_the_site_and_lands_at_the_next_one():
             assert p[2] >= z_clear - m.plan.landing.acceptance_radius
 
 
+def test_without_verification_it_lands_on_the_false_positive():
+    # The comparison case of the thesis procedure: with landing.verify off nothing checks the
+    # site from low altitude, so the false positive is landed on.
+    false_positive = ScriptedSite(120.0, 10.0, roughness=0.05, fails_verification=True)
+    second = ScriptedSite(80.0, -20.0, roughness=0.3, obstacle_altitude=12.0)
+    m = make_mission([(0, 0, 100), (150, 0, 100)], [false_positive, second],
+                     landing={"verify": False})
+
+    flight = m.fly()
+
+    assert_landed_at(m, flight, false_positive)
+    assert m.read(keys.VERIFICATION_ATTEMPTS) == 0
+    assert m.lsm.counters()["banned"] == 0
+
+
 def test_no_site_known_search_pattern_finds_one():
     # 50 m east of the last waypoint: out of the 30 m footprint during the mission, inside
     # it from the search rectangle's east side.
