@@ -12,8 +12,8 @@ from behaviors.ports import Clock
 class ClockTimeout(py_trees.decorators.Decorator):
     """Run a child for at most ``duration`` seconds of the injected clock.
 
-    The clock-time counterpart of :class:`py_trees.decorators.Timeout`: the deadline is set
-    when the decorator is entered, from ``clock.now()``.
+    Used instead of py_trees' own timeout decorator, which reads the wall clock: the
+    deadline is set when the decorator is entered, from ``clock.now()``.
 
     * SUCCESS / FAILURE: the child finished with it before the deadline
     * RUNNING: the child is running and the deadline has not passed
