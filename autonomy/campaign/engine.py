@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import json
 import os
+import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -63,6 +64,39 @@ class CampaignResult:
     def table(self) -> str:
         """The per-variant summary table as text."""
         return format_table(self.rows)
+
+    def throughput_line(self) -> str | None:
+        """The simulated flight-hours per wall-clock hour of the runs flown by this call,
+        or None when none was flown (all recorded already)."""
+        t = self.meta.get("throughput")
+        if not t:
+            return None
+        return (
+            f"throughput: {t['simulated_s'] / 3600:.2f} simulated flight-h in "
+            f"{t['wall_s'] / 3600:.3f} wall-h on {t['workers']} worker(s): "
+            f"{t['flight_h_per_wall_h']:.1f} flight-h per wall-h, "
+            f"{t['flight_h_per_wall_h_per_worker']:.1f} per worker"
+        )
+
+
+def throughput(flown: Sequence[dict[str, Any]], wall_s: float, workers: int) -> dict | None:
+    """Simulated flight time over wall time of ``flown`` records, in total and per worker.
+
+    The simulated time of a run is its ``mission_time`` (take-off to the end of the flight);
+    runs without one (errors) add wall time but no flight time.
+    """
+    if not flown or wall_s <= 0:
+        return None
+    simulated = sum(float(r.get("mission_time") or 0.0) for r in flown)
+    rate = simulated / wall_s
+    return {
+        "runs": len(flown),
+        "simulated_s": round(simulated, 1),
+        "wall_s": round(wall_s, 3),
+        "workers": workers,
+        "flight_h_per_wall_h": round(rate, 2),
+        "flight_h_per_wall_h_per_worker": round(rate / max(1, workers), 2),
+    }
 
 
 def _default_flight() -> FlightFunction:
@@ -180,9 +214,12 @@ def run_campaign(
     if todo and backend is None:  # made before anything is written: it may refuse
         backend = own_backend = make_backend(workers, scheduler, connect_timeout)
     out.mkdir(parents=True, exist_ok=True)
+    flown: list[dict[str, Any]] = []
+    started = time.monotonic()  # wall time of the flights, for the throughput figure
     try:
         meter = None if quiet else Progress(len(todo), progress, label=name or "campaign")
         for record in backend.run(todo) if todo else ():
+            flown.append(record)
             log.append(record)
             recorded[(record["mission"], record["variant_key"], record["seed"])] = record
             if meter is not None:
@@ -190,6 +227,7 @@ def run_campaign(
     finally:
         if own_backend is not None:
             own_backend.close()
+    busy_workers = min(getattr(backend, "workers", 1), len(todo)) if todo else 1
     records = [recorded[t.identity] for t in tasks]
     rows = summarise_variants(records, chosen)
     meta = {
@@ -199,6 +237,7 @@ def run_campaign(
         "runs": runs,
         "vary": {k: list(v) for k, v in _varied(chosen).items()},
         "seeds": [t.seed for t in tasks[:runs]],
+        "throughput": throughput(flown, time.monotonic() - started, busy_workers),
     }
     result = CampaignResult(out, chosen, records, rows, len(todo), len(tasks) - len(todo), meta)
     write_outputs(result, mission)

@@ -92,6 +92,8 @@ def run(args: argparse.Namespace) -> int:
         for name, campaign in zip(names, result.campaigns, strict=True):
             print(f"{name}:")
             print(campaign.table())
+            if campaign.throughput_line():
+                print(campaign.throughput_line())
             print()
         print(result.table())
         print(f"wrote {result.out_dir}/compare.json and one directory per mission")
@@ -110,5 +112,7 @@ def run(args: argparse.Namespace) -> int:
     errors = sum(row["error"] for row in result.rows)
     note = f"; {errors} run(s) raised, see 'error' in runs.jsonl" if errors else ""
     print(f"flew {result.flown} run(s), {result.skipped} already recorded{note}")
+    if result.throughput_line():
+        print(result.throughput_line())
     print(f"wrote {result.out_dir}/runs.jsonl, summary.json, campaign.png")
     return 0

@@ -43,6 +43,19 @@ def test_local_pool_runs_are_reproducible_and_complete(fakes, tmp_path):
     assert (tmp_path / "a" / "campaign.png").stat().st_size > 0
 
 
+def test_throughput_counts_the_simulated_time_of_the_runs_flown_now(fakes, tmp_path):
+    first = campaign(fakes, tmp_path, runs=3, backend=LocalPool(2))
+    t = json.loads((tmp_path / "summary.json").read_text())["throughput"]
+    assert t["runs"] == 3 and t["simulated_s"] == 3 * 250.0  # the fake flights' mission_time
+    assert t["workers"] == 2
+    assert t["flight_h_per_wall_h"] == pytest.approx(750.0 / t["wall_s"], rel=0.05)
+    assert t["flight_h_per_wall_h_per_worker"] == pytest.approx(t["flight_h_per_wall_h"] / 2,
+                                                                rel=0.01)
+    assert "flight-h per wall-h" in first.throughput_line()
+    again = campaign(fakes, tmp_path, runs=3, backend=LocalPool(2))
+    assert again.throughput_line() is None  # nothing flown, nothing measured
+
+
 def test_rerunning_skips_recorded_runs_and_extends(fakes, tmp_path):
     campaign(fakes, tmp_path, runs=3, backend=LocalPool(1))
     again = campaign(fakes, tmp_path, runs=3, backend=LocalPool(1))
