@@ -30,6 +30,7 @@ PHASES = (
     "navigate_to_site",
     "descend",
     "verification",
+    "centre",
     "land",
     "land_in_place",
     "failsafe",

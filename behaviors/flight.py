@@ -211,6 +211,7 @@ class ChangeAltitudeLS(RouteAction):
         *,
         acceptance_radius: float = 1.0,
         command_timeout: float = 5.0,
+        phase: str = "descend",
     ) -> None:
         super().__init__(
             name,
@@ -218,7 +219,7 @@ class ChangeAltitudeLS(RouteAction):
             clock,
             acceptance_radius=acceptance_radius,
             command_timeout=command_timeout,
-            phase="descend",
+            phase=phase,
         )
         self.height = float(height)
         self.blackboard.register_key(key=keys.LANDING_SITE, access=Access.READ)

@@ -214,6 +214,7 @@ def build_mission_tree(
                     s.verification_altitude,
                     acceptance_radius=s.centring_radius,
                     command_timeout=cmd,
+                    phase="centre",
                 ),
                 clock,
                 nav,

@@ -76,11 +76,16 @@ def test_lands_on_the_verified_position_not_the_high_altitude_estimate():
     # verifies it moves the record, and the vehicle centres over it before landing.
     site = ScriptedSite(120.0, 10.0, high_offset=(0.8, 0.0))
     m = make_mission([(0, 0, 100), (150, 0, 100)], [site])
+    phases: list[str] = []
 
-    flight = m.fly()
+    flight = m.fly(on_tick=lambda _: phases.append(m.read(keys.PHASE)))
+    phases.append(m.read(keys.PHASE))
 
     assert flight.status == Status.SUCCESS
     assert xy_distance(m.vehicle.position, (site.x, site.y)) <= m.plan.landing.centring_radius
+    # The display and the report name the centring step, between verification and landing.
+    order = [p for k, p in enumerate(phases) if k == 0 or p != phases[k - 1]]
+    assert order[-4:] == ["verification", "centre", "land", "done"]
 
 
 def test_nominal_mission_lands_at_the_best_verified_site():
