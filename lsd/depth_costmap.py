@@ -55,6 +55,7 @@ __all__ = [
     "cluster_sites",
     "compute_costmaps",
     "dense_sites",
+    "depth_edges",
     "frame_problem",
 ]
 
@@ -152,6 +153,67 @@ def _rays(fx: float, fy: float, cx: float, cy: float, w: int, h: int):
     return xn, yn, np.sqrt(1.0 + xn * xn + yn * yn)
 
 
+@lru_cache(maxsize=16)
+def _step_response(blur_px: int) -> float:
+    """Peak |Sobel / 8| (metres per pixel) of the depth gradient across a 1 m depth step
+    after the Gaussian pre-blur of radius ``blur_px``: converts ``edge_step`` into a
+    gradient threshold for this filter."""
+    step = np.zeros((9, 64), dtype=np.float32)
+    step[:, 32:] = 1.0
+    if blur_px:
+        step = cv2.GaussianBlur(step, (2 * blur_px + 1, 2 * blur_px + 1), 0,
+                                borderType=cv2.BORDER_REPLICATE)
+    grad = cv2.Sobel(step, cv2.CV_32F, 1, 0, ksize=3, scale=0.125,
+                     borderType=cv2.BORDER_REPLICATE)
+    return float(np.abs(grad).max())
+
+
+_CANNY_HIGH = 1024.0  # the high threshold in the int16 gradient units handed to Canny
+
+
+def depth_edges(depth: np.ndarray, valid8: np.ndarray, settings: DepthCostmapSettings):
+    """Canny edges of a metric depth map, (H, W) uint8 255 at edges.
+
+    Args:
+        depth: (H, W) float32 depth (m), 0 where invalid.
+        valid8: (H, W) uint8, 255 where the depth is valid.
+        settings: ``edge_blur_px``, ``edge_step``, ``edge_noise_factor``, ``edge_low_ratio``.
+
+    Deviation from the paper, which runs Canny on the depth map scaled to 8 bit with fixed
+    thresholds (its simulated depth is noise-free): scaled by the frame's depth range, one
+    grey level is range / 255, so a few centimetres of stereo noise over a 0.5 m range (the
+    2.5 m verification hover) or SfM noise at cruise makes every pixel an edge and no
+    footprint fits. Here Canny runs on the metric depth gradients (Gaussian pre-blur, Sobel,
+    OpenCV's Canny on the given gradients) with thresholds in metres: the high one is the
+    gradient of an ``edge_step`` depth discontinuity, raised to ``edge_noise_factor`` times
+    the frame's gradient noise (median absolute gradient / 0.6745 over the valid pixels,
+    robust to the edges themselves). Invalid pixels and the image border count as edges:
+    a footprint that leaves the valid image is not known to be clear.
+    """
+    s = settings
+    src = depth
+    if s.edge_blur_px:
+        ksize = 2 * s.edge_blur_px + 1
+        src = cv2.GaussianBlur(depth, (ksize, ksize), 0, borderType=cv2.BORDER_REPLICATE)
+    gx = cv2.Sobel(src, cv2.CV_32F, 1, 0, ksize=3, scale=0.125, borderType=cv2.BORDER_REPLICATE)
+    gy = cv2.Sobel(src, cv2.CV_32F, 0, 1, ksize=3, scale=0.125, borderType=cv2.BORDER_REPLICATE)
+    high = s.edge_step * _step_response(s.edge_blur_px)
+    if s.edge_noise_factor > 0:
+        sample = np.abs(gx[1::4, 1::4][valid8[1::4, 1::4] > 0])
+        if sample.size:
+            high = max(high, s.edge_noise_factor * float(np.median(sample)) / 0.6745)
+    # Canny takes int16 gradients: scale so the high threshold is _CANNY_HIGH (clipped far
+    # above it, where only "edge" matters).
+    scale = _CANNY_HIGH / high
+    dx = np.clip(gx * np.float32(scale), -32767, 32767).astype(np.int16)
+    dy = np.clip(gy * np.float32(scale), -32767, 32767).astype(np.int16)
+    edges = cv2.Canny(dx, dy, _CANNY_HIGH * s.edge_low_ratio, _CANNY_HIGH, L2gradient=True)
+    edges |= cv2.bitwise_not(valid8)
+    edges[0, :] = edges[-1, :] = 255
+    edges[:, 0] = edges[:, -1] = 255
+    return edges
+
+
 def compute_costmaps(frame: DepthFrame, settings: DepthCostmapSettings) -> Costmaps:
     """All costmaps of one frame (see the module docstring); the frame must pass
     :func:`frame_problem`.
@@ -190,24 +252,26 @@ def compute_costmaps(frame: DepthFrame, settings: DepthCostmapSettings) -> Costm
         depth_accuracy = np.ones_like(d)
     depth_accuracy *= mask8
 
-    # J_FL (eq. 2-3): Canny on the 8-bit depth map, distance transform to the edges.
-    scale = 255.0 / max(hi - lo, 1e-12)
-    depth8 = cv2.convertScaleAbs(d, alpha=scale, beta=-lo * scale)
-    depth8 *= mask8
-    if s.edge_blur_px:
-        ksize = 2 * s.edge_blur_px + 1
-        depth8 = cv2.GaussianBlur(depth8, (ksize, ksize), 0)
-    edges = cv2.Canny(depth8, s.canny_low, s.canny_high, L2gradient=True)
-    edges |= cv2.bitwise_not(valid8)
-    edges[0, :] = edges[-1, :] = 255
-    edges[:, 0] = edges[:, -1] = 255
+    # Median depth (a subsample): the depth-dependent window of the normals.
+    coarse = d[::8, ::8]
+    coarse = coarse[coarse > 0]
+    median_depth = float(np.median(coarse)) if coarse.size else float(hi)
+
+    # J_FL (eq. 2-3): Canny edges of the depth map, distance transform to the edges.
+    edges = depth_edges(d, valid8, s)
     flatness_px = cv2.distanceTransform(
         cv2.bitwise_not(edges), cv2.DIST_L2, cv2.DIST_MASK_5
     )
     flatness = _minmax(flatness_px, valid)
 
-    # J_N (eq. 4-5) from box-averaged depth gradients.
-    win = (s.normal_window, s.normal_window)
+    # J_N (eq. 4-5) from box-averaged depth gradients, the box spanning normal_span on the
+    # ground (depth-dependent smoothing: stereo noise grows with depth squared while a
+    # fixed pixel window shrinks on the ground as the camera descends).
+    side = s.normal_window
+    if s.normal_span > 0 and median_depth > 0:
+        side = max(side, round(min(k.fx, k.fy) * s.normal_span / median_depth))
+    side = min(side, max(min(h, w) // 4, 1))
+    win = (side, side)
     dm = cv2.blur(d, win, borderType=cv2.BORDER_REPLICATE)  # box average (O(1) per pixel)
     # Central differences of the box average = box average of the central differences.
     du = cv2.Sobel(dm, cv2.CV_32F, 1, 0, ksize=1, scale=0.5, borderType=cv2.BORDER_REPLICATE)

@@ -42,16 +42,39 @@ class DepthCostmapSettings(BaseModel):
     d_min: float = Field(0.05, ge=0, description="nearest valid depth (m)")
     d_max: float = Field(200.0, gt=0, description="farthest valid depth (m)")
     vehicle_radius: float = Field(0.5, gt=0, description="footprint radius checked (m)")
-    canny_low: float = Field(30.0, gt=0, description="Canny hysteresis low (8-bit depth units)")
-    canny_high: float = Field(90.0, gt=0, description="Canny hysteresis high")
+    edge_step: float = Field(
+        0.15,
+        gt=0,
+        description="smallest depth discontinuity (m) that is an edge of the flatness map "
+        "(Canny's high threshold on a noise-free depth map; the low one is edge_low_ratio of it)",
+    )
+    edge_noise_factor: float = Field(
+        6.0,
+        ge=0,
+        description="Canny's high threshold is at least this many times the frame's depth "
+        "gradient noise (robust estimate from the image itself), so noisy depth (stereo, SfM) "
+        "does not turn every pixel into an edge; 0: the edge_step alone",
+    )
+    edge_low_ratio: float = Field(
+        0.5, gt=0, le=1, description="Canny hysteresis: low threshold / high threshold"
+    )
     edge_blur_px: int = Field(
-        0,
+        2,
         ge=0,
         le=15,
-        description="beyond the paper: Gaussian blur radius (px) of the 8-bit depth map before "
-        "Canny, so noisy depth (stereo or SfM) does not turn every pixel into an edge; 0: off",
+        description="Gaussian blur radius (px) of the depth map before its gradients (Canny's "
+        "own smoothing, the 5 x 5 Gaussian of the classic detector); 0: none",
     )
-    normal_window: int = Field(5, ge=1, description="box window (px) averaging 3D gradients")
+    normal_window: int = Field(
+        5, ge=1, description="smallest box window (px) averaging the 3D gradients of the normals"
+    )
+    normal_span: float = Field(
+        0.5,
+        ge=0,
+        description="ground span (m) of the normal window at the frame's median depth: the "
+        "window is max(normal_window, f * normal_span / D) px (depth-dependent smoothing of "
+        "integral-image normals, the paper's ref. [27]); 0: normal_window alone",
+    )
     site_spacing: float = Field(
         0.3,
         gt=0,
@@ -94,8 +117,6 @@ class DepthCostmapSettings(BaseModel):
     def _ranges(self) -> DepthCostmapSettings:
         if self.d_max <= self.d_min:
             raise ValueError(f"d_max ({self.d_max}) must exceed d_min ({self.d_min})")
-        if self.canny_high < self.canny_low:
-            raise ValueError("canny_high must be >= canny_low")
         return self
 
     @property

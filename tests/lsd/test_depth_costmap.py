@@ -104,12 +104,49 @@ def test_thirty_degree_ramp_gives_no_site_and_a_gentle_one_does():
     assert DepthCostmapDetector().process(frame(render(ramp_deg=5.0)))
 
 
-def test_depth_noise_breaks_flatness_and_gives_no_site():
+def test_depth_noise_alone_makes_no_edges_but_a_box_on_noisy_ground_still_does():
     rng = np.random.default_rng(0)
-    noisy = render() + rng.normal(0.0, 0.3, (K.height, K.width)).astype(np.float32)
+    noise = rng.normal(0.0, 0.15, (K.height, K.width)).astype(np.float32)
+    det = DepthCostmapDetector(DepthCostmapSettings(vehicle_radius=1.0))
+    assert det.process(frame(render(box=BOX) + noise))
+    # The box's 2 m step is an edge, the noise is not: sites only clear of the box.
+    assert horizontal_distance_to_box(det.last_sites.positions).min() >= 1.0 - 0.2
+    assert det.last_maps.flatness_px.max() > 100
+    # Thresholds in metres alone (no noise adaptation): the noise is edges everywhere.
+    fixed = DepthCostmapDetector(DepthCostmapSettings(vehicle_radius=1.0, edge_noise_factor=0))
+    assert fixed.process(frame(render(box=BOX) + noise)) == []
+    assert fixed.last_maps.flatness_px.max() < 10
+
+
+def test_low_hover_over_noisy_stereo_depth_redetects_the_ground_below():
+    # The verification look: 2.5 m over flat ground, 256 x 256 px, f = 256 px, stereo noise
+    # sigma = z^2 / (f b) * 0.5 px with b = 0.2 m (~6 cm).
+    k = Intrinsics(fx=256.0, fy=256.0, cx=127.5, cy=127.5, width=256, height=256)
+    pos = (3.0, -2.0, 2.5)
+    depth = plane_depth((0, 0, 1), 0.0, np.asarray(pos), NADIR, k).astype(np.float32)
+    sigma = np.float32(2.5**2 / (256 * 0.2) * 0.5)
+    depth += sigma * np.random.default_rng(5).standard_normal(depth.shape, dtype=np.float32)
     det = DepthCostmapDetector()
-    assert det.process(frame(noisy)) == []
-    assert det.last_maps.flatness_px.max() < 5
+    obs = det.process(frame(depth, position=pos, k=k))
+    assert obs
+    below = min(obs, key=lambda o: math.hypot(o.x - pos[0], o.y - pos[1]))
+    assert math.hypot(below.x - pos[0], below.y - pos[1]) < 1.0
+    assert below.observation_altitude == pytest.approx(2.5, abs=0.3)
+    # Its footprint fits: the inscribed circle is at least the vehicle radius.
+    assert det.last_sites.size.min() >= DepthCostmapSettings().vehicle_radius
+
+
+def test_a_small_step_is_an_edge_on_clean_depth_and_not_below_edge_step():
+    depth = render()
+    step = depth.copy()
+    step[:, 320:] -= 0.3  # a 0.3 m ledge down the middle of the image
+    small = depth.copy()
+    small[:, 320:] -= 0.05
+    det = DepthCostmapDetector()
+    det.process(frame(step))
+    assert det.last_maps.flatness_px[240, 318:322].min() == 0.0
+    det.process(frame(small))
+    assert det.last_maps.flatness_px[240, 320] > 50
 
 
 def test_tilted_camera_still_sees_level_ground_as_level():
@@ -282,17 +319,6 @@ def test_image_size_not_a_multiple_of_the_stride():
     assert near.any() and far.any()
     np.testing.assert_allclose(det.last_sites.obstacle_altitude[near], 1.0, atol=1e-3)
     np.testing.assert_allclose(det.last_sites.obstacle_altitude[far], 0.0, atol=1e-3)
-
-
-def test_edge_blur_recovers_sites_from_noisy_depth():
-    rng = np.random.default_rng(1)
-    noisy = render(box=BOX) + rng.normal(0.0, 0.15, (K.height, K.width)).astype(np.float32)
-    assert DepthCostmapDetector().process(frame(noisy)) == []  # the paper's pipeline
-    det = DepthCostmapDetector(DepthCostmapSettings(edge_blur_px=4, normal_window=9,
-                                                    vehicle_radius=1.0))
-    assert det.process(frame(noisy))
-    # Still clear of the box.
-    assert horizontal_distance_to_box(det.last_sites.positions).min() >= 1.0 - 0.2
 
 
 def test_a_frame_reports_only_clusters_near_it_and_clusters_covers_the_whole_list():
