@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 
 from sitl.sensors.rangefinder import RangeFinder
-from sitl.sensors.raycast import BlockMax, cast_rays
+from sitl.sensors.raycast import HeightBounds, cast_pinhole_rays
 from sitl.sensors.settings import DepthCameraSettings
 from sitl.terrain import Terrain
 
@@ -126,7 +126,7 @@ class DepthCamera:
         self._events: list[dict[str, Any]] = []
         self._history: deque[tuple[float, float, float]] = deque()
         self._last_skip: str | None = None
-        self._block_max: BlockMax | None = None
+        self._bounds: HeightBounds | None = None
         self.fx = self.fy = float(s.focal_px)
         self.cx = (s.width - 1) / 2.0
         self.cy = (s.height - 1) / 2.0
@@ -212,19 +212,14 @@ class DepthCamera:
             baseline = s.stereo_baseline
             max_range = min(s.stereo_max_range, s.max_depth)
         rotation = nadir_rotation(yaw)
-        if self._block_max is None:
-            self._block_max = BlockMax(self.terrain)
+        if self._bounds is None:
+            self._bounds = HeightBounds(self.terrain)
         # R @ ray per pixel, written out: a (N, 3) @ (3, 3) BLAS call costs more here.
         xc, yc = self._rays_cam[:, 0:1], self._rays_cam[:, 1:2]
         directions = xc * rotation[:, 0] + yc * rotation[:, 1] + rotation[:, 2]
-        depth = cast_rays(
-            self.terrain,
-            p,
-            directions,
-            t_max=max_range,
-            step=s.march_step,
-            block_max=self._block_max,
-        )
+        depth = cast_pinhole_rays(
+            self._bounds, p, directions.reshape(s.height, s.width, 3), t_max=max_range
+        ).ravel()
         sigma = depth_sigma(depth, s.focal_px, baseline, s.disparity_sigma_px)
         if s.noise:
             depth = depth + sigma * self.rng.standard_normal(depth.shape)

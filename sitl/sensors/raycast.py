@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 from scipy import ndimage
 
@@ -198,3 +199,251 @@ def cast_rays(
     out[out > t_max] = np.nan
     result[idx] = out
     return result
+
+
+# --- Fast pinhole rendering: bracket each ray between bounds from a min/max pyramid, then
+# refine with bilinear samples from cv2.remap. -------------------------------------------
+
+# Tile sizes (px) of the image-space hierarchy and bound iterations at each.
+_TILE_PASSES = ((16, 4), (4, 3))
+# Most regula falsi (Illinois) iterations on a ray's final bracket.
+_FALSI = 16
+# A ray point this close (m, vertically) to the ground is the hit.
+_CLOSE = 5e-4
+# cv2.remap refuses images with a side of SHRT_MAX or more: sample in rows of this width.
+_ROW = 256
+
+
+class HeightBounds:
+    """Highest and lowest ground of the bilinear height field over square blocks of cells:
+    a max and a min pyramid (maximum mipmap) built once per terrain.
+
+    Level 0 holds, per cell (the square between four neighbouring cell centres), the max and
+    min of its four corners, which bound the bilinear surface over the cell exactly; level
+    ``L`` pools 2 x 2 nodes of level ``L - 1``, so a node covers 2**L x 2**L cells. Outside
+    the grid the surface continues with edge values, which the edge cells bound too.
+
+    Args:
+        terrain: the height field.
+    """
+
+    def __init__(self, terrain: Terrain) -> None:
+        g = terrain.grid
+        corners = (g[:-1, :-1], g[1:, :-1], g[:-1, 1:], g[1:, 1:])
+        hi = np.maximum.reduce(corners)
+        lo = np.minimum.reduce(corners)
+        his, los = [hi], [lo]
+        while max(hi.shape) > 1:
+            hi, lo = _pool(hi, np.max), _pool(lo, np.min)
+            his.append(hi)
+            los.append(lo)
+        self.levels = len(his)
+        self.width = np.array([a.shape[1] for a in his], dtype=np.intp)
+        self.offset = np.cumsum([0] + [a.size for a in his[:-1]]).astype(np.intp)
+        self.high = np.concatenate([a.ravel() for a in his])
+        self.low = np.concatenate([a.ravel() for a in los])
+        self.scale = np.ldexp(1.0, -np.arange(self.levels))
+        self.cells = (g.shape[0] - 1, g.shape[1] - 1)
+        self.top = float(his[-1][0, 0])
+        self.bottom = float(los[-1][0, 0])
+        self.grid = g
+        self.origin = terrain.origin
+        self.cell_size = terrain.cell_size
+
+    def region(self, u0, u1, v0, v1) -> tuple[np.ndarray, np.ndarray]:
+        """Bounds (high, low) on the ground over boxes ``[u0, u1] x [v0, v1]`` given in
+        cell-centre coordinates (column u, row v; u = (x - origin x) / cell size). Arrays
+        of any one shape; the bounds are float32, conservative (a box reads at most 2 x 2
+        nodes of the finest level whose nodes are at least as wide as it)."""
+        ncy, ncx = self.cells
+        top_u, top_v = ncx - 1e-3, ncy - 1e-3
+        u0 = np.clip(u0, 0.0, top_u)
+        u1 = np.clip(u1, 0.0, top_u)
+        v0 = np.clip(v0, 0.0, top_v)
+        v1 = np.clip(v1, 0.0, top_v)
+        span = np.maximum(u1 - u0, v1 - v0)
+        level = np.clip(np.ceil(np.log2(np.maximum(span, 1e-6))), 0, self.levels - 1)
+        level = level.astype(np.intp)
+        scale = self.scale[level]
+        width = self.width[level]
+        row0 = (v0 * scale).astype(np.intp) * width + self.offset[level]
+        row1 = (v1 * scale).astype(np.intp) * width + self.offset[level]
+        col0 = (u0 * scale).astype(np.intp)
+        col1 = (u1 * scale).astype(np.intp)
+        keys = (row0 + col0, row0 + col1, row1 + col0, row1 + col1)
+        high = np.maximum.reduce([self.high.take(k) for k in keys])
+        low = np.minimum.reduce([self.low.take(k) for k in keys])
+        return high, low
+
+
+def _pool(a: np.ndarray, reduce) -> np.ndarray:
+    """2 x 2 pooling (edge-padded to even sides)."""
+    ny, nx = a.shape
+    a = np.pad(a, ((0, ny % 2), (0, nx % 2)), mode="edge")
+    return reduce(a.reshape(a.shape[0] // 2, 2, a.shape[1] // 2, 2), axis=(1, 3))
+
+
+def cast_pinhole_rays(
+    bounds: HeightBounds,
+    origin: np.ndarray,
+    directions: np.ndarray,
+    t_max: float = np.inf,
+) -> np.ndarray:
+    """Ray parameter of the first hit on the terrain of every pixel's ray of a pinhole
+    camera looking down.
+
+    Image-space hierarchy: tiles of pixels (then single rays) keep a bracket ``[lo, hi]``
+    of the ray parameter, ``lo`` before any of the tile's rays can meet the ground (they
+    are above the highest ground under the tile's footprint) and ``hi`` after all of them
+    have (below the lowest), narrowed with :meth:`HeightBounds.region` over the footprint
+    between the two. A ray whose bracket spans more than one cell horizontally is then
+    marched through it a cell at a time (so no cell is skipped and the hit is the first);
+    the crossing is refined by regula falsi with bilinear heights from ``cv2.remap``
+    (whose interpolation weights are fixed point, 1/32 of a cell: heights are exact to
+    about slope x 3 mm at 0.2 m cells).
+
+    Args:
+        bounds: the terrain's :class:`HeightBounds` (build once per terrain).
+        origin: (3,) camera centre, ENU metres.
+        directions: (H, W, 3) ray direction of every pixel (any length; the result is in
+            their units), pointing down (z < 0), e.g. with unit optical-axis component so
+            the parameter is the depth.
+        t_max: hits beyond this parameter report NaN.
+
+    Returns:
+        (H, W) float64 parameter of the hit point ``origin + t * direction``; NaN beyond
+        ``t_max``.
+    """
+    ox, oy, oz = (float(c) for c in origin)
+    d = np.asarray(directions, dtype=np.float64)
+    height, width = d.shape[:2]
+    cs = bounds.cell_size
+    # Cell-centre coordinates: u = u_o + t * du (columns), v = v_o + t * dv (rows).
+    u_o = (ox - bounds.origin[0]) / cs
+    v_o = (oy - bounds.origin[1]) / cs
+    du, dv, dz = d[..., 0] / cs, d[..., 1] / cs, d[..., 2]
+
+    lo = hi = None
+    tile_prev = 1
+    for tile, passes in _TILE_PASSES:
+        if tile == 1:
+            du_min = du_max = du
+            dv_min = dv_max = dv
+            z_lo = z_hi = dz
+        else:
+            # The tile's rays lie between its four corner rays (at any t >= 0 their
+            # footprint is within the corners' bounding box).
+            r0 = np.arange(0, height, tile)
+            c0 = np.arange(0, width, tile)
+            r1 = np.minimum(r0 + tile - 1, height - 1)
+            c1 = np.minimum(c0 + tile - 1, width - 1)
+            corner = [np.ix_(a, b) for a in (r0, r1) for b in (c0, c1)]
+            du_c = [du[k] for k in corner]
+            dv_c = [dv[k] for k in corner]
+            dz_c = [dz[k] for k in corner]
+            du_min, du_max = np.minimum.reduce(du_c), np.maximum.reduce(du_c)
+            dv_min, dv_max = np.minimum.reduce(dv_c), np.maximum.reduce(dv_c)
+            z_lo, z_hi = np.minimum.reduce(dz_c), np.maximum.reduce(dz_c)
+        shape = du_min.shape
+        if lo is None:
+            lo = np.maximum(0.0, (oz - bounds.top) / -z_lo)
+            hi = (oz - bounds.bottom) / -z_hi
+        else:
+            n = tile_prev // tile
+            lo = np.repeat(np.repeat(lo, n, 0), n, 1)[: shape[0], : shape[1]]
+            hi = np.repeat(np.repeat(hi, n, 0), n, 1)[: shape[0], : shape[1]]
+        for _ in range(passes):
+            u0 = u_o + np.minimum(du_min * lo, du_min * hi)
+            u1 = u_o + np.maximum(du_max * lo, du_max * hi)
+            v0 = v_o + np.minimum(dv_min * lo, dv_min * hi)
+            v1 = v_o + np.maximum(dv_max * lo, dv_max * hi)
+            top, bottom = bounds.region(u0, u1, v0, v1)
+            lo = np.maximum(lo, (oz - top) / -z_lo)
+            hi = np.maximum(lo, np.minimum(hi, (oz - bottom) / -z_hi))
+        tile_prev = tile
+    # Per ray, in single precision: the bracket to pixels, f(t) = ray height - ground.
+    n = tile_prev
+    lo = np.repeat(np.repeat(lo, n, 0), n, 1)[:height, :width].astype(np.float32)
+    hi = np.repeat(np.repeat(hi, n, 0), n, 1)[:height, :width].astype(np.float32)
+    du = du.astype(np.float32)
+    dv = dv.astype(np.float32)
+    dz = dz.astype(np.float32)
+    grid = bounds.grid
+    u_o, v_o, oz = np.float32(u_o), np.float32(v_o), np.float32(oz)
+
+    def f(t, du=du, dv=dv, dz=dz):
+        return oz + t * dz - _bilinear(grid, u_o + t * du, v_o + t * dv)
+
+    # March a cell at a time (horizontally) from lo; a ray's step reaching hi has crossed.
+    step = np.float32(1.0) / np.maximum(np.hypot(du, dv), np.float32(1e-6))
+    a, fa = lo, f(lo)
+    b = np.minimum(lo + step, hi)
+    fb = f(b)
+    going = np.flatnonzero((fb > 0) & (b < hi))
+    if going.size:
+        a, fa, b, fb = a.ravel(), fa.ravel(), b.ravel(), fb.ravel()
+        g_du, g_dv, g_dz = du.ravel()[going], dv.ravel()[going], dz.ravel()[going]
+        g_step, g_hi = step.ravel()[going], hi.ravel()[going]
+        g_a, g_fa = b[going], fb[going]
+        while going.size:
+            g_b = np.minimum(g_a + g_step, g_hi)
+            g_fb = f(g_b, g_du, g_dv, g_dz)
+            done = (g_fb <= 0) | (g_b >= g_hi)
+            k = going[done]
+            a[k], fa[k], b[k], fb[k] = g_a[done], g_fa[done], g_b[done], g_fb[done]
+            on = ~done
+            going, g_a, g_fa = going[on], g_b[on], g_fb[on]
+            g_du, g_dv, g_dz, g_step, g_hi = g_du[on], g_dv[on], g_dz[on], g_step[on], g_hi[on]
+        a, fa, b, fb = (x.reshape(height, width) for x in (a, fa, b, fb))
+    # Regula falsi (Illinois) on [a, b], fa > 0 >= fb, until the ray point is within
+    # _CLOSE of the ground; a ray already under ground at a (fa <= 0: the camera inside
+    # the terrain) keeps a.
+    t = a.astype(np.float64).ravel()
+    live = np.flatnonzero(fa.ravel() > 0)
+    a, b, fa, fb = (x.ravel()[live] for x in (a, b, fa, fb))
+    du, dv, dz = du.ravel()[live], dv.ravel()[live], dz.ravel()[live]
+    for k in range(_FALSI):
+        c = _secant(a, b, fa, fb)
+        fc = f(c, du, dv, dz)
+        done = np.abs(fc) <= _CLOSE
+        if k == _FALSI - 1 or done.all():
+            t[live] = c
+            break
+        if done.any():
+            t[live[done]] = c[done]
+            on = ~done
+            live, a, b, fa, fb, c, fc = (x[on] for x in (live, a, b, fa, fb, c, fc))
+            du, dv, dz = du[on], dv[on], dz[on]
+        above = fc > 0
+        # Illinois: halve the far end's value when the same end is kept twice.
+        fb = np.where(above, fb * np.float32(0.5), fc)
+        fa = np.where(above, fc, fa * np.float32(0.5))
+        a = np.where(above, c, a)
+        b = np.where(above, b, c)
+    t = t.reshape(height, width)
+    t[~(d[..., 2] < 0) | (t > t_max)] = np.nan
+    return t
+
+
+def _secant(a, b, fa, fb):
+    """Zero of the line through (a, fa) and (b, fb), fa > 0 >= fb, clipped to [a, b]."""
+    denom = fa - fb
+    frac = np.where(denom > 0, fa / np.where(denom > 0, denom, 1), 1)
+    return a + np.clip(frac, 0, 1) * (b - a)
+
+
+def _bilinear(grid: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Bilinear heights of ``grid`` at cell-centre coordinates (u column, v row), edge
+    values beyond it; float32 arrays of one shape, any size."""
+    shape = u.shape
+    if u.size == 0:
+        return np.empty(shape, dtype=np.float32)
+    if u.ndim == 2 and max(shape) < 32767:
+        return cv2.remap(grid, u, v, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    n = u.size
+    rows = -(-n // _ROW)
+    pad = rows * _ROW - n
+    uu = np.pad(u.ravel(), (0, pad)).reshape(rows, _ROW)
+    vv = np.pad(v.ravel(), (0, pad)).reshape(rows, _ROW)
+    h = cv2.remap(grid, uu, vv, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    return h.ravel()[:n].reshape(shape)
