@@ -361,86 +361,96 @@ def cast_pinhole_rays(
             lo = np.maximum(lo, (oz - top) / -z_lo)
             hi = np.maximum(lo, np.minimum(hi, (oz - bottom) / -z_hi))
         tile_prev = tile
-    # Per ray, in single precision: the bracket to pixels, f(t) = ray height - ground.
+    # Per ray, in single precision, flat: the bracket to pixels, f(t) = ray height - ground.
+    # (Random masks are slow in numpy: subsets go through index arrays and take, and
+    # selections are written as arithmetic blends.)
     n = tile_prev
-    lo = np.repeat(np.repeat(lo, n, 0), n, 1)[:height, :width].astype(np.float32)
-    hi = np.repeat(np.repeat(hi, n, 0), n, 1)[:height, :width].astype(np.float32)
-    du = du.astype(np.float32)
-    dv = dv.astype(np.float32)
-    dz = dz.astype(np.float32)
+    lo = np.repeat(np.repeat(lo, n, 0), n, 1)[:height, :width].astype(np.float32).ravel()
+    hi = np.repeat(np.repeat(hi, n, 0), n, 1)[:height, :width].astype(np.float32).ravel()
+    du = du.astype(np.float32).ravel()
+    dv = dv.astype(np.float32).ravel()
+    dz = dz.astype(np.float32).ravel()
     grid = bounds.grid
     u_o, v_o, oz = np.float32(u_o), np.float32(v_o), np.float32(oz)
 
-    def f(t, du=du, dv=dv, dz=dz):
+    def f(t, du, dv, dz):
         return oz + t * dz - _bilinear(grid, u_o + t * du, v_o + t * dv)
 
     # March a cell at a time (horizontally) from lo; a ray's step reaching hi has crossed.
     step = np.float32(1.0) / np.maximum(np.hypot(du, dv), np.float32(1e-6))
-    a, fa = lo, f(lo)
+    a, fa = lo, f(lo, du, dv, dz)
     b = np.minimum(lo + step, hi)
-    fb = f(b)
+    fb = f(b, du, dv, dz)
     going = np.flatnonzero((fb > 0) & (b < hi))
     if going.size:
-        a, fa, b, fb = a.ravel(), fa.ravel(), b.ravel(), fb.ravel()
-        g_du, g_dv, g_dz = du.ravel()[going], dv.ravel()[going], dz.ravel()[going]
-        g_step, g_hi = step.ravel()[going], hi.ravel()[going]
-        g_a, g_fa = b[going], fb[going]
+        g_du, g_dv, g_dz = du.take(going), dv.take(going), dz.take(going)
+        g_step, g_hi = step.take(going), hi.take(going)
+        g_a, g_fa = b.take(going), fb.take(going)
         while going.size:
             g_b = np.minimum(g_a + g_step, g_hi)
             g_fb = f(g_b, g_du, g_dv, g_dz)
-            done = (g_fb <= 0) | (g_b >= g_hi)
-            k = going[done]
-            a[k], fa[k], b[k], fb[k] = g_a[done], g_fa[done], g_b[done], g_fb[done]
-            on = ~done
-            going, g_a, g_fa = going[on], g_b[on], g_fb[on]
-            g_du, g_dv, g_dz, g_step, g_hi = g_du[on], g_dv[on], g_dz[on], g_step[on], g_hi[on]
-        a, fa, b, fb = (x.reshape(height, width) for x in (a, fa, b, fb))
+            done = np.flatnonzero((g_fb <= 0) | (g_b >= g_hi))
+            k = going.take(done)
+            a[k], fa[k], b[k], fb[k] = (x.take(done) for x in (g_a, g_fa, g_b, g_fb))
+            on = np.flatnonzero((g_fb > 0) & (g_b < g_hi))
+            going, g_a, g_fa = going.take(on), g_b.take(on), g_fb.take(on)
+            g_du, g_dv, g_dz = g_du.take(on), g_dv.take(on), g_dz.take(on)
+            g_step, g_hi = g_step.take(on), g_hi.take(on)
     # Regula falsi (Illinois) on [a, b], fa > 0 >= fb, until the ray point is within
     # _CLOSE of the ground; a ray already under ground at a (fa <= 0: the camera inside
     # the terrain) keeps a.
-    t = a.astype(np.float64).ravel()
-    live = np.flatnonzero(fa.ravel() > 0)
-    a, b, fa, fb = (x.ravel()[live] for x in (a, b, fa, fb))
-    du, dv, dz = du.ravel()[live], dv.ravel()[live], dz.ravel()[live]
+    t = a.astype(np.float64)
+    live = np.flatnonzero(fa > 0)
+    if live.size < t.size:
+        a, b, fa, fb, du, dv, dz = (x.take(live) for x in (a, b, fa, fb, du, dv, dz))
+    half = np.float32(0.5)
     for k in range(_FALSI):
         c = _secant(a, b, fa, fb)
         fc = f(c, du, dv, dz)
-        done = np.abs(fc) <= _CLOSE
-        if k == _FALSI - 1 or done.all():
+        close = np.abs(fc) <= _CLOSE
+        n_close = np.count_nonzero(close)
+        if k == _FALSI - 1 or n_close == live.size:
             t[live] = c
             break
-        if done.any():
-            t[live[done]] = c[done]
-            on = ~done
-            live, a, b, fa, fb, c, fc = (x[on] for x in (live, a, b, fa, fb, c, fc))
-            du, dv, dz = du[on], dv[on], dz[on]
-        above = fc > 0
-        # Illinois: halve the far end's value when the same end is kept twice.
-        fb = np.where(above, fb * np.float32(0.5), fc)
-        fa = np.where(above, fc, fa * np.float32(0.5))
-        a = np.where(above, c, a)
-        b = np.where(above, b, c)
+        if n_close > live.size // 4:
+            t[live] = c  # the close ones are final; the others are overwritten later
+            on = np.flatnonzero(~close)
+            live, a, b, fa, fb, c, fc, du, dv, dz = (
+                x.take(on) for x in (live, a, b, fa, fb, c, fc, du, dv, dz)
+            )
+        # c replaces a where f(c) > 0, else b; Illinois: the kept end's value is halved.
+        above = (fc > 0).astype(np.float32)
+        fb = fc + above * (half * fb - fc)
+        fa = half * fa + above * (fc - half * fa)
+        a = a + above * (c - a)
+        b = c + above * (b - c)
     t = t.reshape(height, width)
     t[~(d[..., 2] < 0) | (t > t_max)] = np.nan
     return t
 
 
 def _secant(a, b, fa, fb):
-    """Zero of the line through (a, fa) and (b, fb), fa > 0 >= fb, clipped to [a, b]."""
-    denom = fa - fb
-    frac = np.where(denom > 0, fa / np.where(denom > 0, denom, 1), 1)
-    return a + np.clip(frac, 0, 1) * (b - a)
+    """Zero of the line through (a, fa) and (b, fa), fa > 0 >= fb, clipped to [a, b]."""
+    frac = fa / np.maximum(fa - fb, np.float32(1e-30))
+    return a + np.minimum(frac, np.float32(1.0)) * (b - a)
 
 
 def _bilinear(grid: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
     """Bilinear heights of ``grid`` at cell-centre coordinates (u column, v row), edge
     values beyond it; float32 arrays of one shape, any size."""
-    shape = u.shape
-    if u.size == 0:
+    shape, n = u.shape, u.size
+    if n == 0:
         return np.empty(shape, dtype=np.float32)
-    if u.ndim == 2 and max(shape) < 32767:
-        return cv2.remap(grid, u, v, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-    n = u.size
+    if n < 32767 or n % _ROW == 0:
+        rows = 1 if n < 32767 else n // _ROW
+        h = cv2.remap(
+            grid,
+            u.reshape(rows, -1),
+            v.reshape(rows, -1),
+            cv2.INTER_LINEAR,
+            borderMode=cv2.BORDER_REPLICATE,
+        )
+        return h.reshape(shape)
     rows = -(-n // _ROW)
     pad = rows * _ROW - n
     uu = np.pad(u.ravel(), (0, pad)).reshape(rows, _ROW)
