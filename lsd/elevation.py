@@ -123,15 +123,23 @@ class ElevationDetector:
         )
 
     def integrate(self, frame: DepthFrame) -> bool:
-        """Fuse ``frame`` into the map (recentred on the camera); False if it was skipped."""
+        """Fuse ``frame`` into the map (recentred on the camera); False if it was skipped.
+
+        Where a map's cells are much larger than the ground a pixel sees (a low camera),
+        square blocks of pixels are combined first (inverse-variance weighted, as the map
+        would combine them anyway), so the map fuses a few points per block instead of
+        every pixel: see :func:`_pixel_block`.
+        """
         self._counters["frames_received"] += 1
         reason = self._frame_problem(frame)
         if reason is not None:
             return self._skip(frame, reason)
-        depth = np.asarray(frame.depth, dtype=np.float64)
+        f32 = np.float32
+        depth = np.asarray(frame.depth, dtype=f32)
         self._counters["pixels_received"] += depth.size
         valid = self._valid_pixels(frame, depth)
-        if not valid.any():
+        n_valid = int(np.count_nonzero(valid))
+        if n_valid == 0:
             return self._skip(frame, "no_valid_depth")
         placement = _placement_depth(depth, valid, self.map_settings.placement_smoothing)
         # Points are placed horizontally along the smoothed depth but keep their own
@@ -141,42 +149,60 @@ class ElevationDetector:
         position = np.asarray(frame.position, dtype=np.float64)
         rotation = np.asarray(frame.rotation, dtype=np.float64)
         k = frame.intrinsics
-        v, u = np.nonzero(valid)  # row-major, as DepthFrame.to_points
-        xn = (u - k.cx) / k.fx
-        yn = (v - k.cy) / k.fy
-        own = depth[v, u]
-        placed = placement[v, u]
-        # Back-projection one axis at a time (no BLAS): world offset = depth * R @ ray.
-        ray = [r[0] * xn + r[1] * yn + r[2] for r in rotation]
-        points = np.empty((len(own), 3))
-        points[:, 0] = placed * ray[0] + position[0]
-        points[:, 1] = placed * ray[1] + position[1]
-        drop = own * ray[2]  # vertical offset of the point below (or above) the camera
-        points[:, 2] = drop + position[2]
-        # The ray error sigma is along the optical axis; its vertical part scales the depth
-        # error by |dz| / depth (|dz| = height of the camera above the point).
-        along_axis = (
-            placed * (ray[0] * rotation[0, 2] + ray[1] * rotation[1, 2]) + drop * rotation[2, 2]
-        )
-        if frame.sigma is None:
-            sigma = np.zeros(len(own))
-        else:
-            sigma = np.asarray(frame.sigma, dtype=np.float64)[v, u]
-        vertical_sigma = sigma * np.abs(drop) / along_axis
-        variance = vertical_sigma**2 + self.map_settings.min_sigma**2
+        height, width = depth.shape
+        # Back-projection of every pixel in single precision, offsets from the camera
+        # (world offset = depth * R @ ray); bad pixels are dropped afterwards.
+        xn = ((np.arange(width) - k.cx) / k.fx).astype(f32)[None, :]
+        yn = ((np.arange(height) - k.cy) / k.fy).astype(f32)[:, None]
+        with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
+            ray = [f32(r[0]) * xn + (f32(r[1]) * yn + f32(r[2])) for r in rotation]
+            east = placement * ray[0]
+            north = placement * ray[1]
+            drop = depth * ray[2]  # vertical offset of the point below (or above) the camera
+            # The ray error sigma is along the optical axis; its vertical part scales the depth
+            # error by |dz| / depth (|dz| = height of the camera above the point).
+            along_axis = east * f32(rotation[0, 2])
+            along_axis += north * f32(rotation[1, 2])
+            along_axis += drop * f32(rotation[2, 2])
+            if frame.sigma is None:
+                variance = np.full(depth.shape, f32(self.map_settings.min_sigma**2))
+            else:
+                variance = np.asarray(frame.sigma, dtype=f32) * np.abs(drop)
+                variance /= along_axis
+                np.square(variance, out=variance)
+                variance += f32(self.map_settings.min_sigma**2)
 
         now = float(frame.timestamp)
         self._last_skip = None
+        everything = n_valid == depth.size
+        pick = None if everything else np.flatnonzero(valid)
         # Height above the ground from a subsample of the points (a median is robust).
-        self.agl = float(position[2] - np.median(points[:: max(1, len(points) // 4096), 2]))
+        drops = drop.reshape(-1) if everything else drop.reshape(-1)[pick]
+        self.agl = -float(np.median(drops[:: max(1, n_valid // 4096)]))
+        ground_per_pixel = max(self.agl, 0.0) / max(k.fx, k.fy)
+        # World coordinates (single precision is ample for cells of a centimetre or more).
+        east += f32(position[0])
+        north += f32(position[1])
+        drop += f32(position[2])
         maps = (self.map, self.fine_map) if self.low else (self.map,)
         for index, grid in enumerate(maps):
             grid.recentre(position[0], position[1])
             self._counters["cells_forgotten"] += grid.forget_older_than(now)
-            fused = grid.fuse(points, variance, now, camera_height=float(position[2]))
+            block = _pixel_block(grid.resolution, ground_per_pixel, depth.shape)
+            if block > 1:
+                x, y, z, var, count = _block_points(east, north, drop, variance, valid, block)
+            elif everything:
+                x, y, z, var = (a.reshape(-1) for a in (east, north, drop, variance))
+                count = None
+            else:
+                x, y, z, var = (a.reshape(-1)[pick] for a in (east, north, drop, variance))
+                count = None
+            fused = grid.fuse_columns(
+                x, y, z, var, now, camera_height=float(position[2]), count=count
+            )
             if index == 0:
                 self._counters["points_fused"] += fused
-                self._counters["points_outside_map"] += len(points) - fused
+                self._counters["points_outside_map"] += n_valid - fused
         self._counters["frames_fused"] += 1
         return True
 
@@ -336,7 +362,7 @@ class ElevationDetector:
         c["pixels_dropped_nonpositive"] += int(np.count_nonzero(finite & ~positive))
         c["pixels_dropped_out_of_range"] += int(np.count_nonzero(finite & positive & ~in_range))
         if frame.sigma is not None:
-            sigma = np.asarray(frame.sigma, dtype=np.float64)
+            sigma = np.asarray(frame.sigma, dtype=np.float32)
             with np.errstate(invalid="ignore"):
                 good_sigma = np.isfinite(sigma) & (sigma >= 0)
             c["pixels_dropped_bad_sigma"] += int(np.count_nonzero(valid & ~good_sigma))
@@ -345,16 +371,81 @@ class ElevationDetector:
 
 
 def _placement_depth(depth: np.ndarray, valid: np.ndarray, kernel: int) -> np.ndarray:
-    """(H, W) depth averaged over the valid pixels of a ``kernel`` x ``kernel`` box
+    """(H, W) float32 depth averaged over the valid pixels of a ``kernel`` x ``kernel`` box
     (``depth`` itself where ``kernel`` is 1), used only to place points horizontally."""
     if kernel <= 1:
         return depth
-    mask = valid.astype(np.float32)
-    total = cv2.blur(np.where(valid, depth, 0.0).astype(np.float32), (kernel, kernel))
-    share = cv2.blur(mask, (kernel, kernel))
+    total = cv2.blur(np.where(valid, depth, np.float32(0.0)), (kernel, kernel))
+    share = cv2.blur(valid.astype(np.float32), (kernel, kernel))
     with np.errstate(divide="ignore", invalid="ignore"):
-        smooth = (total / share).astype(np.float64)
-    return np.where(valid & (share > 0), smooth, depth)
+        total /= share
+    return np.where(valid & (share > 0), total, depth)
+
+
+def _pixel_block(resolution: float, ground_per_pixel: float, shape: tuple[int, int]) -> int:
+    """Side (pixels, a power of two, at most 8) of the pixel blocks to combine before
+    fusing into cells of ``resolution``: the largest block that still sees at most a
+    quarter of a cell, so blocks straddling a cell edge blur it by little. 1: no blocks."""
+    if ground_per_pixel <= 0:
+        return 1
+    block = 1
+    while block < 8 and 2 * block * ground_per_pixel <= 0.25 * resolution:
+        block *= 2
+    while block > 1 and min(shape) < 2 * block:
+        block //= 2
+    return block
+
+
+def _block_points(
+    east: np.ndarray,
+    north: np.ndarray,
+    drop: np.ndarray,
+    variance: np.ndarray,
+    valid: np.ndarray,
+    block: int,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The valid pixels of each ``block`` x ``block`` square combined into one point.
+
+    Args:
+        east, north, drop: (H, W) float32 world coordinates of each pixel's point, m.
+        variance: (H, W) float32 variance of each pixel's height, m^2.
+        valid: (H, W) bool usable pixels.
+        block: block side, pixels.
+
+    Returns:
+        x, y, z, variance, count: (B,) float32 per block holding a valid pixel: the mean
+        horizontal position, the inverse-variance weighted mean height, the variance
+        of that mean (1 / sum of weights) and the number of valid pixels.
+    """
+    f32 = np.float32
+    height, width = valid.shape
+    rows, cols = height // block, width // block
+    # Sums over whole blocks (the few pixels of a partial block at the far edges are left
+    # out); INTER_AREA averages each block exactly.
+    crop = (slice(0, rows * block), slice(0, cols * block))
+    mask = valid[crop]
+    weight = np.zeros(mask.shape, f32)
+    np.divide(f32(1.0), variance[crop], out=weight, where=mask)
+    share = mask.astype(f32)
+
+    def mean(image: np.ndarray) -> np.ndarray:
+        return cv2.resize(image, (cols, rows), interpolation=cv2.INTER_AREA).reshape(-1)
+
+    def masked(image: np.ndarray) -> np.ndarray:
+        return np.where(mask, image[crop], f32(0.0))
+
+    area = f32(block * block)
+    count = mean(share) * area
+    w_sum = mean(weight) * area
+    wz_sum = mean(weight * masked(drop)) * area
+    east_sum = mean(masked(east)) * area
+    north_sum = mean(masked(north)) * area
+    keep = np.flatnonzero(count > 0.5)
+    count, w_sum = count[keep], w_sum[keep]
+    x = east_sum[keep] / count
+    y = north_sum[keep] / count
+    z = wz_sum[keep] / w_sum
+    return x, y, z, 1.0 / w_sum, np.rint(count)
 
 
 def _observed_box(observed: np.ndarray, margin: int) -> tuple[int, int, int, int] | None:

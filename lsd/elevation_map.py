@@ -64,6 +64,9 @@ class ElevationMap:
         self.last_update = np.full((n, n), -np.inf)
         self.origin_index = np.zeros(2, dtype=np.int64)
         self._centred = False
+        # No observed cell was last measured before this (a lower bound, so that
+        # forgetting can tell cheaply when nothing is old enough yet).
+        self._oldest = math.inf
 
     @property
     def resolution(self) -> float:
@@ -157,19 +160,50 @@ class ElevationMap:
         Returns:
             the number of points that fell inside the window and were fused.
         """
+        points = np.asarray(points)
+        return self.fuse_columns(
+            points[:, 0], points[:, 1], points[:, 2], variance, now, camera_height
+        )
+
+    def fuse_columns(
+        self,
+        x: np.ndarray,
+        y: np.ndarray,
+        z: np.ndarray,
+        variance: np.ndarray,
+        now: float,
+        camera_height: float | None = None,
+        count: np.ndarray | None = None,
+    ) -> int:
+        """:meth:`fuse` with the points as separate (N,) coordinate arrays (float32 is
+        fine: cells are found relative to the window), each point optionally standing for
+        ``count`` measurements already combined (a block of pixels: ``z`` their
+        inverse-variance weighted mean, ``variance`` the variance of that mean).
+
+        Returns:
+            the number of measurements (sum of ``count``) inside the window, fused.
+        """
         n0, n1 = self.shape
-        i, j = self.cell_of(points[:, 0], points[:, 1])
-        inside = (i >= 0) & (i < n0) & (j >= 0) & (j < n1)
-        flat = i * n1 + j
-        z = points[:, 2]
-        fused = int(np.count_nonzero(inside))
-        if fused == 0:
+        inv_r = 1.0 / self.resolution
+        # Fractional cell indices relative to the window (small numbers, exact enough in
+        # single precision); NaN fails every comparison and so falls outside.
+        fi = x * inv_r - float(self.origin_index[0])
+        fj = y * inv_r - float(self.origin_index[1])
+        inside = (fi >= 0) & (fi < n0) & (fj >= 0) & (fj < n1)
+        n_inside = int(np.count_nonzero(inside))
+        if n_inside == 0:
             return 0
-        if fused < len(inside):
-            flat, z, variance = flat[inside], z[inside], variance[inside]
+        if n_inside < len(inside):
+            fi, fj, z, variance = fi[inside], fj[inside], z[inside], variance[inside]
+            count = None if count is None else count[inside]
+        fused = n_inside if count is None else int(count.sum())
+        # Truncation is the floor here: every index left is >= 0.
+        flat = fi.astype(np.intp)
+        flat *= n1
+        flat += fj.astype(np.intp)
         # Sums over the span of cells the points fall in (small when the camera is low).
         base = int(flat.min())
-        flat = flat - base
+        flat -= base
         span_cells = int(flat.max()) + 1
         weight = 1.0 / variance
         w_sum = np.bincount(flat, weights=weight, minlength=span_cells)
@@ -186,18 +220,22 @@ class ElevationMap:
         quantum = span / float(1 << height_bits)
         level = ((z - low) * (1.0 / quantum)).astype(np.int64)
         np.minimum(level, (1 << height_bits) - 1, out=level)
-        key = np.sort((flat << height_bits) | level)
+        flat <<= height_bits
+        flat |= level
+        key = np.sort(flat)
         cell_of_key = key >> height_bits
-        first = np.flatnonzero(np.diff(cell_of_key)) + 1
+        first = np.flatnonzero(cell_of_key[1:] != cell_of_key[:-1])
+        first += 1
         first = np.concatenate(([0], first))
         local = cell_of_key[first]  # cell index less base
-        count = np.diff(np.append(first, len(key)))
-        pick = first + np.floor(TOP_QUANTILE * (count - 1)).astype(np.int64)
+        n_points = np.diff(np.append(first, len(key)))
+        pick = first + (TOP_QUANTILE * (n_points - 1)).astype(np.int64)
         percentile = low + (key[pick] & ((1 << height_bits) - 1)) * quantum
-        meas = wz_sum[local] / w_sum[local]
-        point_var = v_sum[local] / count
+        w_cell = w_sum[local]
+        meas = wz_sum[local] / w_cell
+        point_var = v_sum[local] / n_points
         meas_top = np.maximum(percentile - TOP_NOISE_LIFT * np.sqrt(point_var), meas)
-        meas_var = np.maximum(1.0 / w_sum[local], self.settings.min_sigma**2)
+        meas_var = np.maximum(1.0 / w_cell, self.settings.min_sigma**2)
         cells = local + base
 
         mean = self.mean.reshape(-1)
@@ -228,6 +266,7 @@ class ElevationMap:
         top[cells] = np.maximum(new_top, new_mu)
         var[cells] = new_var
         self.last_update.reshape(-1)[cells] = now
+        self._oldest = min(self._oldest, now)
         if camera_height is not None:
             closest = self.closest.reshape(-1)
             closest[cells] = np.minimum(closest[cells], np.maximum(camera_height - meas, 0.0))
@@ -238,7 +277,12 @@ class ElevationMap:
 
         Returns the number of cells forgotten.
         """
-        stale = np.isfinite(self.mean) & (self.last_update < now - self.settings.max_age)
+        cutoff = now - self.settings.max_age
+        if cutoff <= self._oldest:
+            return 0
+        # Every cell kept was measured at or after the cutoff.
+        self._oldest = cutoff
+        stale = np.isfinite(self.mean) & (self.last_update < cutoff)
         count = int(np.count_nonzero(stale))
         if count:
             self.mean[stale] = np.nan
@@ -250,6 +294,7 @@ class ElevationMap:
 
     def clear(self) -> None:
         """Forget everything (the window stays where it is)."""
+        self._oldest = math.inf
         self.mean.fill(np.nan)
         self.top.fill(np.nan)
         self.variance.fill(np.inf)
