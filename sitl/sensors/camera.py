@@ -218,7 +218,11 @@ class DepthCamera:
         xc, yc = self._rays_cam[:, 0:1], self._rays_cam[:, 1:2]
         directions = xc * rotation[:, 0] + yc * rotation[:, 1] + rotation[:, 2]
         depth = cast_pinhole_rays(
-            self._bounds, p, directions.reshape(s.height, s.width, 3), t_max=max_range
+            self._bounds,
+            p,
+            directions.reshape(s.height, s.width, 3),
+            t_max=max_range,
+            step=s.march_step,
         ).ravel()
         sigma = depth_sigma(depth, s.focal_px, baseline, s.disparity_sigma_px)
         if s.noise:

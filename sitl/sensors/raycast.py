@@ -288,6 +288,7 @@ def cast_pinhole_rays(
     origin: np.ndarray,
     directions: np.ndarray,
     t_max: float = np.inf,
+    step: float | None = None,
 ) -> np.ndarray:
     """Ray parameter of the first hit on the terrain of every pixel's ray of a pinhole
     camera looking down.
@@ -296,8 +297,8 @@ def cast_pinhole_rays(
     of the ray parameter, ``lo`` before any of the tile's rays can meet the ground (they
     are above the highest ground under the tile's footprint) and ``hi`` after all of them
     have (below the lowest), narrowed with :meth:`HeightBounds.region` over the footprint
-    between the two. A ray whose bracket spans more than one cell horizontally is then
-    marched through it a cell at a time (so no cell is skipped and the hit is the first);
+    between the two. A ray whose bracket spans more than ``step`` horizontally is then
+    marched through it ``step`` at a time (so no cell is skipped and the hit is the first);
     the crossing is refined by regula falsi with bilinear heights from ``cv2.remap``
     (whose interpolation weights are fixed point, 1/32 of a cell: heights are exact to
     about slope x 3 mm at 0.2 m cells).
@@ -309,6 +310,7 @@ def cast_pinhole_rays(
             their units), pointing down (z < 0), e.g. with unit optical-axis component so
             the parameter is the depth.
         t_max: hits beyond this parameter report NaN.
+        step: horizontal march step (m); default: the cell size.
 
     Returns:
         (H, W) float64 parameter of the hit point ``origin + t * direction``; NaN beyond
@@ -376,26 +378,26 @@ def cast_pinhole_rays(
     def f(t, du, dv, dz):
         return oz + t * dz - _bilinear(grid, u_o + t * du, v_o + t * dv)
 
-    # March a cell at a time (horizontally) from lo; a ray's step reaching hi has crossed.
-    step = np.float32(1.0) / np.maximum(np.hypot(du, dv), np.float32(1e-6))
-    a, fa = lo, f(lo, du, dv, dz)
-    b = np.minimum(lo + step, hi)
-    fb = f(b, du, dv, dz)
-    going = np.flatnonzero((fb > 0) & (b < hi))
-    if going.size:
-        g_du, g_dv, g_dz = du.take(going), dv.take(going), dz.take(going)
-        g_step, g_hi = step.take(going), hi.take(going)
-        g_a, g_fa = b.take(going), fb.take(going)
-        while going.size:
-            g_b = np.minimum(g_a + g_step, g_hi)
-            g_fb = f(g_b, g_du, g_dv, g_dz)
-            done = np.flatnonzero((g_fb <= 0) | (g_b >= g_hi))
-            k = going.take(done)
-            a[k], fa[k], b[k], fb[k] = (x.take(done) for x in (g_a, g_fa, g_b, g_fb))
-            on = np.flatnonzero((g_fb > 0) & (g_b < g_hi))
-            going, g_a, g_fa = going.take(on), g_b.take(on), g_fb.take(on)
-            g_du, g_dv, g_dz = g_du.take(on), g_dv.take(on), g_dz.take(on)
-            g_step, g_hi = g_step.take(on), g_hi.take(on)
+    # March a step at a time (horizontally) from lo; a ray's step reaching hi has crossed.
+    cells = np.float32(1.0 if step is None else float(step) / cs)
+    step = cells / np.maximum(np.hypot(du, dv), np.float32(1e-6))
+    # Each ray's bracket [a, b] with f(a) > 0 >= f(b) (fa <= 0: under ground at lo).
+    a, fa = lo.copy(), f(lo, du, dv, dz)
+    b, fb = hi.copy(), np.zeros_like(hi)
+    going = np.arange(a.size)
+    g_a, g_fa, g_du, g_dv, g_dz, g_step, g_hi = a.copy(), fa, du, dv, dz, step, hi
+    while going.size:
+        g_b = np.minimum(g_a + g_step, g_hi)
+        g_fb = f(g_b, g_du, g_dv, g_dz)
+        ahead = (g_fb > 0) & (g_b < g_hi)
+        _thin_features(bounds, (u_o, v_o, oz), g_a, g_fa, g_b, g_fb, ahead, g_du, g_dv, g_dz, f)
+        done = np.flatnonzero(~ahead)
+        k = going.take(done)
+        a[k], fa[k], b[k], fb[k] = (x.take(done) for x in (g_a, g_fa, g_b, g_fb))
+        on = np.flatnonzero(ahead)
+        going, g_a, g_fa = going.take(on), g_b.take(on), g_fb.take(on)
+        g_du, g_dv, g_dz = g_du.take(on), g_dv.take(on), g_dz.take(on)
+        g_step, g_hi = g_step.take(on), g_hi.take(on)
     # Regula falsi (Illinois) on [a, b], fa > 0 >= fb, until the ray point is within
     # _CLOSE of the ground; a ray already under ground at a (fa <= 0: the camera inside
     # the terrain) keeps a.
@@ -427,6 +429,42 @@ def cast_pinhole_rays(
     t = t.reshape(height, width)
     t[~(d[..., 2] < 0) | (t > t_max)] = np.nan
     return t
+
+
+def _thin_features(bounds, start, a, fa, b, fb, ahead, du, dv, dz, f) -> None:
+    """Look inside march steps [a, b] that saw no crossing (``ahead``) for ground rising
+    above the ray between the two samples (a wall or rock edge thinner than a step): where
+    the ray at b is under the highest ground of the cells the step crosses, sample eighths
+    of the step; a crossing found there replaces the step's bracket (in place: a, fa, b,
+    fb, and ahead set False)."""
+    idx = np.flatnonzero(ahead)
+    if not idx.size:
+        return
+    u_o, v_o, oz = start
+    sa, sb = a.take(idx), b.take(idx)
+    sdu, sdv, sdz = du.take(idx), dv.take(idx), dz.take(idx)
+    ua, ub = u_o + sa * sdu, u_o + sb * sdu
+    va, vb = v_o + sa * sdv, v_o + sb * sdv
+    high, _ = bounds.region(
+        np.minimum(ua, ub), np.maximum(ua, ub), np.minimum(va, vb), np.maximum(va, vb)
+    )
+    sus = np.flatnonzero(oz + sb * sdz <= high)
+    if not sus.size:
+        return
+    sa, sb, sdu, sdv, sdz = (x.take(sus) for x in (sa, sb, sdu, sdv, sdz))
+    prev, f_prev = sa, fa.take(idx.take(sus))
+    found = np.zeros(sus.size, dtype=bool)
+    lo, f_lo, hi, f_hi = sa.copy(), f_prev.copy(), sb.copy(), f_prev.copy()
+    for k in range(1, 8):
+        s = sa + np.float32(k / 8) * (sb - sa)
+        fs = f(s, sdu, sdv, sdz)
+        new = (fs <= 0) & ~found
+        lo[new], f_lo[new], hi[new], f_hi[new] = prev[new], f_prev[new], s[new], fs[new]
+        found |= new
+        prev, f_prev = s, fs
+    k = idx.take(sus.take(np.flatnonzero(found)))
+    a[k], fa[k], b[k], fb[k] = lo[found], f_lo[found], hi[found], f_hi[found]
+    ahead[k] = False
 
 
 def _secant(a, b, fa, fb):
