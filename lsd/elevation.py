@@ -85,7 +85,10 @@ class ElevationDetector:
         self.fine_map = ElevationMap(map_settings.fine())
         self.settings = settings or DetectorSettings()
         self.agl: float | None = None  # camera height above the ground of the last frame
-        self.last_analysis: MapAnalysis | None = None
+        # The last detection's grids over its analysed window; embedded in whole-grid
+        # arrays only when :attr:`last_analysis` is asked for.
+        self._analysis: tuple | None = None
+        self._last_analysis: MapAnalysis | None = None
         self._counters: Counter[str] = Counter()
         self._events: list[dict[str, Any]] = []
         self._last_skip: str | None = None
@@ -93,6 +96,14 @@ class ElevationDetector:
     @property
     def map_settings(self) -> ElevationMapSettings:
         return self.map.settings
+
+    @property
+    def last_analysis(self) -> MapAnalysis | None:
+        """The last detection's intermediate grids, or None (nothing observed yet)."""
+        if self._last_analysis is None and self._analysis is not None:
+            fit, safe, size, shape, window, origin, r = self._analysis
+            self._last_analysis = MapAnalysis(*_embedded(fit, safe, size, shape, window), origin, r)
+        return self._last_analysis
 
     @property
     def low(self) -> bool:
@@ -188,7 +199,9 @@ class ElevationDetector:
         for index, grid in enumerate(maps):
             grid.recentre(position[0], position[1])
             self._counters["cells_forgotten"] += grid.forget_older_than(now)
-            block = _pixel_block(grid.resolution, ground_per_pixel, depth.shape)
+            # The coarse map is not analysed while the fine one is: blurrier blocks will do.
+            share = 0.5 if self.low and index == 0 else 0.25
+            block = _pixel_block(grid.resolution, ground_per_pixel, depth.shape, share)
             if block > 1:
                 x, y, z, var, count = _block_points(east, north, drop, variance, valid, block)
             elif everything:
@@ -230,8 +243,9 @@ class ElevationDetector:
         half = max(1, int(round(s.footprint_radius / r)))
         reach = int(np.ceil(s.footprint_radius / r - 1e-9))
         box = _observed_box(m.observed, max(half, reach) + 1)
+        self._last_analysis = None
         if box is None:
-            self.last_analysis = None
+            self._analysis = None
             return []
         window = (slice(box[0], box[1]), slice(box[2], box[3]))
         fit = fit_planes(
@@ -246,24 +260,29 @@ class ElevationDetector:
         safe = safe_mask(fit, s, hazard)
         size = site_size(safe, r)
         origin = (int(m.origin_index[0]), int(m.origin_index[1]))
-        self.last_analysis = MapAnalysis(*_embedded(fit, safe, size, m.shape, window), origin, r)
+        self._analysis = (fit, safe, size, m.shape, window, origin, r)
         # A site is only as trustworthy as the farthest look at the ground under its
         # footprint (the smallest camera height each cell was seen from, largest over the
         # footprint).
-        closest = m.closest[window]
-        looks = np.where(np.isfinite(closest), closest, 0.0)  # unobserved: no say
+        f32 = np.float32
+        looks = m.closest[window].astype(f32)
+        np.copyto(looks, f32(0.0), where=np.isinf(looks))  # unobserved: no say
         farthest_look = maximum_box(looks, 2 * reach + 1)
         with np.errstate(invalid="ignore"):
             # Between equally roomy cells prefer the best-seen one (so that a low hover
             # redetects the site right below it), then the smoothest and most certain.
-            quality = 0.7 * np.exp(-farthest_look / 10.0) + 0.3 * (
-                1.0 - 0.5 * (fit.roughness / s.max_roughness + fit.sigma / s.max_uncertainty)
-            )
+            quality = fit.roughness * f32(-0.15 / s.max_roughness)
+            quality -= fit.sigma * f32(0.15 / s.max_uncertainty)
+            quality += f32(0.3)
+            quality += np.exp(farthest_look * f32(-0.1)) * f32(0.7)
+        np.nan_to_num(quality, copy=False)
         box_origin = (origin[0] + box[0], origin[1] + box[2])
-        i, j = select_sites(size, np.nan_to_num(quality), box_origin, r, s)
+        i, j = select_sites(size, quality, box_origin, r, s)
         if len(i) == 0:
             return []
-        top = obstacle_altitude(m.top[window], m.variance[window], r, s.obstacle_radius)[i, j]
+        top = obstacle_altitude(
+            m.top[window], m.variance[window], r, s.obstacle_radius, sites=(i, j)
+        )
         xs, ys = m.cell_centres()
         xs, ys = xs[window[0]], ys[window[1]]
         z = fit.height[i, j]
@@ -382,14 +401,17 @@ def _placement_depth(depth: np.ndarray, valid: np.ndarray, kernel: int) -> np.nd
     return np.where(valid & (share > 0), total, depth)
 
 
-def _pixel_block(resolution: float, ground_per_pixel: float, shape: tuple[int, int]) -> int:
+def _pixel_block(
+    resolution: float, ground_per_pixel: float, shape: tuple[int, int], share: float = 0.25
+) -> int:
     """Side (pixels, a power of two, at most 8) of the pixel blocks to combine before
-    fusing into cells of ``resolution``: the largest block that still sees at most a
-    quarter of a cell, so blocks straddling a cell edge blur it by little. 1: no blocks."""
+    fusing into cells of ``resolution``: the largest block that still sees at most
+    ``share`` of a cell's side, so blocks straddling a cell edge blur it by little.
+    1: no blocks."""
     if ground_per_pixel <= 0:
         return 1
     block = 1
-    while block < 8 and 2 * block * ground_per_pixel <= 0.25 * resolution:
+    while block < 8 and 2 * block * ground_per_pixel <= share * resolution:
         block *= 2
     while block > 1 and min(shape) < 2 * block:
         block //= 2

@@ -77,16 +77,19 @@ def fit_planes(
     with np.errstate(invalid="ignore"):
         observed = np.isfinite(height) & np.isfinite(variance) & (variance > 0)
     hidden = ~observed
-    # Heights from a median and coordinates from the grid centre keep the moments small
-    # enough for single precision (the filters' own running sums are double). The median
-    # of an even subsample of the observed cells is as good a reference and much cheaper.
-    cells = np.flatnonzero(observed)
-    sample = height.reshape(-1)[cells[:: max(1, len(cells) // 4096)]]
-    ref = float(np.median(sample)) if len(cells) else 0.0
+    # Heights from a reference and coordinates from the grid centre keep the moments small
+    # enough for single precision (the filters' own running sums are double). Any height
+    # near the data will do as the reference: the median of an even subsample of the grid.
+    stride = max(1, int(np.sqrt(height.size / 4096)))
+    sample = height[::stride, ::stride]
+    sample = sample[np.isfinite(sample)]
+    if len(sample) == 0:
+        sample = height[np.isfinite(height)]
+    ref = float(np.median(sample)) if len(sample) else 0.0
     z = np.subtract(height, ref, dtype=f32)
-    z[hidden] = 0.0
+    np.copyto(z, f32(0.0), where=hidden)
     var = variance.astype(f32)
-    var[hidden] = 0.0
+    np.copyto(var, f32(0.0), where=hidden)
     # Inverse-variance weights: a cell seen by few or far points counts less.
     w = np.zeros(height.shape, f32)
     np.divide(f32(1.0), var, out=w, where=observed)
@@ -185,9 +188,9 @@ def fit_planes(
         sigma /= frac
         np.sqrt(sigma, out=sigma)
     for array in (plane, slope, slope_error, roughness, roughness_error, step, step_error, sigma):
-        array[failed] = np.nan
-    step[hidden] = np.nan
-    step_error[hidden] = np.nan
+        np.copyto(array, f32(np.nan), where=failed)
+    np.copyto(step, f32(np.nan), where=hidden)
+    np.copyto(step_error, f32(np.nan), where=hidden)
     plane += f32(ref)
     return PlaneFit(
         height=plane,
@@ -198,5 +201,5 @@ def fit_planes(
         step=step,
         step_error=step_error,
         sigma=sigma,
-        observed_fraction=np.clip(frac, 0.0, 1.0),
+        observed_fraction=np.clip(frac, f32(0.0), f32(1.0), out=frac),
     )

@@ -96,16 +96,46 @@ def site_size(safe: np.ndarray, resolution: float) -> np.ndarray:
 
 
 def obstacle_altitude(
-    height: np.ndarray, variance: np.ndarray, resolution: float, radius: float
+    height: np.ndarray,
+    variance: np.ndarray,
+    resolution: float,
+    radius: float,
+    sites: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> np.ndarray:
-    """(n, n) highest terrain, ENU z metres, within the square of half-side ``radius``.
+    """Highest terrain, ENU z metres, within the square of half-side ``radius``.
 
     Each observed cell counts with its height plus two sigmas, so that an uncertain map errs
     on the high side; -inf where the square holds no observed cell.
+
+    Args:
+        height: (n, m) cell heights, metres; NaN = unobserved.
+        variance: (n, m) variance of the heights, m^2.
+        resolution: cell side, metres.
+        radius: half-side of the square, metres (rounded to whole cells).
+        sites: grid indices (i, j), each (k,), of the only cells wanted, or None for all.
+
+    Returns:
+        (n, m) grid, or (k,) values at ``sites``.
     """
     half = max(0, int(round(radius / resolution)))
-    top = np.where(np.isfinite(height), height + 2.0 * np.sqrt(variance), -np.inf)
-    return maximum_box(top.astype(np.float32), 2 * half + 1).astype(np.float64)
+    if sites is None:
+        top = np.where(np.isfinite(height), height + 2.0 * np.sqrt(variance), -np.inf)
+        return maximum_box(top.astype(np.float32), 2 * half + 1).astype(np.float64)
+    # Only the bounding box of the sites' squares is filtered.
+    i, j = (np.asarray(a, dtype=np.intp) for a in sites)
+    if len(i) == 0:
+        return np.zeros(0)
+    i0, j0 = max(int(i.min()) - half, 0), max(int(j.min()) - half, 0)
+    i1 = min(int(i.max()) + half + 1, height.shape[0])
+    j1 = min(int(j.max()) + half + 1, height.shape[1])
+    part = (slice(i0, i1), slice(j0, j1))
+    f32 = np.float32
+    with np.errstate(invalid="ignore"):
+        top = np.sqrt(variance[part].astype(f32))
+        top *= f32(2.0)
+        top += height[part]
+    np.copyto(top, f32(-np.inf), where=np.isnan(top))
+    return maximum_box(top, 2 * half + 1)[i - i0, j - j0].astype(np.float64)
 
 
 def select_sites(
