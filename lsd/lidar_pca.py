@@ -26,14 +26,19 @@ radius + obstacle_margin horizontally.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from itertools import chain
 
 import numpy as np
-from scipy import ndimage
 from scipy.spatial import cKDTree
 
 from lsd.lidar_pca_settings import LidarPcaSettings, SpotWeights
-from lsd.pointcloud import CloudAccumulator, clean_points, thin_by_distance, voxel_downsample
+from lsd.pointcloud import (
+    CloudAccumulator,
+    ColumnIndex,
+    VoxelCloud,
+    clean_points,
+    thin_by_distance,
+    voxel_grid,
+)
 from lsm.records import SiteObservation
 
 __all__ = [
@@ -152,17 +157,6 @@ def search_points(
     return np.sort(order[first])
 
 
-def _neighbourhoods(
-    tree: cKDTree, centres: np.ndarray, radius: float | np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
-    """Flattened ball neighbourhoods: (lengths (S,), point indices (sum lengths,)), the
-    indices of each centre contiguous and in centre order."""
-    nb = tree.query_ball_point(centres, radius, return_sorted=False)
-    lengths = np.fromiter(map(len, nb), dtype=np.int64, count=len(nb))
-    flat = np.fromiter(chain.from_iterable(nb), dtype=np.int64, count=int(lengths.sum()))
-    return lengths, flat
-
-
 class _Pairs:
     """(search point, cloud point) pairs of the vertical cylinders around the search points,
     contiguous per search point, with coordinates relative to the search point. Spheres,
@@ -174,19 +168,9 @@ class _Pairs:
     origin (S, 3) the search points; n = S.
     """
 
-    def __init__(
-        self,
-        coords: np.ndarray,
-        tree2: cKDTree,
-        seeds: np.ndarray,
-        radius: float,
-        tree_index: np.ndarray | None = None,
-    ):
+    def __init__(self, coords: np.ndarray, index: ColumnIndex, seeds: np.ndarray, radius: float):
         self.origin = coords[:, seeds].T
-        lengths, flat = _neighbourhoods(tree2, self.origin[:, :2], radius)
-        if tree_index is not None:  # the tree holds a subset of the cloud
-            flat = tree_index[flat]
-        self.owner = np.repeat(np.arange(len(seeds)), lengths)
+        self.owner, flat = index.cylinders(coords[0], coords[1], self.origin[:, :2], radius)
         self.rel = np.empty((3, len(flat)))
         for k in range(3):
             np.subtract(coords[k][flat], self.origin[self.owner, k], out=self.rel[k])
@@ -197,23 +181,6 @@ class _Pairs:
     def starts(self) -> np.ndarray:
         """First pair of each search point (every one has its own point at distance 0)."""
         return np.searchsorted(self.owner, np.arange(self.n))
-
-
-def _near(coords: np.ndarray, centres: np.ndarray, reach: float) -> np.ndarray:
-    """Indices of the cloud points (``coords`` (3, N) rows) in the horizontal cells (of size
-    ``reach``) around the centres' cells: a superset of every point within ``reach`` of a
-    centre, so the k-d tree is built only over what the few search points can touch."""
-    lo = centres[:, :2].min(axis=0) - 2.0 * reach  # the grid spans the centres only
-    c = np.floor((centres[:, :2] - lo) / reach).astype(np.int64)
-    shape = c.max(axis=0) + 3
-    marked = np.zeros(shape, dtype=bool)
-    marked[c[:, 0], c[:, 1]] = True
-    marked = ndimage.binary_dilation(marked, structure=np.ones((3, 3), dtype=bool))
-    ix = np.floor((coords[0] - lo[0]) * (1.0 / reach)).astype(np.int64)
-    iy = np.floor((coords[1] - lo[1]) * (1.0 / reach)).astype(np.int64)
-    np.clip(ix, 0, shape[0] - 1, out=ix)  # the grid's border cells are never marked
-    np.clip(iy, 0, shape[1] - 1, out=iy)
-    return np.flatnonzero(marked[ix, iy])
 
 
 def _shell_pca(pairs: _Pairs, radii: np.ndarray):
@@ -312,20 +279,20 @@ def _grow(pairs: _Pairs, radii: np.ndarray, settings: LidarPcaSettings, max_step
 
 
 def detect_planes(
-    cloud: np.ndarray,
+    cloud: np.ndarray | VoxelCloud,
     settings: LidarPcaSettings,
     rng: np.random.Generator,
-    tree2: cKDTree | None = None,
     timestamp: float = 0.0,
 ) -> PlaneSearch:
     """Algorithm 1 (growing spherical neighbourhoods, PCA planes) on a downsampled cloud,
     followed by the sigma_max rejection of section 4.5.
 
     Args:
-        cloud: ``(N, 3)`` downsampled world points, metres.
+        cloud: the :class:`~lsd.pointcloud.VoxelCloud` from
+            :func:`~lsd.pointcloud.voxel_grid` (its column index is used as is), or any
+            ``(N, 3)`` world cloud, metres (indexed here first: one stable sort).
         settings: detector settings.
         rng: source of the random search points.
-        tree2: a ``cKDTree`` of ``cloud[:, :2]`` (horizontal) if already built.
         timestamp: clock seconds stamped on the spots.
 
     A search point grows its sphere from r_min by r_step while the fit has at least n_min
@@ -334,35 +301,37 @@ def detect_planes(
     Beyond the paper, the spot radius is then cut to the horizontal distance of the nearest
     point farther than max_step from the plane inside the vertical cylinder (a sphere misses
     a tall obstacle beside the spot and the drop at a roof edge), and a spot cut below r_min
-    is rejected. One horizontal k-d tree query (radius r_max + obstacle_margin + r_step)
+    is rejected. One horizontal cylinder query (radius r_max + obstacle_margin + r_step)
     serves every radius, the clearance and the obstacle altitude.
     """
-    seeds = search_points(cloud, settings, rng)
+    if isinstance(cloud, VoxelCloud):
+        coords, index = cloud.coords, cloud.index
+        seeds = search_points(cloud.points, settings, rng)
+        work = seeds  # positions of the search points in coords
+    else:
+        cloud = np.asarray(cloud, dtype=np.float64)
+        seeds = search_points(cloud, settings, rng)
+        unsorted = np.ascontiguousarray(cloud.T)
+        index, order = ColumnIndex.build(unsorted[0], unsorted[1], settings.r_min / 2.0)
+        coords = unsorted[:, order]
+        rank = np.empty_like(order)
+        rank[order] = np.arange(len(order))
+        work = rank[seeds]
     s = len(seeds)
     accepted = np.zeros(s, dtype=bool)
     if s == 0:
         return PlaneSearch(SpotTable(), seeds, accepted)
     radii = np.asarray(settings.radii)
     reach = settings.r_max + settings.obstacle_margin + settings.r_step
-    coords = np.ascontiguousarray(cloud.T)
-    tree_index = None
-    if tree2 is None:
-        tree_index = _near(coords, cloud[seeds], reach)
-        tree2 = cKDTree(
-            np.stack((coords[0][tree_index], coords[1][tree_index]), axis=1),
-            balanced_tree=False,
-            compact_nodes=False,
-        )
     max_step = settings.max_step if settings.max_step is not None else np.inf
     # Most search points fail at r_min (the paper's env II): test r_min on small cylinders
     # first and query the full reach only for the points that passed.
-    first = _grow(_Pairs(coords, tree2, seeds, radii[0], tree_index), radii[:1], settings,
-                  max_step)  # fmt: skip
+    first = _grow(_Pairs(coords, index, work, radii[0]), radii[:1], settings, max_step)
     first_fail = first.first_fail
     level = first.level
     fits = first.fits
     mean = np.zeros((s, 3))
-    origin = cloud[seeds]
+    origin = coords[:, work].T
     normal = np.zeros((s, 3))
     normal[:, 2] = 1.0
     evals = np.zeros((s, 3))
@@ -371,7 +340,7 @@ def detect_planes(
     live = np.flatnonzero(level >= 0)
     pairs = None
     if len(live):
-        pairs = _Pairs(coords, tree2, seeds[live], reach, tree_index)
+        pairs = _Pairs(coords, index, work[live], reach)
         grow = _grow(pairs, radii, settings, max_step)
         fits += grow.fits - len(live)  # r_min was fitted twice
         level[live] = grow.level
@@ -562,8 +531,7 @@ class LidarPcaDetector:
         if len(cloud) < s.n_min:
             self.last_search = None
             return []
-        down, _ = voxel_downsample(cloud, s.voxel_size)
-        search = detect_planes(down, s, self.rng, timestamp=now)
+        search = detect_planes(voxel_grid(cloud, s.voxel_size), s, self.rng, timestamp=now)
         self.last_search = search
         self.counters["planes_accepted"] += search.n_accepted
         self.counters["planes_rejected"] += search.n_rejected

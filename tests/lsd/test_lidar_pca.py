@@ -7,9 +7,16 @@ import math
 import numpy as np
 import pytest
 from pydantic import ValidationError
+from scipy.spatial import cKDTree
 
 from lsd.lidar_pca import LidarPcaDetector, LidarPcaSettings, detect_planes, spot_grades
-from lsd.pointcloud import CloudAccumulator, thin_by_distance, voxel_downsample
+from lsd.pointcloud import (
+    CloudAccumulator,
+    ColumnIndex,
+    thin_by_distance,
+    voxel_downsample,
+    voxel_grid,
+)
 
 STEP = 0.1  # sample spacing of the constructed clouds, m
 
@@ -314,3 +321,45 @@ def test_spheres_running_off_the_cloud_edge_stop_growing():
     ours, overhang = worst_overhang(SETTINGS)  # max_offset 0.15
     assert paper.rejected_edge == 0 and ours.rejected_edge > 0
     assert overhang <= 0.3 < paper_overhang
+
+
+def test_voxel_grid_centroids_match_a_per_voxel_reference():
+    rng = np.random.default_rng(5)
+    pts = rng.uniform([-3, -2, 0], [3, 2, 1], (5000, 3))
+    grid = voxel_grid(pts, 0.25)
+    keys = np.floor((pts - pts.min(axis=0)) / 0.25).astype(np.int64)
+    uniq, inverse = np.unique(keys, axis=0, return_inverse=True)
+    expected = np.stack([np.bincount(inverse.ravel(), pts[:, k]) for k in range(3)], axis=1)
+    expected /= np.bincount(inverse.ravel())[:, None]
+    assert len(grid) == len(uniq) and grid.counts.sum() == len(pts)
+    # Same centroids (matched by nearest neighbour), each voxel once.
+    dist, match = cKDTree(expected).query(grid.points)
+    assert dist.max() < 1e-9 and len(np.unique(match)) == len(uniq)
+    # The cloud is sorted by column, as its index says.
+    assert np.all(np.diff(grid.index.keys) >= 0)
+
+
+@pytest.mark.parametrize("cell", [0.05, 0.3, 2.0])
+def test_column_index_cylinders_equal_a_kd_tree_ball_query(cell):
+    rng = np.random.default_rng(9)
+    xy = rng.uniform(-10, 10, (4000, 2))
+    index, order = ColumnIndex.build(xy[:, 0], xy[:, 1], cell)
+    x, y = xy[order, 0], xy[order, 1]
+    centres = np.r_[rng.uniform(-12, 12, (30, 2)), [[-10.0, -10.0], [10.0, 10.0]]]
+    owner, found = index.cylinders(x, y, centres, 1.7)
+    assert np.all(np.diff(owner) >= 0)  # contiguous per centre, centres in order
+    tree = cKDTree(np.c_[x, y])
+    for k, ref in enumerate(tree.query_ball_point(centres, 1.7)):
+        assert sorted(found[owner == k]) == sorted(ref)
+
+
+def test_detect_planes_gives_the_same_spots_on_a_voxel_grid_and_its_points():
+    cloud = voxel_grid(box_scene(), SETTINGS.voxel_size)
+    s = SETTINGS.model_copy(update={"seeding": "random", "n_points": 60})
+    a = detect_planes(cloud, s, np.random.default_rng(4))
+    b = detect_planes(np.array(cloud.points), s, np.random.default_rng(4))
+    assert a.n_accepted > 0 and a.n_rejected > 0
+    np.testing.assert_array_equal(a.seeds, b.seeds)
+    np.testing.assert_array_equal(a.accepted, b.accepted)
+    np.testing.assert_allclose(a.spots.centre, b.spots.centre, atol=1e-9)
+    np.testing.assert_allclose(a.spots.radius, b.spots.radius)
