@@ -93,12 +93,6 @@ class DepthCostmapSettings(BaseModel):
     )
     cluster_distance: float = Field(0.5, gt=0, description="clustering euclidean threshold (m)")
     cluster_dz: float = Field(0.01, gt=0, description="clustering z-difference threshold (m)")
-    cluster_window: float = Field(
-        10.0,
-        gt=0,
-        description="per frame, listed sites within this distance (m) of the frame's sites "
-        "are re-clustered with them (bounds the cost as the list grows)",
-    )
     hierarchy_limit: int = Field(
         1000,
         ge=2,

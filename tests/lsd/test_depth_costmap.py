@@ -136,6 +136,17 @@ def test_low_hover_over_noisy_stereo_depth_redetects_the_ground_below():
     assert det.last_sites.size.min() >= DepthCostmapSettings().vehicle_radius
 
 
+@pytest.mark.parametrize("altitude", [0.06, 0.3, 1.0])
+def test_very_near_ground_is_handled_without_error(altitude):
+    # Near depth projects the footprint wider than the image: no site, and no exception.
+    k = Intrinsics(fx=256.0, fy=256.0, cx=127.5, cy=127.5, width=256, height=256)
+    pos = (0.0, 0.0, altitude)
+    depth = plane_depth((0, 0, 1), 0.0, np.asarray(pos), NADIR, k).astype(np.float32)
+    det = DepthCostmapDetector()
+    assert det.process(frame(depth, position=pos, k=k)) == []
+    assert det.counters["frames"] == 1 and det.counters["frames_dropped"] == 0
+
+
 def test_a_small_step_is_an_edge_on_clean_depth_and_not_below_edge_step():
     depth = render()
     step = depth.copy()
@@ -267,6 +278,30 @@ def test_hierarchy_and_kdtree_clustering_give_the_same_partition():
     pairs_a = a[:, None] == a[None, :]
     pairs_b = b[:, None] == b[None, :]
     assert np.array_equal(pairs_a, pairs_b)
+
+
+def test_clusters_reported_frame_by_frame_are_those_of_the_whole_list():
+    # Sites arrive in batches that bridge earlier clusters; each batch's reported clusters
+    # must be clusters of the whole list clustered at once (single linkage only merges).
+    rng = np.random.default_rng(11)
+    det = DepthCostmapDetector(DepthCostmapSettings(dedup_distance=0.1))
+    reported = []
+    for _ in range(12):
+        n = 80
+        pos = np.c_[rng.uniform(0, 8, (n, 2)), rng.choice([0.0, 0.005, 1.0], n)]
+        batch = DenseSites(
+            pixels=np.zeros((n, 2), dtype=np.int64), positions=pos, score=rng.random(n),
+            size=np.ones(n), roughness=np.zeros(n), uncertainty=np.zeros(n),
+            obstacle_altitude=pos[:, 2].copy(), observation_altitude=np.full(n, 10.0),
+        )
+        reported.append(det.add_sites(batch))
+    whole = {tuple(np.round(o.position, 9)) for o in det.clusters()}
+    last = {tuple(np.round(o.position, 9)) for o in reported[-1]}
+    assert last and last <= whole
+    # The whole list's partition is that of cluster_sites on all listed positions.
+    full = cluster_sites(det.site_list.sites.positions, 0.5, 0.01, hierarchy_limit=2)
+    assert np.array_equal(det.labels[:, None] == det.labels[None, :],
+                          full[:, None] == full[None, :])
 
 
 def test_detector_returns_cluster_centroids():
