@@ -5,6 +5,7 @@ cells (median over seeds), the time of the ground-truth safety map of the whole 
 its safe fraction, and the median time of one 256 x 256 depth render at several altitudes
 above ground (SfM above 15 m, stereo below). Each figure is wall time / process CPU time
 in milliseconds (CPU time sums all threads; on a loaded machine it is the steadier figure).
+OpenCV and BLAS run on one thread, as in ``bench_lsd.py``.
 
     .venv/bin/python benchmarks/bench_terrain.py [--repeats N]
 """
@@ -12,12 +13,16 @@ in milliseconds (CPU time sums all threads; on a loaded machine it is the steadi
 from __future__ import annotations
 
 import argparse
+import os
 import time
 
-import numpy as np
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
-from sitl.sensors import DepthCamera, DepthCameraSettings
-from sitl.terrain import Terrain, is_safe, make_terrain, safety_map
+import cv2  # noqa: E402
+import numpy as np  # noqa: E402
+
+from sitl.sensors import DepthCamera, DepthCameraSettings  # noqa: E402
+from sitl.terrain import Terrain, is_safe, make_terrain, safety_map  # noqa: E402
 
 KINDS = ("flat", "mars", "urban", "rubble")
 ALTITUDES = (100.0, 30.0, 10.0, 2.5)
@@ -58,6 +63,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description="terrain and depth camera benchmark")
     parser.add_argument("--repeats", type=int, default=5, help="runs per figure")
     args = parser.parse_args()
+    cv2.setNumThreads(1)
     print(
         "400 m x 400 m worlds at 0.2 m cells (2001 x 2001); figures are wall/CPU ms, "
         f"median of {args.repeats}"

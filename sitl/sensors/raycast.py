@@ -1,4 +1,8 @@
-"""Ray / height-field intersection, vectorised over rays."""
+"""Ray / height-field intersection, vectorised over rays.
+
+:func:`cast_rays` marches any set of rays (the LiDAR's, and the fine-step reference);
+:func:`cast_pinhole_rays` renders a downward pinhole camera's image several times faster,
+from bounds on the ground a :class:`HeightBounds` pyramid gives per image tile."""
 
 from __future__ import annotations
 
@@ -307,8 +311,8 @@ def cast_pinhole_rays(
         bounds: the terrain's :class:`HeightBounds` (build once per terrain).
         origin: (3,) camera centre, ENU metres.
         directions: (H, W, 3) ray direction of every pixel (any length; the result is in
-            their units), pointing down (z < 0), e.g. with unit optical-axis component so
-            the parameter is the depth.
+            their units), all pointing down (z < 0), e.g. with unit optical-axis component
+            so the parameter is the depth. Raises ValueError otherwise.
         t_max: hits beyond this parameter report NaN.
         step: horizontal march step (m); default: the cell size.
 
@@ -318,6 +322,8 @@ def cast_pinhole_rays(
     """
     ox, oy, oz = (float(c) for c in origin)
     d = np.asarray(directions, dtype=np.float64)
+    if d.ndim != 3 or d.shape[2] != 3 or not np.all(d[..., 2] < 0):
+        raise ValueError("directions: need (H, W, 3) rays all pointing down (z < 0)")
     height, width = d.shape[:2]
     cs = bounds.cell_size
     # Cell-centre coordinates: u = u_o + t * du (columns), v = v_o + t * dv (rows).
@@ -427,7 +433,7 @@ def cast_pinhole_rays(
         a = a + above * (c - a)
         b = c + above * (b - c)
     t = t.reshape(height, width)
-    t[~(d[..., 2] < 0) | (t > t_max)] = np.nan
+    t[t > t_max] = np.nan
     return t
 
 

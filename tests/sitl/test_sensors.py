@@ -14,7 +14,7 @@ from sitl.sensors import (
     depth_sigma,
     nadir_rotation,
 )
-from sitl.sensors.raycast import HeightBounds, cast_rays
+from sitl.sensors.raycast import HeightBounds, cast_pinhole_rays, cast_rays
 from sitl.terrain import Terrain, make_terrain
 
 CELL = 0.2
@@ -337,3 +337,14 @@ def test_height_bounds_hold_the_surface_of_every_box():
     assert np.all(z.max(axis=1) <= high + 1e-6)
     assert np.all(z.min(axis=1) >= low - 1e-6)
     assert np.mean(high - low) < 0.5 * float(np.ptp(terrain.grid))  # and they are local
+
+
+def test_pinhole_rays_must_point_down():
+    terrain = terrain_of(np.zeros_like(X))
+    rays = np.zeros((4, 4, 3))
+    rays[..., 2] = -1.0
+    rays[0, 0, 2] = 0.1  # one ray looking up
+    with pytest.raises(ValueError, match="directions"):
+        cast_pinhole_rays(HeightBounds(terrain), [0.0, 0.0, 10.0], rays)
+    rays[0, 0, 2] = -1.0
+    np.testing.assert_allclose(cast_pinhole_rays(HeightBounds(terrain), [0, 0, 10.0], rays), 10)
