@@ -69,7 +69,8 @@ class Costmaps:
 
     Attributes:
         valid: bool, depth finite and within [d_min, d_max].
-        world_z: float32 world ENU height of each pixel's point (NaN where invalid).
+        world_z: float32 world ENU height of each pixel's point (-inf where invalid, so
+            maximum filters ignore it).
         depth_accuracy, flatness, steepness, energy: float32 normalised scores in [0, 1].
         flatness_px: float32 distance (pixels) to the nearest depth edge.
         decision: float32 eq. 7 score in [0, 1] (0 where invalid).
@@ -273,14 +274,20 @@ def compute_costmaps(frame: DepthFrame, settings: DepthCostmapSettings) -> Costm
         side = max(side, round(min(k.fx, k.fy) * s.normal_span / median_depth))
     side = min(side, max(min(h, w) // 4, 1))
     win = (side, side)
-    dm = cv2.blur(d, win, borderType=cv2.BORDER_REPLICATE)  # box average (O(1) per pixel)
-    # The box-averaged normals vary on the scale of the window (>= 5 px): evaluate them on
-    # every second pixel and interpolate back (a quarter of the arithmetic, arccos included).
-    step = 2 if side >= 4 else 1
+    # The box-averaged normals vary on the scale of the window (>= 5 px): evaluate them at
+    # half resolution (2 x 2 pixel means, then a half-size box) and interpolate back, which
+    # is a quarter of the arithmetic, arccos included.
+    step = 2 if side >= 4 and min(h, w) >= 8 else 1
     if step > 1:
-        dm = np.ascontiguousarray(dm[::step, ::step])
-        xs, ys = xn[:, ::step], yn[::step]
+        hs, ws = (h + 1) // 2, (w + 1) // 2
+        half_d = cv2.resize(d, (ws, hs), interpolation=cv2.INTER_AREA)
+        hside = max(side // 2, 1)
+        dm = cv2.blur(half_d, (hside, hside), borderType=cv2.BORDER_REPLICATE)
+        # Half-resolution pixel j covers full pixels 2j, 2j + 1: centre 2j + 0.5.
+        xs = ((np.arange(ws, dtype=np.float32) * 2 + np.float32(0.5 - k.cx)) / k.fx)[None, :]
+        ys = ((np.arange(hs, dtype=np.float32) * 2 + np.float32(0.5 - k.cy)) / k.fy)[:, None]
     else:
+        dm = cv2.blur(d, win, borderType=cv2.BORDER_REPLICATE)  # box average (O(1) / pixel)
         xs, ys = xn, yn
     # Central differences of the box average (per full-resolution pixel).
     half = np.float32(0.5 / step)
@@ -312,15 +319,14 @@ def compute_costmaps(frame: DepthFrame, settings: DepthCostmapSettings) -> Costm
     c = s.weights
     decision = cv2.addWeighted(depth_accuracy, c.depth_accuracy, flatness, c.flatness, 0.0)
     decision = cv2.addWeighted(decision, 1.0, steepness, c.steepness, 0.0)
-    decision = cv2.addWeighted(decision, 1.0, energy, c.energy, 0.0)
-    decision *= mask8
+    decision = cv2.addWeighted(decision, 1.0, energy, c.energy, 0.0)  # 0 where invalid
 
     pos = np.asarray(frame.position, dtype=np.float64)
-    z = (
+    world_z = (
         np.float32(rot[2, 0]) * xn + np.float32(rot[2, 1]) * yn + np.float32(rot[2, 2])
-    ) * d + np.float32(pos[2])
-    world_z = np.full((h, w), np.nan, dtype=np.float32)
-    cv2.copyTo(z, valid8, world_z)
+    ) * d
+    world_z += np.float32(pos[2])
+    world_z[~valid] = -np.inf
     return Costmaps(
         valid=valid,
         world_z=world_z,
@@ -385,8 +391,7 @@ def dense_sites(
     # conservative by under a block, and cheaper than one large dilation.
     nearest = max(maps.depth_range[0], 1e-6)
     radius_px = int(np.ceil(f * (s.vehicle_radius + s.obstacle_margin) / nearest))
-    valid_z = np.full(frame.depth.shape, -np.inf, dtype=np.float32)
-    cv2.copyTo(maps.world_z, maps.valid.view(np.uint8), valid_z)
+    valid_z = maps.world_z
     h, w = frame.depth.shape
     radius_px = min(radius_px, max(h, w))  # beyond that the window is the whole image
     b = min(2 * (radius_px // 6) + 1, 2 * ((min(h, w) - 1) // 2) + 1)

@@ -41,7 +41,12 @@ class DepthCostmapSettings(BaseModel):
     theta_th_deg: float = Field(15.0, gt=0, lt=90, description="steepness scale (deg), eq. 5")
     d_min: float = Field(0.05, ge=0, description="nearest valid depth (m)")
     d_max: float = Field(200.0, gt=0, description="farthest valid depth (m)")
-    vehicle_radius: float = Field(0.5, gt=0, description="footprint radius checked (m)")
+    vehicle_radius: float = Field(
+        1.0,
+        gt=0,
+        description="footprint radius checked (m): our vehicle's, as the elevation map's "
+        "footprint_radius and the ground truth's (the paper's UAV was 0.26 m across)",
+    )
     edge_step: float = Field(
         0.15,
         gt=0,
