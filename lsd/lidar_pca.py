@@ -163,57 +163,93 @@ class _Pairs:
     clearance discs and obstacle discs of any radius up to the cylinder's are masks over
     these pairs, so the cloud is queried once.
 
-    Attributes: owner (P,) search point of each pair; rel (3, P) x, y, z rows relative to it
-    (rows: 1-D gathers are much faster than row gathers of an (N, 3) array); distance (P,);
-    origin (S, 3) the search points; n = S.
+    Attributes: owner (P,) search point of each pair; x, y, z (P,) coordinates relative to
+    it; shell (P,) index of the smallest of ``radii`` whose sphere holds the point
+    (len(radii) beyond the largest); counts (S,) pairs per search point; origin (S, 3) the
+    search points; n = S.
     """
 
-    def __init__(self, coords: np.ndarray, index: ColumnIndex, seeds: np.ndarray, radius: float):
+    def __init__(
+        self,
+        coords: np.ndarray,
+        index: ColumnIndex,
+        seeds: np.ndarray,
+        radius: float,
+        radii: np.ndarray,
+    ):
         self.origin = coords[:, seeds].T
-        self.owner, flat = index.cylinders(coords[0], coords[1], self.origin[:, :2], radius)
-        self.rel = np.empty((3, len(flat)))
-        for k in range(3):
-            np.subtract(coords[k][flat], self.origin[self.owner, k], out=self.rel[k])
-        x, y, z = self.rel
-        self.distance = np.sqrt(x * x + y * y + z * z)
         self.n = len(seeds)
+        self.owner, flat, self.x, self.y = index.cylinders(
+            coords[0], coords[1], self.origin[:, :2], radius
+        )
+        self.z = coords[2][flat]
+        self.z -= self.origin[:, 2][self.owner]
+        d2 = self.x * self.x
+        d2 += self.y * self.y
+        d2 += self.z * self.z
+        self.shell = np.searchsorted(radii * radii, d2, side="left")
+        self.counts = np.bincount(self.owner, minlength=self.n)
 
     def starts(self) -> np.ndarray:
         """First pair of each search point (every one has its own point at distance 0)."""
-        return np.searchsorted(self.owner, np.arange(self.n))
+        return np.cumsum(self.counts) - self.counts
 
 
-def _shell_pca(pairs: _Pairs, radii: np.ndarray):
-    """PCA of every search point's sphere at every radius at once.
+# Upper-triangle moment k of (x, y, z) for each entry of a 3 x 3 covariance.
+_COV_ENTRY = np.array([[0, 1, 2], [1, 3, 4], [2, 4, 5]])
 
-    Points are binned into spherical shells (radius index of the smallest sphere holding
-    them); per-shell moment sums from ``np.bincount`` are accumulated over shells, so each
-    sphere's moments cost O(1) and one stacked ``eigh`` fits all (S, R) planes.
+
+def _shell_pca(pairs: _Pairs, r: int):
+    """PCA of every search point's sphere at each of the ``r`` radii at once.
+
+    Points are binned into spherical shells (``pairs.shell``); per-shell moment sums from
+    ``np.bincount`` are accumulated over shells, so each sphere's moments cost O(1) and one
+    stacked ``eigh`` fits all (S, R) planes.
 
     Returns count (S, R), centroid relative to the search point (S, R, 3), eigenvalues
-    (S, R, 3) ascending, unit normals (S, R, 3) with z >= 0, z std (S, R), and the shell
-    index of every pair (P,) (R where beyond the largest sphere).
+    (S, R, 3) ascending, unit normals (S, R, 3) with z >= 0 and z std (S, R).
     """
-    s, r = pairs.n, len(radii)
-    shell = np.searchsorted(radii, pairs.distance, side="left")
-    inside = shell < r
-    key = (pairs.owner * r + shell)[inside]
-    x, y, z = pairs.rel[:, inside]
+    s = pairs.n
+    inside = np.flatnonzero(pairs.shell < r)
+    key = pairs.owner[inside] * r + pairs.shell[inside]
+    x, y, z = pairs.x[inside], pairs.y[inside], pairs.z[inside]
     weights = (None, x, y, z, x * x, x * y, x * z, y * y, y * z, z * z)
     m = np.stack([np.bincount(key, w, minlength=s * r) for w in weights], axis=-1)
     m = np.cumsum(m.reshape(s, r, 10), axis=1)
-    count = m[..., 0]
-    n = np.maximum(count, 1.0)[..., None]
-    mean = m[..., 1:4] / n
-    second = m[..., 4:10] / n
-    cov = np.empty((s, r, 3, 3))
-    for k, (a, b) in enumerate(((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))):
-        cov[..., a, b] = cov[..., b, a] = second[..., k] - mean[..., a] * mean[..., b]
+    count = m[..., 0].copy()
+    m /= np.maximum(count, 1.0)[..., None]
+    mean = m[..., 1:4]
+    cov = m[..., 4:10][..., _COV_ENTRY] - mean[..., :, None] * mean[..., None, :]
     evals, evecs = np.linalg.eigh(cov)
     normal = evecs[..., 0]
     normal *= np.where(normal[..., 2] < 0, -1.0, 1.0)[..., None]
     zstd = np.sqrt(np.clip(cov[..., 2, 2], 0.0, None))
-    return count, mean, np.clip(evals, 0.0, None), normal, zstd, shell
+    return count, mean, np.clip(evals, 0.0, None), normal, zstd
+
+
+def _max_plane_distance(pairs: _Pairs, mean, normal, need: np.ndarray) -> np.ndarray:
+    """Largest distance of a sphere's points from its plane, (S, R), for the spheres marked
+    in ``need`` (S, R) (0 elsewhere; ``need`` is a prefix of radii per search point).
+
+    Every pair is repeated once per needed radius at or above its shell, so all spheres are
+    checked in one pass (no loop over radii) and reduced with ``np.maximum.at``.
+    """
+    s, r = need.shape
+    last = np.where(need.any(axis=1), r - 1 - np.argmax(need[:, ::-1], axis=1), -1)
+    copies = np.maximum(last[pairs.owner] - pairs.shell + 1, 0)
+    pair = np.repeat(np.arange(len(copies)), copies)
+    total = len(pair)
+    # Radius of each copy: the pair's shell, then one more per further copy.
+    start = np.cumsum(copies) - copies
+    radius = np.arange(total) - np.repeat(start - pairs.shell, copies)
+    sphere = pairs.owner[pair] * r + radius
+    # Plane through the centroid: distance = p . n - m . n, as one 4-vector dot product.
+    plane = np.concatenate((normal, -(mean * normal).sum(axis=-1, keepdims=True)), axis=-1)
+    point = np.stack((pairs.x[pair], pairs.y[pair], pairs.z[pair], np.ones(total)), axis=1)
+    dist = np.abs(np.einsum("ij,ij->i", point, np.take(plane.reshape(s * r, 4), sphere, axis=0)))
+    out = np.zeros(s * r)
+    np.maximum.at(out, sphere, dist)
+    return out.reshape(s, r)
 
 
 @dataclass
@@ -232,49 +268,41 @@ class _Growth:
 
 
 def _grow(pairs: _Pairs, radii: np.ndarray, settings: LidarPcaSettings, max_step: float):
-    """Grow every search point's sphere over ``radii`` (the Algorithm 1 loop, batched): a
-    point stays alive while each larger sphere has n_min points, slope <= theta_max, no
-    point farther than max_step from its plane and its centroid within max_offset * r
-    (horizontally) of the search point."""
-    s = pairs.n
-    count, mean, evals, normal, zstd, shell = _shell_pca(pairs, radii)
+    """Grow every search point's sphere over ``radii`` (the Algorithm 1 loop, batched over
+    search points and radii): a point stays alive while each larger sphere has n_min points,
+    slope <= theta_max, no point farther than max_step from its plane and its centroid
+    within max_offset * r (horizontally) of the search point."""
+    r, s = len(radii), pairs.n
+    if np.bincount(pairs.owner[pairs.shell == 0], minlength=s).max() < settings.n_min:
+        # No r_min sphere holds n_min points (sparse clouds): nothing to fit.
+        z = np.zeros((s, r))
+        none = np.full(s, -1)
+        return _Growth(none, np.ones(s, dtype=np.int8), 0, z, *np.zeros((3, s, r, 3)), z)
+    count, mean, evals, normal, zstd = _shell_pca(pairs, r)
     slope = np.arccos(np.clip(normal[..., 2], 0.0, 1.0))
     enough = count >= settings.n_min
-    steep = enough & (slope > settings.theta_max)
-    level = np.full(s, -1)
-    first_fail = np.zeros(s, dtype=np.int8)  # at r_min: 1 points, 2 slope, 3 step, 4 edge
-    alive = np.ones(s, dtype=bool)
-    fits = 0
-    for j in range(len(radii)):  # a handful of radius steps, all search points at once
-        fits += int((alive & enough[:, j]).sum())
-        ok = alive & enough[:, j] & ~steep[:, j]
-        off = np.zeros(s, dtype=bool)
-        if np.isfinite(max_step) and ok.any():
-            # Largest distance from the plane over the sphere's pairs of the live points.
-            sel = np.flatnonzero(ok[pairs.owner] & (shell <= j))
-            own = pairs.owner[sel]
-            m, nrm = mean[:, j], normal[:, j]
-            res = np.abs(
-                (pairs.rel[0][sel] - m[own, 0]) * nrm[own, 0]
-                + (pairs.rel[1][sel] - m[own, 1]) * nrm[own, 1]
-                + (pairs.rel[2][sel] - m[own, 2]) * nrm[own, 2]
-            )
-            first = np.flatnonzero(np.diff(own, prepend=-1))
-            off[own[first]] = np.maximum.reduceat(res, first) > max_step
-        lopsided = np.zeros(s, dtype=bool)
-        if settings.max_offset is not None:
-            shift = np.hypot(mean[:, j, 0], mean[:, j, 1])  # centroid relative to the seed
-            lopsided = ok & ~off & (shift > settings.max_offset * radii[j])
-        if j == 0:
-            first_fail[~enough[:, 0]] = 1
-            first_fail[steep[:, 0]] = 2
-            first_fail[off] = 3
-            first_fail[lopsided] = 4
-        ok &= ~off & ~lopsided
-        level[ok] = j
-        alive = ok
-        if not alive.any():
-            break
+    fit = enough & (slope <= settings.theta_max)  # a plane flat enough
+    lopsided = np.zeros_like(fit)
+    if settings.max_offset is not None:  # centroid relative to the seed
+        lopsided = np.hypot(mean[..., 0], mean[..., 1]) > settings.max_offset * radii
+    off = np.zeros_like(fit)
+    if np.isfinite(max_step):
+        # Only spheres a point can reach matter: those after an unbroken run of passes.
+        reach = fit & ~lopsided
+        need = fit.copy()
+        need[:, 1:] &= np.logical_and.accumulate(reach, axis=1)[:, :-1]
+        if need.any():
+            off = need & (_max_plane_distance(pairs, mean, normal, need) > max_step)
+    passed = np.logical_and.accumulate(fit & ~off & ~lopsided, axis=1)
+    level = passed.sum(axis=1) - 1
+    alive = np.ones_like(fit)  # alive before trying each radius
+    alive[:, 1:] = passed[:, :-1]
+    fits = int((alive & enough).sum())
+    first_fail = np.zeros(pairs.n, dtype=np.int8)  # at r_min: 1 points, 2 slope, 3 step, 4 edge
+    first_fail[~fit[:, 0]] = 2
+    first_fail[~enough[:, 0]] = 1
+    first_fail[fit[:, 0] & off[:, 0]] = 3
+    first_fail[fit[:, 0] & ~off[:, 0] & lopsided[:, 0]] = 4
     return _Growth(level, first_fail, fits, count, mean, evals, normal, zstd)
 
 
@@ -326,7 +354,8 @@ def detect_planes(
     max_step = settings.max_step if settings.max_step is not None else np.inf
     # Most search points fail at r_min (the paper's env II): test r_min on small cylinders
     # first and query the full reach only for the points that passed.
-    first = _grow(_Pairs(coords, index, work, radii[0]), radii[:1], settings, max_step)
+    first = _grow(_Pairs(coords, index, work, radii[0], radii[:1]), radii[:1], settings,
+                  max_step)  # fmt: skip
     first_fail = first.first_fail
     level = first.level
     fits = first.fits
@@ -340,7 +369,7 @@ def detect_planes(
     live = np.flatnonzero(level >= 0)
     pairs = None
     if len(live):
-        pairs = _Pairs(coords, index, work[live], reach)
+        pairs = _Pairs(coords, index, work[live], reach, radii)
         grow = _grow(pairs, radii, settings, max_step)
         fits += grow.fits - len(live)  # r_min was fitted twice
         level[live] = grow.level
@@ -405,18 +434,24 @@ def _clearance_and_obstacle(
     """Per search point (S,): the horizontal distance from the spot centre to the nearest
     point farther than ``max_step`` from the spot plane within its radius (the radius if
     none), and the highest point within radius + margin (the centre's z if none)."""
-    owner = pairs.owner
-    shift = pairs.origin - centres
-    x, y, z = (pairs.rel[k] + shift[owner, k] for k in range(3))
-    horiz = np.hypot(x, y)
+    counts = pairs.counts
+    c = centres - pairs.origin  # spot centres relative to their search points
+    hx = pairs.x - np.repeat(c[:, 0], counts)
+    hy = pairs.y - np.repeat(c[:, 1], counts)
+    hz = pairs.z - np.repeat(c[:, 2], counts)
+    h2 = hx * hx
+    h2 += hy * hy
+    height = hx * np.repeat(normals[:, 0], counts)
+    height += hy * np.repeat(normals[:, 1], counts)
+    height += hz * np.repeat(normals[:, 2], counts)
     starts = pairs.starts()
-    height = x * normals[owner, 0] + y * normals[owner, 1] + z * normals[owner, 2]
-    off = np.abs(height) > max_step
-    blocking = np.where(off & (horiz <= radii[owner]), horiz, np.inf)
-    clearance = np.minimum(radii, np.minimum.reduceat(blocking, starts))
-    near = horiz <= radii[owner] + margin
-    z = np.where(near, z + centres[owner, 2], -np.inf)
-    obstacle = np.maximum(centres[:, 2], np.maximum.reduceat(z, starts))
+    # Squared horizontal distance of the points off the plane within the radius.
+    blocking = np.where(
+        (np.abs(height) > max_step) & (h2 <= np.repeat(radii * radii, counts)), h2, np.inf
+    )
+    clearance = np.minimum(radii, np.sqrt(np.minimum.reduceat(blocking, starts)))
+    hz[h2 > np.repeat((radii + margin) ** 2, counts)] = -np.inf
+    obstacle = centres[:, 2] + np.maximum(np.maximum.reduceat(hz, starts), 0.0)
     return clearance, obstacle
 
 

@@ -70,7 +70,7 @@ class ColumnIndex:
 
     def cylinders(
         self, x: np.ndarray, y: np.ndarray, centres: np.ndarray, radius: float
-    ) -> tuple[np.ndarray, np.ndarray]:
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Points within ``radius`` horizontally (distance <= radius) of each centre.
 
         Args:
@@ -79,8 +79,9 @@ class ColumnIndex:
             radius: cylinder radius, metres.
 
         Returns:
-            ``(owner, index)``, both ``(P,)`` int64: centre and point of every pair,
-            contiguous per centre, centres in order. Candidate points come from one slice
+            ``(owner, index, dx, dy)``, all ``(P,)``: centre and point (int64) of every
+            pair, contiguous per centre, centres in order, and the point's x, y offsets
+            from its centre. Candidate points come from one slice
             per grid row crossing each disc (two ``searchsorted`` per row, no tree walk).
         """
         cell, inv = self.cell, 1.0 / self.cell
@@ -110,10 +111,10 @@ class ColumnIndex:
         index = np.arange(total, dtype=np.int64) + np.repeat(start - offset, length)
         per_centre = length.reshape(len(centres), -1).sum(axis=1)
         owner = np.repeat(np.arange(len(centres), dtype=np.int64), per_centre)
-        dx = x[index] - centres[owner, 0]
-        dy = y[index] - centres[owner, 1]
-        keep = dx * dx + dy * dy <= radius * radius
-        return owner[keep], index[keep]
+        dx = x[index] - np.repeat(centres[:, 0], per_centre)
+        dy = y[index] - np.repeat(centres[:, 1], per_centre)
+        keep = np.flatnonzero(dx * dx + dy * dy <= radius * radius)
+        return owner[keep], index[keep], dx[keep], dy[keep]
 
 
 @dataclass(frozen=True)

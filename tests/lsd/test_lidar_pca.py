@@ -346,8 +346,9 @@ def test_column_index_cylinders_equal_a_kd_tree_ball_query(cell):
     index, order = ColumnIndex.build(xy[:, 0], xy[:, 1], cell)
     x, y = xy[order, 0], xy[order, 1]
     centres = np.r_[rng.uniform(-12, 12, (30, 2)), [[-10.0, -10.0], [10.0, 10.0]]]
-    owner, found = index.cylinders(x, y, centres, 1.7)
+    owner, found, dx, dy = index.cylinders(x, y, centres, 1.7)
     assert np.all(np.diff(owner) >= 0)  # contiguous per centre, centres in order
+    np.testing.assert_allclose(np.c_[dx, dy], np.c_[x, y][found] - centres[owner])
     tree = cKDTree(np.c_[x, y])
     for k, ref in enumerate(tree.query_ball_point(centres, 1.7)):
         assert sorted(found[owner == k]) == sorted(ref)
