@@ -2,13 +2,17 @@
 (Loureiro et al., "Emergency Landing Spot Detection Algorithm for UAVs", 2021, sections 4-4.6).
 
 Pipeline: accumulate world-frame clouds (:class:`lsd.pointcloud.CloudAccumulator`) ->
-voxel-grid filter -> k-d tree -> Algorithm 1 on search points (random as in the paper, or a
-grid covering the cloud) -> reject z-std above sigma_max -> grade (eq. 6) -> register; the
-registered spots are re-graded as the vehicle moves and the best one is the emergency output.
+voxel-grid filter (:func:`lsd.pointcloud.voxel_grid`, whose sort order is also the spatial
+index: :class:`lsd.pointcloud.ColumnIndex`, our counterpart of the paper's octree) ->
+Algorithm 1 on search points (random as in the paper, or a grid covering the cloud) -> reject
+z-std above sigma_max -> grade (eq. 6) -> register; the registered spots are re-graded as the
+vehicle moves and the best one is the emergency output.
 
-Algorithm 1 is batched over search points: one horizontal k-d tree query collects every search
-point's vertical cylinder, per-shell moment sums (``np.bincount``) give the PCA of every sphere
-radius at once (one stacked ``eigh``), and the only Python loop is over the few radius steps.
+Algorithm 1 is batched over search points and radii, with no Python loop over either: one
+cylinder query per phase collects every search point's neighbours (r_min first, then the full
+reach for the points that passed), per-shell moment sums (``np.bincount``) give the PCA of
+every sphere radius at once (one stacked ``eigh``), and one pass over (pair, radius) copies
+checks every needed sphere's largest distance from its plane (``np.maximum.at``).
 
 Grades (the paper leaves the 0..20 mapping open; ours is linear):
 

@@ -1,8 +1,8 @@
-"""Point-cloud plumbing for the LiDAR detector: cleaning, voxel-grid downsampling and the
-accumulator that decides when an accumulated cloud is processed (Loureiro et al. 2021,
-sections 4.1-4.2).
+"""Point-cloud plumbing for the LiDAR detector: cleaning, voxel-grid downsampling, the
+horizontal column index used for neighbourhood queries, and the accumulator that decides when
+an accumulated cloud is processed (Loureiro et al. 2021, sections 4.1-4.3).
 
-All clouds are ``(N, 3)`` float64 arrays of world points, ENU metres.
+Input clouds are ``(N, 3)`` float64 arrays of world points, ENU metres.
 """
 
 from __future__ import annotations
