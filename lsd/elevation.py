@@ -37,7 +37,7 @@ import numpy as np
 from lsd.elevation_map import ElevationMap
 from lsd.elevation_settings import DetectorSettings, ElevationMapSettings
 from lsd.frames import DepthFrame
-from lsd.plane_fit import PlaneFit, fit_planes
+from lsd.plane_fit import PlaneFit, copy_where, fit_planes
 from lsd.site_selection import (
     maximum_box,
     obstacle_altitude,
@@ -266,7 +266,7 @@ class ElevationDetector:
         # footprint).
         f32 = np.float32
         looks = m.closest[window].astype(f32)
-        np.copyto(looks, f32(0.0), where=np.isinf(looks))  # unobserved: no say
+        copy_where(looks, 0.0, np.isinf(looks))  # unobserved: no say
         farthest_look = maximum_box(looks, 2 * reach + 1)
         with np.errstate(invalid="ignore"):
             # Between equally roomy cells prefer the best-seen one (so that a low hover
@@ -275,7 +275,7 @@ class ElevationDetector:
             quality -= fit.sigma * f32(0.15 / s.max_uncertainty)
             quality += f32(0.3)
             quality += np.exp(farthest_look * f32(-0.1)) * f32(0.7)
-        np.nan_to_num(quality, copy=False)
+        cv2.patchNaNs(quality, 0.0)
         box_origin = (origin[0] + box[0], origin[1] + box[2])
         i, j = select_sites(size, quality, box_origin, r, s)
         if len(i) == 0:

@@ -14,6 +14,7 @@ import math
 import numpy as np
 
 from lsd.elevation_settings import ElevationMapSettings
+from lsd.plane_fit import copy_where
 
 TOP_QUANTILE = 0.9  # which percentile of a cell's points is its top
 TOP_NOISE_LIFT = 1.2816  # the standard normal's 90th percentile
@@ -246,8 +247,9 @@ class ElevationMap:
         old_top = top[cells]
         known = np.isfinite(mu)
         # A new cell starts from its measurement (zero innovation, gain 1 as p is inf).
-        mu = np.where(known, mu, meas)
-        old_top = np.where(known, old_top, meas_top)
+        unknown = ~known
+        copy_where(mu, meas, unknown)
+        copy_where(old_top, meas_top, unknown)
         total = p + meas_var
         innovation = meas - mu
         gain = 1.0 - meas_var / total  # p / total, and 1 for a new cell

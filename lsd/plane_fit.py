@@ -15,6 +15,26 @@ import cv2
 import numpy as np
 
 
+def copy_where(dst: np.ndarray, src: np.ndarray | float, mask: np.ndarray) -> np.ndarray:
+    """``dst[mask] = src`` in place, ``src`` a scalar or an array shaped as ``dst``.
+
+    By OpenCV's masked copy (:func:`cv2.copyTo`): numpy's masked stores (``np.copyto`` with
+    ``where``, boolean-index assignment, ``np.where``) are many times slower on the
+    scattered masks of a map.
+
+    Args:
+        dst: 1-D or 2-D array (rows may be strided), modified in place and returned.
+        src: scalar, or array of ``dst``'s shape.
+        mask: bool array of ``dst``'s shape.
+    """
+    if dst.size == 0:
+        return dst
+    src = np.full_like(dst, src) if np.ndim(src) == 0 else np.asarray(src, dtype=dst.dtype)
+    if cv2.copyTo(src, mask.view(np.uint8), dst) is not dst:  # could not write in place
+        np.copyto(dst, src, where=mask)
+    return dst
+
+
 @dataclass(frozen=True)
 class PlaneFit:
     """Per-cell results of the window plane fit; every array is (n, n) float32.
@@ -87,12 +107,13 @@ def fit_planes(
         sample = height[np.isfinite(height)]
     ref = float(np.median(sample)) if len(sample) else 0.0
     z = np.subtract(height, ref, dtype=f32)
-    np.copyto(z, f32(0.0), where=hidden)
+    copy_where(z, 0.0, hidden)
     var = variance.astype(f32)
-    np.copyto(var, f32(0.0), where=hidden)
+    copy_where(var, 0.0, hidden)
     # Inverse-variance weights: a cell seen by few or far points counts less.
-    w = np.zeros(height.shape, f32)
-    np.divide(f32(1.0), var, out=w, where=observed)
+    with np.errstate(divide="ignore"):
+        w = np.divide(f32(1.0), var)
+    copy_where(w, 0.0, hidden)
     n0, n1 = height.shape
     x = ((np.arange(n0, dtype=f32) - n0 // 2) * f32(resolution))[:, None]
     y = ((np.arange(n1, dtype=f32) - n1 // 2) * f32(resolution))[None, :]
@@ -104,34 +125,40 @@ def fit_planes(
         return cv2.boxFilter(channel, cv2.CV_32F, (size, size), borderType=cv2.BORDER_CONSTANT)
 
     frac = box(observed.view(np.uint8))
-    sw, mx, my, mz = box(w), box(wx), box(wy), box(wz)
-    # In-place arithmetic from here on: fewer fresh (n, m) arrays, less memory traffic.
-    scratch = np.empty_like(w)
-
-    def covariance(a: np.ndarray, b: np.ndarray, mean_a: np.ndarray, mean_b: np.ndarray):
-        # Weighted covariance of the window, E[ab] - E[a] E[b] (a, b already weighted once).
-        out = box(np.multiply(a, b, out=scratch))
-        out *= inv
-        out -= np.multiply(mean_a, mean_b, out=scratch)
-        return out
-
-    with np.errstate(divide="ignore", invalid="ignore"):
+    sw, bx, by, bz = box(w), box(wx), box(wy), box(wz)
+    # Below, every second moment is kept times the window's weight (C_ab = sw * cov(a, b)
+    # = B(w a b) - B(w a) * mean_b, B the window mean): the plane and the slope need only
+    # their ratios, and it saves normalising each. OpenCV's fused element operations
+    # (accumulateProduct, scaleAdd, absdiff) make one pass where numpy makes two.
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         inv = np.divide(f32(1.0), sw)
-        mx *= inv
-        my *= inv
-        mz *= inv
-        cxx = covariance(wx, x, mx, mx)
-        cxy = covariance(wx, y, mx, my)
-        cyy = covariance(wy, y, my, my)
-        cxz = covariance(wz, x, mx, mz)
-        cyz = covariance(wz, y, my, mz)
-        czz = covariance(wz, z, mz, mz)
+        # Window means, negated so that accumulateProduct subtracts.
+        neg_mx = cv2.multiply(bx, inv, scale=-1.0)
+        neg_my = cv2.multiply(by, inv, scale=-1.0)
+        neg_mz = cv2.multiply(bz, inv, scale=-1.0)
+        scratch = np.empty_like(w)
+
+        def moment(a: np.ndarray, b: np.ndarray, box_a: np.ndarray, neg_mean_b: np.ndarray):
+            out = box(np.multiply(a, b, out=scratch))
+            cv2.accumulateProduct(box_a, neg_mean_b, out)
+            return out
+
+        cxx = moment(wx, x, bx, neg_mx)
+        cxy = moment(wx, y, bx, neg_my)
+        cyy = moment(wy, y, by, neg_my)
+        cxz = moment(wz, x, bx, neg_mz)
+        cyz = moment(wz, y, by, neg_mz)
+        czz = moment(wz, z, bz, neg_mz)
         det = cxx * cyy
         det -= np.multiply(cxy, cxy, out=scratch)
         # Collinear or too few cells: no plane (det is ~0 relative to the spread).
         count = frac * f32(area)
-        failed = ~((count > 2.5) & (det > 1e-6 * resolution**4))
+        degenerate = np.square(sw, out=scratch)
+        degenerate *= f32(1e-6 * resolution**4)
+        failed = ~((count > 2.5) & (det > degenerate))
         inv_det = np.divide(f32(1.0), det, out=det)
+        # NaN spreads from the gradient to every field derived from it.
+        copy_where(inv_det, np.nan, failed)
         b = cyy * cxz
         b -= np.multiply(cxy, cyz, out=scratch)
         b *= inv_det
@@ -141,26 +168,26 @@ def fit_planes(
         residual = czz
         residual -= np.multiply(b, cxz, out=scratch)
         residual -= np.multiply(c, cyz, out=scratch)
-        inv_weight = inv
-        inv_weight *= f32(1.0 / area)  # 1 / sum of the window's weights
+        residual *= inv
         # The weighted mean squared residual that noise alone produces: count / sum(w).
-        noise_var = count * inv_weight
-        plane = np.subtract(x, mx, out=mx)
+        noise_var = np.multiply(frac, inv, out=cxz)
+        inv_weight = np.multiply(inv, f32(1.0 / area), out=inv)  # 1 / sum of the weights
+        # plane = mean_z + b (x - mean_x) + c (y - mean_y)
+        plane = np.add(neg_mx, x, out=neg_mx)
         plane *= b
-        plane += np.multiply(c, np.subtract(y, my, out=scratch), out=scratch)
-        plane += mz
-        gradient2 = np.multiply(b, b, out=b)
-        gradient2 += np.multiply(c, c, out=c)
-        slope = np.sqrt(gradient2)
-        np.arctan(slope, out=slope)
-        # Standard error of the gradient of a weighted least-squares plane.
+        plane += np.multiply(c, np.add(neg_my, y, out=neg_my), out=scratch)
+        plane -= neg_mz
+        gradient = cv2.magnitude(b, c)
+        slope = np.arctan(gradient)
+        # Standard error of the gradient of a weighted least-squares plane:
+        # sqrt(inv_weight / spread) with spread = (C_xx + C_yy) / (2 sw).
         spread = np.add(cxx, cyy, out=cxx)
-        spread *= f32(0.5)
-        np.maximum(spread, f32(1e-12), out=spread)
-        slope_error = np.divide(inv_weight, spread, out=spread)
+        np.maximum(spread, f32(1e-30), out=spread)
+        slope_error = np.divide(f32(2.0 / area), spread)
         np.sqrt(slope_error, out=slope_error)
-        gradient2 += f32(1.0)
-        slope_error /= gradient2
+        np.multiply(gradient, gradient, out=gradient)
+        gradient += f32(1.0)
+        slope_error /= gradient
         residual -= noise_var
         np.maximum(residual, f32(0.0), out=residual)
         roughness = np.sqrt(residual, out=residual)
@@ -169,28 +196,28 @@ def fit_planes(
         np.divide(f32(2.0), roughness_error, out=roughness_error)
         np.sqrt(roughness_error, out=roughness_error)
         roughness_error *= noise_var
-        step = np.subtract(z, plane, out=cxz)
-        np.abs(step, out=step)
-        step_error = var + inv_weight
+        step = cv2.absdiff(z, plane)
+        step_error = cv2.add(var, inv_weight)
         np.sqrt(step_error, out=step_error)
         if top is not None:
             # A percentile scatters about 1.7 times as much as the mean of the same points.
             top_step = np.subtract(top, ref, dtype=f32)
             top_step -= plane
-            top_error = np.multiply(var, f32(3.0), out=cyz)
-            top_error += inv_weight
+            top_error = cv2.scaleAdd(var, 3.0, inv_weight)
             np.sqrt(top_error, out=top_error)
-            use_top = top_step - tolerance * top_error > step - tolerance * step_error
+            use_top = cv2.scaleAdd(top_error, -tolerance, top_step) > cv2.scaleAdd(
+                step_error, -tolerance, step
+            )
             use_top &= observed
-            np.copyto(step, top_step, where=use_top)
-            np.copyto(step_error, top_error, where=use_top)
+            copy_where(step, top_step, use_top)
+            copy_where(step_error, top_error, use_top)
         sigma = box(var)
         sigma /= frac
         np.sqrt(sigma, out=sigma)
-    for array in (plane, slope, slope_error, roughness, roughness_error, step, step_error, sigma):
-        np.copyto(array, f32(np.nan), where=failed)
-    np.copyto(step, f32(np.nan), where=hidden)
-    np.copyto(step_error, f32(np.nan), where=hidden)
+    for array in (roughness_error, step_error, sigma):
+        copy_where(array, np.nan, failed)
+    copy_where(step, np.nan, hidden)
+    copy_where(step_error, np.nan, hidden)
     plane += f32(ref)
     return PlaneFit(
         height=plane,

@@ -10,7 +10,7 @@ import numpy as np
 from scipy import ndimage
 
 from lsd.elevation_settings import DetectorSettings
-from lsd.plane_fit import PlaneFit
+from lsd.plane_fit import PlaneFit, copy_where
 
 
 def maximum_box(array: np.ndarray, size: int) -> np.ndarray:
@@ -92,7 +92,11 @@ def site_size(safe: np.ndarray, resolution: float) -> np.ndarray:
     if safe.all():  # no unsafe cell at all: as scipy's transform, distance to the border
         return np.asarray(ndimage.distance_transform_edt(safe) - 0.5, np.float64) * resolution
     distance = cv2.distanceTransform(safe.view(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
-    return np.where(safe, np.maximum(distance.astype(np.float64) - 0.5, 0.0) * resolution, 0.0)
+    # Unsafe cells are at distance 0, so they come out as 0.
+    size = np.subtract(distance, np.float32(0.5), dtype=np.float64)
+    np.maximum(size, 0.0, out=size)
+    size *= resolution
+    return size
 
 
 def obstacle_altitude(
@@ -134,7 +138,7 @@ def obstacle_altitude(
         top = np.sqrt(variance[part].astype(f32))
         top *= f32(2.0)
         top += height[part]
-    np.copyto(top, f32(-np.inf), where=np.isnan(top))
+    copy_where(top, -np.inf, np.isnan(top))
     return maximum_box(top, 2 * half + 1)[i - i0, j - j0].astype(np.float64)
 
 
@@ -188,7 +192,7 @@ def select_sites(
     # Size dominates (its distinct values differ by far more than the tie-breaks add).
     np.add(capped, 1e-3 * resolution * np.clip(quality, 0.0, 1.0), out=key)
     key -= 1e-6 * resolution * (off_centre / block**2)
-    key[~eligible] = -np.inf
+    copy_where(key, -np.inf, ~eligible)
     b0, b1 = padded.shape[0] // block, padded.shape[1] // block
     # Each block's first best cell in row-major order: the best column of every row of
     # the block, then the first row holding the best of those (no transposed copy).
