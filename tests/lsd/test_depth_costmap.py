@@ -118,6 +118,17 @@ def test_depth_noise_alone_makes_no_edges_but_a_box_on_noisy_ground_still_does()
     assert fixed.last_maps.flatness_px.max() < 10
 
 
+def test_site_heights_average_the_footprint_so_noisy_ground_stays_one_cluster():
+    rng = np.random.default_rng(3)
+    noise = rng.normal(0.0, 0.15, (K.height, K.width)).astype(np.float32)
+    det = DepthCostmapDetector()
+    det.process(frame(render() + noise))
+    z = det.last_sites.positions[:, 2]
+    # Per-pixel noise 15 cm; footprint means (~20 x 20 px at 20 m) bring it to ~1 cm.
+    assert len(z) > 50 and np.std(z) < 0.02 and abs(np.mean(z)) < 0.01
+    assert len(det.clusters()) < len(det.site_list) / 5
+
+
 def test_low_hover_over_noisy_stereo_depth_redetects_the_ground_below():
     # The verification look: 2.5 m over flat ground, 256 x 256 px, f = 256 px, stereo noise
     # sigma = z^2 / (f b) * 0.5 px with b = 0.2 m (~6 cm).
