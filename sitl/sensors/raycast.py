@@ -214,6 +214,8 @@ _TILE_PASSES = ((16, 4), (4, 3))
 _FALSI = 16
 # A ray point this close (m, vertically) to the ground is the hit.
 _CLOSE = 5e-4
+# Steps a marching ray may skip at once over open air.
+_SKIP = 8
 # cv2.remap refuses images with a side of SHRT_MAX or more: sample in rows of this width.
 _ROW = 256
 
@@ -392,7 +394,13 @@ def cast_pinhole_rays(
     b, fb = hi.copy(), np.zeros_like(hi)
     going = np.arange(a.size)
     g_a, g_fa, g_du, g_dv, g_dz, g_step, g_hi = a.copy(), fa, du, dv, dz, step, hi
+    first = True
     while going.size:
+        if not first:
+            # Rays still marching have far to go: jump over the steps under which the
+            # ground stays below them (_SKIP steps at a time).
+            g_a, g_fa = _skip(bounds, (u_o, v_o, oz), g_a, g_fa, g_step, g_hi, g_du, g_dv, g_dz, f)
+        first = False
         g_b = np.minimum(g_a + g_step, g_hi)
         g_fb = f(g_b, g_du, g_dv, g_dz)
         ahead = (g_fb > 0) & (g_b < g_hi)
@@ -435,6 +443,25 @@ def cast_pinhole_rays(
     t = t.reshape(height, width)
     t[t > t_max] = np.nan
     return t
+
+
+def _skip(bounds, start, a, fa, step, hi, du, dv, dz, f):
+    """Advance marching rays from ``a`` as far as the highest ground under their next
+    _SKIP steps allows (to the end of those steps, or where the ray comes down to that
+    height); returns the new (a, f(a))."""
+    u_o, v_o, oz = start
+    e = np.minimum(a + np.float32(_SKIP) * step, hi)
+    ua, ue = u_o + a * du, u_o + e * du
+    va, ve = v_o + a * dv, v_o + e * dv
+    high, _ = bounds.region(
+        np.minimum(ua, ue), np.maximum(ua, ue), np.minimum(va, ve), np.maximum(va, ve)
+    )
+    new = np.minimum(np.maximum((oz - high) / -dz, a), e)
+    moved = np.flatnonzero(new > a)
+    if moved.size:
+        fa = fa.copy()
+        fa[moved] = f(new.take(moved), du.take(moved), dv.take(moved), dz.take(moved))
+    return new, fa
 
 
 def _thin_features(bounds, start, a, fa, b, fb, ahead, du, dv, dz, f) -> None:
