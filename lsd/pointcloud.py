@@ -122,23 +122,23 @@ class VoxelCloud:
     """A voxel-grid filtered cloud with its horizontal column index.
 
     Attributes:
-        coords: ``(3, V)`` C-contiguous x, y, z rows of the voxel centroids, metres,
-            sorted by voxel (x column, then y, then z).
+        points: ``(V, 3)`` voxel centroids, metres, sorted by voxel (x column, then y,
+            then z).
         counts: ``(V,)`` input points per voxel.
         index: :class:`ColumnIndex` of the centroids (columns = the voxels' columns).
     """
 
-    coords: np.ndarray
+    points: np.ndarray
     counts: np.ndarray
     index: ColumnIndex
 
     @property
-    def points(self) -> np.ndarray:
-        """``(V, 3)`` centroids (a transposed view of :attr:`coords`)."""
-        return self.coords.T
+    def coords(self) -> np.ndarray:
+        """``(3, V)`` x, y, z rows (a transposed view of :attr:`points`)."""
+        return self.points.T
 
     def __len__(self) -> int:
-        return self.coords.shape[1]
+        return len(self.points)
 
 
 def voxel_grid(points: np.ndarray, voxel_size: float) -> VoxelCloud:
@@ -162,7 +162,7 @@ def voxel_grid(points: np.ndarray, voxel_size: float) -> VoxelCloud:
     n = len(pts)
     if n == 0:
         index = ColumnIndex(np.empty(0, dtype=np.int64), (0.0, 0.0), float(voxel_size), (1, 1))
-        return VoxelCloud(np.empty((3, 0)), np.empty(0, dtype=np.int64), index)
+        return VoxelCloud(np.empty((0, 3)), np.empty(0, dtype=np.int64), index)
     # Column views: reductions along axis 0 of an (N, 3) array are slow, strided 1-D are not.
     cols = (pts[:, 0], pts[:, 1], pts[:, 2])
     lo = [float(c.min()) for c in cols]
@@ -191,15 +191,15 @@ def voxel_grid(points: np.ndarray, voxel_size: float) -> VoxelCloud:
     np.not_equal(key[1:], key[:-1], out=first[1:])
     indptr = np.flatnonzero(np.append(first, True))  # voxel starts, then n
     counts = np.diff(indptr)
-    # Per-voxel coordinate sums as one sparse (V, N) 0/1 matrix times the (N, 3) cloud: a
-    # single compiled pass that gathers and sums (no sorted copies, no prefix sums).
-    members = sparse.csr_array((np.ones(n), order, indptr), shape=(len(counts), n))
-    coords = np.ascontiguousarray((members @ pts).T)
-    coords /= counts
+    # Centroids as one sparse (V, N) averaging matrix (1 / count at each voxel's points) times
+    # the (N, 3) cloud: a single compiled pass that gathers and sums (no sorted copies).
+    weight = np.repeat(1.0 / counts, counts)
+    average = sparse.csr_array((weight, order, indptr), shape=(len(counts), n))
+    centroids = average @ np.ascontiguousarray(pts)
     starts = indptr[:-1]
     columns = key[starts] >> z_bits
     index = ColumnIndex(columns, (lo[0], lo[1]), float(voxel_size), (nx, ny))
-    return VoxelCloud(coords, counts, index)
+    return VoxelCloud(centroids, counts, index)
 
 
 def voxel_downsample(
