@@ -389,18 +389,21 @@ def cast_pinhole_rays(
     # March a step at a time (horizontally) from lo; a ray's step reaching hi has crossed.
     cells = np.float32(1.0 if step is None else float(step) / cs)
     step = cells / np.maximum(np.hypot(du, dv), np.float32(1e-6))
-    # Each ray's bracket [a, b] with f(a) > 0 >= f(b) (fa <= 0: under ground at lo).
-    a, fa = lo.copy(), f(lo, du, dv, dz)
-    b, fb = hi.copy(), np.zeros_like(hi)
-    going = np.arange(a.size)
-    g_a, g_fa, g_du, g_dv, g_dz, g_step, g_hi = a.copy(), fa, du, dv, dz, step, hi
-    first = True
+    # Each ray's bracket [a, b] with f(a) > 0 >= f(b) (fa <= 0: under ground at lo): after
+    # the first step for most rays; the others march on (the g_ arrays) and write theirs.
+    a, fa = lo, f(lo, du, dv, dz)
+    b = np.minimum(lo + step, hi)
+    fb = f(b, du, dv, dz)
+    ahead = (fb > 0) & (b < hi)
+    _thin_features(bounds, (u_o, v_o, oz), a, fa, b, fb, ahead, du, dv, dz, f)
+    going = np.flatnonzero(ahead)
+    g_a, g_fa = b.take(going), fb.take(going)
+    g_du, g_dv, g_dz = du.take(going), dv.take(going), dz.take(going)
+    g_step, g_hi = step.take(going), hi.take(going)
     while going.size:
-        if not first:
-            # Rays still marching have far to go: jump over the steps under which the
-            # ground stays below them (_SKIP steps at a time).
-            g_a, g_fa = _skip(bounds, (u_o, v_o, oz), g_a, g_fa, g_step, g_hi, g_du, g_dv, g_dz, f)
-        first = False
+        # Rays still marching have far to go: jump over the steps under which the ground
+        # stays below them (_SKIP steps at a time).
+        g_a, g_fa = _skip(bounds, (u_o, v_o, oz), g_a, g_fa, g_step, g_hi, g_du, g_dv, g_dz, f)
         g_b = np.minimum(g_a + g_step, g_hi)
         g_fb = f(g_b, g_du, g_dv, g_dz)
         ahead = (g_fb > 0) & (g_b < g_hi)
