@@ -364,3 +364,51 @@ def test_detect_planes_gives_the_same_spots_on_a_voxel_grid_and_its_points():
     np.testing.assert_array_equal(a.accepted, b.accepted)
     np.testing.assert_allclose(a.spots.centre, b.spots.centre, atol=1e-9)
     np.testing.assert_allclose(a.spots.radius, b.spots.radius)
+
+
+def algorithm1_reference(cloud, seeds, s):
+    """Algorithm 1 as the paper writes it, one search point and one radius at a time:
+    (why r_min failed per seed: 0 grew, 1 points, 2 slope, 3 step, 4 edge; fits done)."""
+    fails, fits = [], 0
+    for seed in seeds:
+        centre, why = cloud[seed], 0
+        for j, r in enumerate(s.radii):
+            sphere = cloud[np.linalg.norm(cloud - centre, axis=1) <= r]
+            if len(sphere) < s.n_min:
+                why = 1 if j == 0 else why
+                break
+            fits += 1
+            mean = sphere.mean(axis=0)
+            normal = np.linalg.eigh(np.cov((sphere - mean).T, bias=True))[1][:, 0]
+            if math.acos(min(abs(normal[2]), 1.0)) > s.theta_max:
+                why = 2 if j == 0 else why
+                break
+            if np.abs((sphere - mean) @ normal).max() > s.max_step:
+                why = 3 if j == 0 else why
+                break
+            if np.hypot(*(mean - centre)[:2]) > s.max_offset * r:
+                why = 4 if j == 0 else why
+                break
+        fails.append(why)
+    return np.array(fails), fits
+
+
+@pytest.mark.parametrize("scene", ["box", "ramp", "rough"])
+def test_batched_growth_matches_algorithm_1_point_by_point(scene):
+    rng = np.random.default_rng(2)
+    g = grid(-6, 6, -6, 6)
+    clouds = {
+        "box": box_scene(half=6.0),
+        "ramp": np.c_[g, np.where(g[:, 0] > 0, g[:, 0] * 0.3, 0.0)],  # flat, then 17 deg
+        "rough": np.c_[g, rng.normal(0.0, 0.08, len(g)) + (np.abs(g[:, 1]) < 1) * 0.5],
+    }
+    cloud = clouds[scene]
+    s = SETTINGS.model_copy(update={"seeding": "random", "n_points": 80, "r_min": 0.5})
+    search = detect_planes(cloud, s, np.random.default_rng(1))
+    fails, fits = algorithm1_reference(cloud, search.seeds, s)
+    assert search.rejected_points == (fails == 1).sum()
+    assert search.rejected_slope == (fails == 2).sum()
+    assert search.rejected_step == (fails == 3).sum()
+    assert search.rejected_edge == (fails == 4).sum()
+    assert search.pca_fits == fits
+    assert (fails > 0).sum() > 0 and (fails == 0).sum() > 0  # the scene exercises both
