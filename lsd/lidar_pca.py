@@ -507,7 +507,7 @@ class LidarPcaDetector:
     return the observations of the spots found when a cloud is processed (re-detections of
     registered spots included). :meth:`best_spot` is the paper's
     emergency output. Bad rows (NaN/inf) are dropped and counted in :attr:`counters`, never
-    raised.
+    raised; so is a whole cloud too wide for int64 voxel keys at its voxel size.
     """
 
     def __init__(
@@ -528,6 +528,7 @@ class LidarPcaDetector:
             "planes_accepted": 0,
             "planes_rejected": 0,
             "spots_registered": 0,
+            "clouds_dropped": 0,
         }
 
     def add_scan(
@@ -570,7 +571,13 @@ class LidarPcaDetector:
         if len(cloud) < s.n_min:
             self.last_search = None
             return []
-        search = detect_planes(voxel_grid(cloud, s.voxel_size), s, self.rng, timestamp=now)
+        try:
+            grid = voxel_grid(cloud, s.voxel_size)
+        except ValueError:  # absurdly wide for the voxel size (bogus far returns): dropped
+            self.counters["clouds_dropped"] += 1
+            self.last_search = None
+            return []
+        search = detect_planes(grid, s, self.rng, timestamp=now)
         self.last_search = search
         self.counters["planes_accepted"] += search.n_accepted
         self.counters["planes_rejected"] += search.n_rejected

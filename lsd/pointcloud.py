@@ -32,6 +32,12 @@ def clean_points(points: np.ndarray) -> tuple[np.ndarray, int]:
     return np.ascontiguousarray(arr[finite]), int(arr.shape[0] - finite.sum())
 
 
+_ROWS_PER_CALL = 1 << 16  # (centre, grid row) slices looked up at once by cylinders()
+
+# Voxel keys (and the point index packed beside them) must fit one int64.
+_KEY_BITS = 63
+
+
 @dataclass(frozen=True)
 class ColumnIndex:
     """Horizontal index of a cloud sorted by grid column: point ``i`` lies in column
@@ -86,9 +92,16 @@ class ColumnIndex:
         """
         cell, inv = self.cell, 1.0 / self.cell
         nx, ny = self.shape
+        m = int(radius * inv) + 2
+        batch = max(1, _ROWS_PER_CALL // (2 * m + 1))
+        if len(centres) > batch:  # bound the (centres, rows) temporaries for large radii
+            firsts = range(0, len(centres), batch)
+            parts = [self.cylinders(x, y, centres[i : i + batch], radius) for i in firsts]
+            owner = np.concatenate([p[0] + i for p, i in zip(parts, firsts, strict=True)])
+            rest = (np.concatenate([p[k] for p in parts]) for k in range(1, 4))
+            return (owner, *rest)
         cx = centres[:, 0:1]
         cy = centres[:, 1:2]
-        m = int(radius * inv) + 2
         kx = np.floor((cx - self.origin[0]) * inv).astype(np.int64) + np.arange(-m, m + 1)
         left = self.origin[0] + kx * cell
         # Horizontal gap from the centre to each row's x-interval; the disc's half chord
@@ -149,6 +162,10 @@ def voxel_grid(points: np.ndarray, voxel_size: float) -> VoxelCloud:
         points: ``(N, 3)`` finite world points, metres.
         voxel_size: voxel edge, metres (> 0).
 
+    Raises:
+        ValueError: ``voxel_size`` not positive, or a cloud so wide for its voxel size that
+            the voxel keys overflow int64 (more than ~2^63 voxels in its bounding box).
+
     Returns:
         The :class:`VoxelCloud` of the ``V`` occupied voxels. One int64 key per point, the
         voxel's raveled (x, y, z) index with the point's index packed in its low bits,
@@ -167,17 +184,25 @@ def voxel_grid(points: np.ndarray, voxel_size: float) -> VoxelCloud:
     cols = (pts[:, 0], pts[:, 1], pts[:, 2])
     lo = [float(c.min()) for c in cols]
     inv = 1.0 / voxel_size
-    # Shifted to non-negative, truncation is floor: voxel indices from the cloud's corner.
-    kx, ky, kz = (((c - m) * inv).astype(np.int64) for c, m in zip(cols, lo, strict=True))
-    nx, ny, nz = int(kx.max()) + 1, int(ky.max()) + 1, int(kz.max()) + 1
+    # Voxels per axis from the extremes (the same monotone expression as the indices below),
+    # checked before any cast so an absurd extent cannot overflow silently.
+    nx, ny, nz = (int((float(c.max()) - m) * inv) + 1 for c, m in zip(cols, lo, strict=True))
     z_bits = (nz - 1).bit_length()
     n_bits = (n - 1).bit_length()
+    key_bits = (nx * ny - 1).bit_length() + z_bits
+    if key_bits > _KEY_BITS:
+        raise ValueError(
+            f"voxel grid of {nx} x {ny} x {nz} voxels is too large for int64 keys "
+            f"(cloud extent / voxel_size {voxel_size} m)"
+        )
+    # Shifted to non-negative, truncation is floor: voxel indices from the cloud's corner.
+    kx, ky, kz = (((c - m) * inv).astype(np.int64) for c, m in zip(cols, lo, strict=True))
     key = kx
     key *= ny
     key += ky
     key <<= z_bits
     key |= kz  # the voxel key: (column, z), column = kx * ny + ky
-    if (nx * ny - 1).bit_length() + z_bits + n_bits <= 63:
+    if key_bits + n_bits <= _KEY_BITS:
         key <<= n_bits
         key |= np.arange(n, dtype=np.int64)
         key.sort()

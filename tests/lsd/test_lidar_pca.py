@@ -412,3 +412,29 @@ def test_batched_growth_matches_algorithm_1_point_by_point(scene):
     assert search.rejected_edge == (fails == 4).sum()
     assert search.pca_fits == fits
     assert (fails > 0).sum() > 0 and (fails == 0).sum() > 0  # the scene exercises both
+
+
+def test_a_cloud_too_wide_for_its_voxel_keys_is_dropped_not_raised():
+    g = grid(-5, 5, -5, 5)
+    cloud = np.c_[g, np.zeros(len(g))]
+    cloud[0] = [1e15, -1e15, 1e12]  # bogus far returns
+    cloud[1] = [1e300, 0.0, 0.0]
+    with pytest.raises(ValueError, match="too large"):
+        voxel_grid(cloud, 0.01)
+    det = LidarPcaDetector(SETTINGS.model_copy(update={"voxel_size": 0.01}), rng=0)
+    assert det.process(cloud) == []
+    assert det.counters["clouds_dropped"] == 1
+
+
+def test_cylinder_queries_in_batches_equal_one_batch(monkeypatch):
+    import lsd.pointcloud as pointcloud
+
+    rng = np.random.default_rng(4)
+    xy = rng.uniform(-10, 10, (3000, 2))
+    index, order = ColumnIndex.build(xy[:, 0], xy[:, 1], 0.2)
+    x, y = xy[order, 0], xy[order, 1]
+    centres = rng.uniform(-10, 10, (25, 2))
+    whole = index.cylinders(x, y, centres, 2.0)
+    monkeypatch.setattr(pointcloud, "_ROWS_PER_CALL", 50)  # a few centres per batch
+    for a, b in zip(whole, index.cylinders(x, y, centres, 2.0), strict=True):
+        np.testing.assert_array_equal(a, b)
