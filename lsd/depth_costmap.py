@@ -73,7 +73,8 @@ class Costmaps:
         world_z: float32 world ENU height of each pixel's point (-inf where invalid, so
             maximum filters ignore it).
         depth_accuracy, flatness, steepness, energy: float32 normalised scores in [0, 1].
-        flatness_px: float32 distance (pixels) to the nearest depth edge.
+        flatness_px: float32 distance (pixels) to the nearest depth edge or the image border.
+        clearance_px: float32 distance (pixels) to the nearest depth edge (or invalid pixel).
         decision: float32 eq. 7 score in [0, 1] (0 where invalid).
         depth_range: (min, max) valid depth, metres (eq. 1 normalisers).
     """
@@ -87,6 +88,7 @@ class Costmaps:
     flatness_px: np.ndarray
     decision: np.ndarray
     depth_range: tuple[float, float]
+    clearance_px: np.ndarray | None = None
 
 
 @dataclass
@@ -191,8 +193,7 @@ def depth_edges(depth: np.ndarray, valid8: np.ndarray, settings: DepthCostmapSet
     OpenCV's Canny on the given gradients) with thresholds in metres: the high one is the
     gradient of an ``edge_step`` depth discontinuity, raised to ``edge_noise_factor`` times
     the frame's gradient noise (median absolute gradient / 0.6745 over the valid pixels,
-    robust to the edges themselves). Invalid pixels and the image border count as edges:
-    a footprint that leaves the valid image is not known to be clear.
+    robust to the edges themselves). Invalid pixels count as edges (not known to be clear).
     """
     s = settings
     src = depth
@@ -212,9 +213,17 @@ def depth_edges(depth: np.ndarray, valid8: np.ndarray, settings: DepthCostmapSet
             high = max(high, s.edge_noise_factor * mad / 0.6745)
     edges = cv2.Canny(dx, dy, high * s.edge_low_ratio, high, L2gradient=True)
     edges |= cv2.bitwise_not(valid8)
-    edges[0, :] = edges[-1, :] = 255
-    edges[:, 0] = edges[:, -1] = 255
     return edges
+
+
+@lru_cache(maxsize=8)
+def _border_distance(h: int, w: int) -> np.ndarray:
+    """(H, W) float32 distance (px) of each pixel to the image border (0 on it)."""
+    rows = np.minimum(np.arange(h), np.arange(h)[::-1]).astype(np.float32)
+    cols = np.minimum(np.arange(w), np.arange(w)[::-1]).astype(np.float32)
+    out = np.minimum(rows[:, None], cols[None, :])
+    out.flags.writeable = False
+    return out
 
 
 def compute_costmaps(frame: DepthFrame, settings: DepthCostmapSettings) -> Costmaps:
@@ -262,9 +271,12 @@ def compute_costmaps(frame: DepthFrame, settings: DepthCostmapSettings) -> Costm
 
     # J_FL (eq. 2-3): Canny edges of the depth map, distance transform to the edges.
     edges = depth_edges(d, valid8, s)
-    flatness_px = cv2.distanceTransform(
+    clearance_px = cv2.distanceTransform(
         cv2.bitwise_not(edges), cv2.DIST_L2, cv2.DIST_MASK_5
     )
+    # Beyond the paper, the image border bounds the flatness too: a footprint that leaves
+    # the image is not known to be clear.
+    flatness_px = cv2.min(clearance_px, _border_distance(h, w))
     flatness = _minmax(flatness_px, valid)
 
     # J_N (eq. 4-5) from box-averaged depth gradients, the box spanning normal_span on the
@@ -337,6 +349,7 @@ def compute_costmaps(frame: DepthFrame, settings: DepthCostmapSettings) -> Costm
         energy=energy,
         flatness_px=flatness_px,
         decision=decision,
+        clearance_px=clearance_px,
         depth_range=(float(lo), float(hi)),
     )
 
@@ -404,12 +417,16 @@ def dense_sites(
         # Only the sampled pixels are tested: every stride-th row and column.
         sub = (slice(off, None, stride), slice(off, None, stride))
         depth = depth_full[sub]
-        with np.errstate(invalid="ignore", divide="ignore"):
+        with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
             mask = (
                 maps.valid[sub]
                 & (maps.decision[sub] >= s.threshold)
                 & (maps.flatness_px[sub] * depth >= np.float32(f * s.vehicle_radius))
             )
+            if maps.clearance_px is not None and s.clearance_margin > 0:
+                mask &= maps.clearance_px[sub] * depth >= np.float32(
+                    f * (s.vehicle_radius + s.clearance_margin)
+                )
         n = int(np.count_nonzero(mask))
         if n <= s.max_dense_sites:
             break

@@ -47,6 +47,13 @@ class DepthCostmapSettings(BaseModel):
         description="footprint radius checked (m): our vehicle's, as the elevation map's "
         "footprint_radius and the ground truth's (the paper's UAV was 0.26 m across)",
     )
+    clearance_margin: float = Field(
+        1.0,
+        ge=0,
+        description="beyond the paper: depth edges (obstacles, drops) must also be this much "
+        "beyond the footprint (m); the image border need only clear the footprint itself, so "
+        "the verification look from a few metres still fits. 0: the paper's check alone",
+    )
     edge_step: float = Field(
         0.15,
         gt=0,

@@ -93,6 +93,25 @@ def test_flat_ground_with_box_sites_only_on_the_ground_clear_of_the_box():
                for o, n in zip(obs, near, strict=True) if n)
 
 
+def test_clearance_margin_keeps_sites_off_edges_but_not_off_the_image_border():
+    pixel = ALT / K.fx
+    gaps, extent = {}, {}
+    for margin in (0.0, 1.5):
+        # Sites wherever the footprint fits (threshold 0): the image border limits them.
+        det = DepthCostmapDetector(DepthCostmapSettings(vehicle_radius=1.0, threshold=0.0,
+                                                        clearance_margin=margin))
+        det.process(frame(render(box=BOX)))
+        pos = det.last_sites.positions
+        ground = pos[pos[:, 2] < 1.0]  # the box top (2 m) is flat too
+        gaps[margin] = horizontal_distance_to_box(ground).min()
+        extent[margin] = pos[:, 0].min()
+    # (The box wall facing the camera is seen; its top is the depth edge, so the ground
+    # sites keep their distances from that edge: perspective shortens the first gap.)
+    assert gaps[1.5] >= gaps[0.0] + 1.5 - 2 * pixel
+    # Image border at x = -20 m: only the footprint (1 m) must fit, whatever the margin.
+    assert extent[0.0] == extent[1.5] < -20.0 + 1.0 + 0.5
+
+
 def test_thirty_degree_ramp_gives_no_site_and_a_gentle_one_does():
     det = DepthCostmapDetector()
     assert det.process(frame(render(ramp_deg=30.0))) == []
