@@ -363,6 +363,13 @@ def detect_planes(
     first_fail = first.first_fail
     level = first.level
     fits = first.fits
+    if level.max() < 0:  # every search point failed at r_min (common on rough ground)
+        reasons = np.bincount(first_fail, minlength=5)
+        return PlaneSearch(
+            SpotTable(), seeds, accepted, rejected_points=int(reasons[1]),
+            rejected_slope=int(reasons[2]), rejected_step=int(reasons[3]),
+            rejected_edge=int(reasons[4]), pca_fits=fits,
+        )  # fmt: skip
     mean = np.zeros((s, 3))
     origin = coords[:, work].T
     normal = np.zeros((s, 3))
