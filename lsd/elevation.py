@@ -191,7 +191,8 @@ class ElevationDetector:
         drops = drop.reshape(-1) if everything else drop.reshape(-1)[pick]
         self.agl = -float(np.median(drops[:: max(1, n_valid // 4096)]))
         ground_per_pixel = max(self.agl, 0.0) / max(k.fx, k.fy)
-        # World coordinates (single precision is ample for cells of a centimetre or more).
+        # In place, east, north and drop become world x, y and z (single precision keeps
+        # better than a millimetre within kilometres of home, ample for cells of 1 cm+).
         east += f32(position[0])
         north += f32(position[1])
         drop += f32(position[2])
