@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING
 from py_trees.common import Access, Status
 
 from behaviors import blackboard as keys
-from behaviors.base import MissionBehaviour, horizontal_distance
+from behaviors.base import MissionBehaviour, VehicleAction, horizontal_distance
 from behaviors.ports import Clock, VehiclePort
 from lsm.records import LandingSite
 
@@ -130,37 +130,51 @@ class GetLandingSite(MissionBehaviour):
         return Status.SUCCESS
 
 
-class LandingSiteVerification(MissionBehaviour):
+class LandingSiteVerification(VehicleAction):
     """Hover over the chosen site for ``duration`` clock seconds waiting for the LSM to
     show it re-detected at low altitude (``lsm.is_verified``).
 
     The chosen site is the LSM record with the same id or, if that one is gone, a retained
-    site within ``match_radius`` (horizontal) of it. Sends no command: the vehicle holds
-    the position the descent brought it to. On success the fresh record replaces
-    LANDING_SITE; on failure the site is banned (``lsm.ban``) so that high-altitude
-    detections of it are rejected from now on.
+    site within ``match_radius`` (horizontal) of where it was last. Low looks replace the
+    record's position and height by better ones, so the hover follows the record: when it
+    has moved more than ``recentre_distance`` from the hover point (horizontally, or in
+    height), the vehicle is sent to ``height`` m above the record's new position. Without
+    this the vehicle would keep hovering where the high-altitude estimate put the site, and
+    the camera would not see the whole footprint of the site it is meant to verify.
+    On success the fresh record replaces LANDING_SITE; on failure the site is banned
+    (``lsm.ban``) so that high-altitude detections of it are rejected from now on.
 
     * SUCCESS: the chosen site is verified
-    * FAILURE: not verified within ``duration`` (site banned), or no site chosen
+    * FAILURE: not verified within ``duration`` (site banned), no site chosen, or a
+      re-centring goto denied / unanswered
     * RUNNING: hovering
     """
 
     def __init__(
         self,
         name: str,
+        vehicle: VehiclePort,
         lsm: LandingSiteManager,
         clock: Clock,
         *,
         duration: float,
         match_radius: float,
+        height: float,
+        recentre_distance: float = 0.5,
+        command_timeout: float = 5.0,
     ) -> None:
-        super().__init__(name, phase="verification")
+        super().__init__(
+            name, vehicle, clock, command_timeout=command_timeout, phase="verification"
+        )
         self.lsm = lsm
-        self.clock = clock
         self.duration = float(duration)
         self.match_radius = float(match_radius)
+        self.height = float(height)
+        self.recentre_distance = float(recentre_distance)
         self.deadline = 0.0
         self.site: LandingSite | None = None
+        self.hover: tuple[float, float, float] | None = None
+        self.recentred = 0
         self.blackboard.register_key(key=keys.LANDING_SITE, access=Access.WRITE)
         self.blackboard.register_key(key=keys.VERIFICATION_ATTEMPTS, access=Access.WRITE)
         self.blackboard.register_key(key=keys.BANNED_SITES, access=Access.WRITE)
@@ -169,12 +183,18 @@ class LandingSiteVerification(MissionBehaviour):
         super().initialise()
         self.site = self.blackboard.get(keys.LANDING_SITE)
         self.deadline = self.clock.now() + self.duration
+        # The descent flew to this point above the site as chosen.
+        self.hover = None if self.site is None else self._above(self.site)
+        self.recentred = 0
         attempts = self.blackboard.get(keys.VERIFICATION_ATTEMPTS)
         self.blackboard.set(keys.VERIFICATION_ATTEMPTS, attempts + 1)
 
+    def _above(self, site: LandingSite) -> tuple[float, float, float]:
+        return (site.x, site.y, site.z + self.height)
+
     def current_record(self) -> LandingSite | None:
         """The LSM's record of the chosen site now (same id, else the nearest in match
-        radius), or None."""
+        radius of where it was last), or None."""
         site = self.site
         assert site is not None
         record = self.lsm.get(site.id)
@@ -187,9 +207,25 @@ class LandingSiteVerification(MissionBehaviour):
                 nearest, best = candidate, distance
         return nearest
 
+    def _follow(self, record: LandingSite) -> None:
+        """Send the vehicle above ``record`` if the record moved away from the hover point."""
+        target = self._above(record)
+        hover = self.hover
+        if hover is not None and (
+            horizontal_distance(target, hover) <= self.recentre_distance
+            and abs(target[2] - hover[2]) <= self.recentre_distance
+        ):
+            return
+        self.command(self.vehicle.goto(*target))
+        self.hover = target
+        self.recentred += 1
+
     def update(self) -> Status:
         if self.site is None:
             return self.fail("no landing site chosen")
+        problem = self.command_problem()
+        if problem is not None:
+            return self.fail(problem)
         record = self.current_record()
         if record is not None and self.lsm.is_verified(record):
             self.blackboard.set(keys.LANDING_SITE, record)
@@ -199,7 +235,11 @@ class LandingSiteVerification(MissionBehaviour):
             return Status.SUCCESS
         remaining = self.deadline - self.clock.now()
         if remaining > 0:
-            self.feedback_message = f"waiting for re-detection, {remaining:.1f} s left"
+            if record is not None:
+                self.site = record  # follow the record as low looks move it
+                self._follow(record)
+            moved = f", re-centred {self.recentred}x" if self.recentred else ""
+            self.feedback_message = f"waiting for re-detection, {remaining:.1f} s left{moved}"
             return Status.RUNNING
         banned = record is not None and self.lsm.ban(record.id)
         if banned:

