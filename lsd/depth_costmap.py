@@ -379,7 +379,7 @@ def footprint_depth(
         cv2.copyTo(np.float32(1.0) / np.asarray(depth, dtype=np.float32), mask8, inverse)
     total = cv2.integral(inverse, sdepth=cv2.CV_64F)
     count = cv2.integral(mask8)
-    centre = np.asarray(depth, dtype=np.float64)[rows, cols]
+    centre = np.asarray(depth)[rows, cols].astype(np.float64)
     a = np.maximum((0.7 * radius / np.maximum(centre, 1e-6)).astype(np.int64), 0)
     r0, r1 = np.maximum(rows - a, 0), np.minimum(rows + a + 1, h)
     c0, c1 = np.maximum(cols - a, 0), np.minimum(cols + a + 1, w)
