@@ -4,19 +4,26 @@ Autonomous Landing in Catastrophe-Struck Environments", section III-B).
 Per frame (H x W depth image, pinhole intrinsics, camera pose):
 
 - J_DE (eq. 1): 1 - (D^2 - min D^2) / max D^2, depth accuracy falling with depth squared.
-- J_FL (eq. 2-3): Euclidean distance transform (pixels) to the Canny edges of the depth map
-  scaled to 8 bit. Beyond the paper, invalid pixels and the image border count as edges: a
+- J_FL (eq. 2-3): Euclidean distance transform (pixels) to the Canny edges of the depth map.
+  Deviation (see :func:`depth_edges`): Canny runs on the metric depth gradients with
+  thresholds in metres raised to a multiple of the frame's own gradient noise, not on the
+  depth scaled to 8 bit by the frame's range (which makes noisy stereo/SfM depth all
+  edges). Beyond the paper, invalid pixels and the image border bound the flatness too: a
   footprint that leaves the valid image is not known to be clear.
 - J_N (eq. 4-5): exp(-theta^2 / (2 theta_th^2)), theta the angle between world z and the
-  surface normal from averaged 3D gradients of the back-projected points (world frame).
+  surface normal from averaged 3D gradients of the back-projected points (world frame),
+  averaged over a window spanning ``normal_span`` on the ground (depth-dependent smoothing,
+  as the integral-image normals the paper cites), at least ``normal_window`` px.
 - J_EC: distance camera -> point as the energy proxy of eq. 6; as a score it is inverted
   (1 - normalised distance) so that, like the others, higher is better.
 - J (eq. 7) = c1 J_DE + c2 J_FL + c3 J_N + c4 J_EC after min-max normalising J_DE, J_FL and
   J_EC over the valid pixels. Sites: J >= threshold and J_FL (pixels) >= the vehicle radius
-  projected at the pixel's depth (f r / D), sampled on a pixel grid whose ground spacing is
+  projected at the pixel's depth (f r / D), and (beyond the paper) the depth edges at least
+  f (r + clearance_margin) / D away, sampled on a pixel grid whose ground spacing is
   ``site_spacing`` (the paper keeps every pixel; the sampling bounds the list and the
   clustering cost while neighbouring sites still link).
-- 3D positions from the depth and pose; a global list keeps a site only if no listed site is
+- 3D positions from the pose and the footprint's mean (inverse) depth, see
+  :func:`footprint_depth`; a global list keeps a site only if no listed site is
   within ``dedup_distance`` (k-d tree); single-linkage agglomerative clustering on euclidean
   distance and z difference yields the sparse sites (cluster centroids, eq. 8), kept up to
   date incrementally: a frame's new sites only join or merge clusters (single linkage), so
