@@ -171,6 +171,27 @@ def test_a_rock_smaller_than_a_cell_still_keeps_sites_away():
     assert min(math.hypot(o.x - PEBBLE[0], o.y - PEBBLE[1]) for o in observations) < reach
 
 
+def test_a_rock_smaller_than_a_cell_is_seen_from_very_low_too():
+    # From 1.5 m a fine cell spans many pixels, which are fused in blocks: the pebble
+    # must still stand out of its cell.
+    settings = DetectorSettings()
+    reach = settings.footprint_radius + settings.clearance_margin
+
+    def fly(surface):
+        detector = ElevationDetector(settings=settings)
+        observations = []
+        for k, agl in enumerate((1.5, 1.5, 1.5)):
+            frame = render(surface, (*PEBBLE, 2.0 + agl), n=256, timestamp=0.5 * k)
+            observations = detector.process(frame)
+        c = detector.counters()
+        assert c["points_fused"] + c["points_outside_map"] == c["pixels_received"]
+        return observations
+
+    assert all(math.hypot(o.x - PEBBLE[0], o.y - PEBBLE[1]) >= reach - 0.2 for o in fly(pebble))
+    plain = fly(flat)
+    assert plain and min(math.hypot(o.x - PEBBLE[0], o.y - PEBBLE[1]) for o in plain) < reach
+
+
 def test_a_30_degree_ramp_has_no_sites_but_a_10_degree_ramp_does():
     steep = ElevationDetector().process(render(ramp(30.0), (0.0, 0.0, 15.0), n=256))
     gentle = ElevationDetector().process(render(ramp(10.0), (0.0, 0.0, 15.0), n=256))
