@@ -141,18 +141,31 @@ def frame_problem(frame: DepthFrame) -> str | None:
     return None
 
 
-def _minmax(values: np.ndarray, valid: np.ndarray) -> np.ndarray:
+def _minmax(values: np.ndarray, valid: np.ndarray, *, invert: bool = False) -> np.ndarray:
     """Min-max normalise a float32 map over the valid pixels to [0, 1] (a constant map
-    becomes 1); invalid pixels 0."""
+    becomes 1), or 1 minus that with ``invert``; invalid pixels 0."""
     mask = valid.view(np.uint8)
     if not valid.any():
         return np.zeros(values.shape, dtype=np.float32)
     lo, hi, _, _ = cv2.minMaxLoc(values, mask=mask)
     if hi > lo:
-        out = (values - np.float32(lo)) * np.float32(1.0 / (hi - lo))
+        # Differences first: exactly 0 at the extreme, so the result stays within [0, 1].
+        if invert:  # (hi - v) / (hi - lo)
+            out = np.subtract(np.float32(hi), values)
+        else:  # (v - lo) / (hi - lo)
+            out = np.subtract(values, np.float32(lo))
+        out *= np.float32(1.0 / (hi - lo))
     else:
         out = np.ones(values.shape, dtype=np.float32)
     out *= mask
+    return out
+
+
+@lru_cache(maxsize=8)
+def _minus_infinity(h: int, w: int) -> np.ndarray:
+    """(H, W) float32 -inf (read-only, shared): the fill of invalid world heights."""
+    out = np.full((h, w), -np.inf, dtype=np.float32)
+    out.flags.writeable = False
     return out
 
 
@@ -264,9 +277,11 @@ def compute_costmaps(frame: DepthFrame, settings: DepthCostmapSettings) -> Costm
 
     # J_DE (eq. 1) min-max normalised: 1 - (D^2 - lo^2) / hi^2 is linear in D^2, so its
     # normalised form is (hi^2 - D^2) / (hi^2 - lo^2).
-    d2 = d * d
     if hi > lo:
-        depth_accuracy = (np.float32(hi * hi) - d2) * np.float32(1.0 / (hi * hi - lo * lo))
+        hi2 = np.float32(hi) * np.float32(hi)  # as the farthest pixel's own d * d: exact 0
+        depth_accuracy = d * d
+        np.subtract(hi2, depth_accuracy, out=depth_accuracy)
+        depth_accuracy *= np.float32(1.0 / (hi * hi - lo * lo))
     else:
         depth_accuracy = np.ones_like(d)
     depth_accuracy *= mask8
@@ -333,8 +348,7 @@ def compute_costmaps(frame: DepthFrame, settings: DepthCostmapSettings) -> Costm
     steepness *= mask8
 
     # J_EC: distance camera -> point (= depth * |(xn, yn, 1)|), inverted so near scores high.
-    energy = np.float32(1.0) - _minmax(d * ray_len, valid)
-    energy *= mask8
+    energy = _minmax(d * ray_len, valid, invert=True)
 
     c = s.weights
     decision = cv2.addWeighted(depth_accuracy, c.depth_accuracy, flatness, c.flatness, 0.0)
@@ -346,7 +360,7 @@ def compute_costmaps(frame: DepthFrame, settings: DepthCostmapSettings) -> Costm
         np.float32(rot[2, 0]) * xn + np.float32(rot[2, 1]) * yn + np.float32(rot[2, 2])
     ) * d
     world_z += np.float32(pos[2])
-    world_z[~valid] = -np.inf
+    cv2.copyTo(_minus_infinity(h, w), cv2.bitwise_not(valid8), world_z)
     return Costmaps(
         valid=valid,
         world_z=world_z,
