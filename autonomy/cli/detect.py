@@ -368,11 +368,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     for flag in ("fx", "fy", "cx", "cy"):
         depth.add_argument(f"--{flag}", type=float, help="intrinsics (pixels)")
     depth.add_argument("--pose", help="camera pose: x,y,z,yaw (deg, looking down) or 4x4 .npy")
-    depth.add_argument("--vehicle-radius", type=float, help="footprint radius (m), default 0.5")
+    depth.add_argument("--vehicle-radius", type=float, help="footprint radius (m), default 1")
     depth.add_argument("--threshold", type=float, help="decision threshold, default 0.72")
     depth.add_argument("--d-max", type=float, help="farthest valid depth (m), default 200")
     depth.add_argument("--edge-blur", type=int, metavar="PX",
-                       help="blur radius before Canny for noisy depth (px), default 0 (off)")
+                       help="Gaussian blur radius of the depth map before its gradients and "
+                       "Canny (px), default 2; 0: none")
     depth.add_argument("--normal-window", type=int, metavar="PX",
                        help="window averaging depth gradients for normals (px), default 5")
     parser.set_defaults(func=run)

@@ -229,13 +229,15 @@ def test_corrupt_las_is_one_clear_line(tmp_path, capsys):
     assert len(err) == 1 and "not a readable LAS/LAZ file" in err[0]
 
 
-def test_edge_blur_flag_recovers_sites_from_noisy_depth(tmp_path):
+def test_noisy_depth_still_gives_sites_and_the_edge_blur_flag_is_checked(tmp_path):
+    # Edges come from metric depth gradients with a noise-relative threshold, so sensor
+    # noise alone does not fill the flatness map with edges, with or without more blur.
     noisy = nadir_depth() + np.random.default_rng(2).normal(0, 0.15, (480, 640))
     np.save(tmp_path / "d.npy", noisy.astype(np.float32))
     args = ("--depth", tmp_path / "d.npy", *INTRINSICS, "--pose", "0,0,20,0")
     assert lander(*args, "--out", tmp_path / "a") == 0
     assert lander(*args, "--edge-blur", 4, "--normal-window", 9, "--out", tmp_path / "b") == 0
-    assert len(read_sites(tmp_path / "a")) == 0 < len(read_sites(tmp_path / "b"))
+    assert len(read_sites(tmp_path / "a")) > 0 and len(read_sites(tmp_path / "b")) > 0
     assert lander(*args, "--edge-blur", 99, "--out", tmp_path / "c") == 2  # out of range
 
 
