@@ -45,12 +45,20 @@ def _none_if_nan(x: float) -> float | None:
     return None if x is None or math.isnan(x) else float(x)
 
 
+def is_unsafe_touchdown(record: dict[str, Any]) -> bool:
+    """The vehicle touched ground the ground truth calls unsafe, whatever the outcome (a
+    landing at a site, or a landing in place after no site could be verified)."""
+    return record.get("touchdown_safe") is False and outcome_class(record) != "error"
+
+
 def summarise(records: Iterable[dict[str, Any]], variant: Variant | None = None) -> dict:
-    """Counts, success rate with Wilson 95 % interval, median and p90 time to land."""
+    """Counts, unsafe touchdowns, success rate with Wilson 95 % interval, median and p90
+    time to land."""
     records = list(records)
     counts = dict.fromkeys(OUTCOMES, 0)
     for record in records:
         counts[outcome_class(record)] += 1
+    unsafe_touchdowns = sum(is_unsafe_touchdown(r) for r in records)
     flown = len(records) - counts["error"]
     low, high = wilson_interval(counts["landed"], flown)
     times = np.array(
@@ -65,6 +73,7 @@ def summarise(records: Iterable[dict[str, Any]], variant: Variant | None = None)
     row.update(
         runs=len(records),
         **counts,
+        unsafe_touchdowns=unsafe_touchdowns,
         success_rate=_none_if_nan(counts["landed"] / flown if flown else math.nan),
         success_low=_none_if_nan(low),
         success_high=_none_if_nan(high),
@@ -111,13 +120,15 @@ def _interval(low: float | None, high: float | None) -> str:
 
 
 def format_table(rows: Sequence[dict[str, Any]]) -> str:
-    """A text table of :func:`summarise` rows: counts per outcome, success rate (%) with
-    its Wilson 95 % interval, median and 90th percentile time to land (sim s)."""
-    head = ["variant", "runs", *(OUTCOME_TITLES[o] for o in OUTCOMES),
+    """A text table of :func:`summarise` rows: counts per outcome, unsafe touchdowns (of
+    any outcome, e.g. a landing in place on rocks), success rate (%) with its Wilson 95 %
+    interval, median and 90th percentile time to land (sim s)."""
+    head = ["variant", "runs", *(OUTCOME_TITLES[o] for o in OUTCOMES), "unsafe touchdowns",
             "success %", "95% CI", "TTL median s", "TTL p90 s"]
     lines = [
         [row.get("label", "all"), str(row["runs"]), *(str(row[o]) for o in OUTCOMES),
-         _pct(row["success_rate"]), _interval(row["success_low"], row["success_high"]),
+         str(row.get("unsafe_touchdowns", "-")), _pct(row["success_rate"]),
+         _interval(row["success_low"], row["success_high"]),
          _sec(row["time_to_land_median"]), _sec(row["time_to_land_p90"])]
         for row in rows
     ]
@@ -131,7 +142,8 @@ def compare_missions(
 
     Pairs where either run is an ``error`` are left out. ``difference`` is
     ``success(mission) - success(baseline)`` over the pairs, with Newcombe's paired hybrid
-    score 95 % interval; ``unsafe`` counts unsafe touchdowns over all runs of the mission.
+    score 95 % interval; ``unsafe`` counts unsafe touchdowns (any outcome) over all runs of
+    the mission.
     """
     base = {r["seed"]: r for r in records[0]}
     rows = []
@@ -152,7 +164,7 @@ def compare_missions(
         rows.append({
             "mission": name,
             **summarise(mission_records),
-            "unsafe": sum(outcome_class(r) == "landed_unsafe" for r in mission_records),
+            "unsafe": sum(is_unsafe_touchdown(r) for r in mission_records),
             "pairs": pairs,
             **table,
             "difference": (table["only_mission"] - table["only_baseline"]) / pairs

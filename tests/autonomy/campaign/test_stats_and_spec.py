@@ -118,6 +118,19 @@ def test_summary_counts_outcomes_and_leaves_errors_out_of_the_success_rate():
     assert "success %" in table[0] and "88.9" in table[1]
 
 
+def test_unsafe_touchdowns_count_landings_in_place_on_unsafe_ground_too():
+    from autonomy.campaign import compare_missions, format_table, summarise
+
+    runs = [record("landed", 0, 90.0, True), record("landed", 1, 90.0, False),
+            record("no_site", 2, 300.0, False), record("no_site", 3, 300.0, True),
+            record("crashed", 4)]
+    row = summarise(runs)
+    assert (row["landed_unsafe"], row["no_site"], row["unsafe_touchdowns"]) == (1, 2, 2)
+    head, line = format_table([row]).splitlines()
+    assert "unsafe touchdowns" in head
+    assert compare_missions(["a", "b"], [runs, runs])[0]["unsafe"] == 2
+
+
 def test_comparison_pairs_runs_by_seed():
     from autonomy.campaign import compare_missions
 
