@@ -228,6 +228,38 @@ def test_zero_and_nan_depth_are_invalid_and_no_site_touches_them():
     assert px[:, 0].min() >= 40 + footprint_px
 
 
+def test_depth_beyond_d_max_or_infinite_is_invalid_and_d_max_itself_is_valid():
+    depth = render()
+    s = DepthCostmapSettings(d_max=float(depth[240, 320]))
+    depth[0:10, :] = np.inf
+    depth[10:20, :] = np.float32(s.d_max) * 1.01
+    depth[240, 320] = np.float32(s.d_max)
+    maps = compute_costmaps(frame(depth), s)
+    assert not maps.valid[0:20].any()
+    assert maps.valid[240, 320]
+    assert np.isneginf(maps.world_z[0:20]).all() and (maps.decision[0:20] == 0).all()
+    assert maps.depth_range[1] == pytest.approx(s.d_max)
+
+
+def test_frames_processed_from_several_threads_give_the_maps_of_serial_processing():
+    from concurrent.futures import ThreadPoolExecutor
+
+    s = DepthCostmapSettings()
+    frames = [frame(render(box=(2.0 * i - 3.0, 1.0, 1.5, 2.0))) for i in range(4)]
+    serial = [compute_costmaps(f, s) for f in frames]
+    with ThreadPoolExecutor(max_workers=4) as pool:
+        parallel = list(pool.map(lambda f: compute_costmaps(f, s), frames * 2))
+    for a, b in zip(serial * 2, parallel, strict=True):
+        for name in ("valid", "world_z", "flatness_px", "clearance_px", "flatness"):
+            np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
+        # OpenCV splits its box blur into stripes by the threads free at the time: the
+        # normals may differ in the last bit, no more.
+        for name in ("steepness", "decision"):
+            np.testing.assert_allclose(getattr(a, name), getattr(b, name), rtol=0, atol=1e-6)
+    # The box moves between frames: the flatness maps differ (the check is not vacuous).
+    assert not np.array_equal(serial[0].flatness_px, serial[3].flatness_px)
+
+
 @pytest.mark.parametrize(
     "k",
     [
