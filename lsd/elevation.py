@@ -289,7 +289,10 @@ class ElevationDetector:
         z = fit.height[i, j]
         roughness = np.clip(fit.roughness[i, j] / s.max_roughness, 0.0, 1.0)
         uncertainty = np.clip(fit.sigma[i, j] / s.max_uncertainty, 0.0, 1.0)
-        altitude = np.maximum(float(camera_position[2]) - z, farthest_look[i, j])
+        # The observation altitude asks more than the quality: every cell of the footprint
+        # and of the ring around it where a rock would matter must have been seen that close.
+        looked_at = _largest_within(looks, i, j, (s.footprint_radius + s.look_margin) / r)
+        altitude = np.maximum(float(camera_position[2]) - z, looked_at)
         # A site that is safe only because noise forgives a step near it is no proof of a
         # close look: it may not verify, nor overwrite a conclusive look.
         altitude = np.where(doubtful[i, j], np.maximum(altitude, s.doubtful_altitude), altitude)
@@ -469,6 +472,17 @@ def _block_points(
     y = north_sum[keep] / count
     z = wz_sum[keep] / w_sum
     return x, y, z, 1.0 / w_sum, np.rint(count)
+
+
+def _largest_within(grid: np.ndarray, i: np.ndarray, j: np.ndarray, radius: float) -> np.ndarray:
+    """(k,) largest value of ``grid`` over the cells within ``radius`` cells of cell
+    (i[k], j[k]) (a disk; the nearest edge cell stands for cells beyond the grid)."""
+    n = int(np.floor(radius + 1e-9))
+    di, dj = np.mgrid[-n : n + 1, -n : n + 1]
+    inside = np.hypot(di, dj) <= radius + 1e-9
+    rows = np.clip(i[:, None] + di[inside], 0, grid.shape[0] - 1)
+    cols = np.clip(j[:, None] + dj[inside], 0, grid.shape[1] - 1)
+    return grid[rows, cols].max(axis=1).astype(np.float64)
 
 
 def _observed_box(observed: np.ndarray, margin: int) -> tuple[int, int, int, int] | None:

@@ -108,6 +108,14 @@ class DetectorSettings(BaseModel):
         description="slope, roughness and step limits are widened by this many standard errors "
         "of the estimates, so that noisy high-altitude maps still yield (uncertain) sites",
     )
+    look_margin: float = Field(
+        0.5,
+        ge=0,
+        description="ring beyond the footprint (m) whose cells count, with the footprint's, "
+        "in a site's observation altitude: a site is only as closely seen as the ground under "
+        "and around its footprint where a rock would make it unsafe (the ground truth's rotor "
+        "clearance)",
+    )
     doubtful_altitude: float = Field(
         10.0,
         ge=0,
