@@ -192,6 +192,28 @@ def test_a_rock_smaller_than_a_cell_is_seen_from_very_low_too():
     assert plain and min(math.hypot(o.x - PEBBLE[0], o.y - PEBBLE[1]) for o in plain) < reach
 
 
+@pytest.mark.parametrize(("offset", "closely_seen"), [(0.0, True), (1.2, False)])
+def test_a_site_counts_as_seen_closely_only_if_the_ring_around_its_footprint_was(
+    offset, closely_seen
+):
+    # Flat ground seen from 10 m, then from 2.5 m (a 5 m wide view) centred over the site
+    # at (1.95, 1.95) or 1.2 m beside it: there the footprint is in the close view but the
+    # ring of look_margin around it is not, and the site keeps the 10 m look.
+    settings = DetectorSettings()
+    assert settings.look_margin == 0.5
+    detector = ElevationDetector(settings=settings)
+    detector.process(render(flat, (2.0, 2.0, 12.0), n=256, timestamp=0.0))
+    frame = render(flat, (2.0 + offset, 2.0, 4.5), n=256, timestamp=1.0)
+    site = next(o for o in detector.process(frame) if math.hypot(o.x - 1.95, o.y - 1.95) < 0.2)
+    expected = 2.5 if closely_seen else 10.0
+    assert site.observation_altitude == pytest.approx(expected, abs=0.05)
+    # Without the ring, the footprint alone would count as seen from 2.5 m.
+    alone = ElevationDetector(settings=settings.model_copy(update={"look_margin": 0.0}))
+    alone.process(render(flat, (2.0, 2.0, 12.0), n=256, timestamp=0.0))
+    site = next(o for o in alone.process(frame) if math.hypot(o.x - 1.95, o.y - 1.95) < 0.2)
+    assert site.observation_altitude == pytest.approx(2.5, abs=0.05)
+
+
 def test_a_30_degree_ramp_has_no_sites_but_a_10_degree_ramp_does():
     steep = ElevationDetector().process(render(ramp(30.0), (0.0, 0.0, 15.0), n=256))
     gentle = ElevationDetector().process(render(ramp(10.0), (0.0, 0.0, 15.0), n=256))
