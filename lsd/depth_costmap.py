@@ -146,13 +146,18 @@ def frame_problem(frame: DepthFrame) -> str | None:
 
 
 def _minmax(
-    values: np.ndarray, valid: np.ndarray, *, invert: bool = False, overwrite: bool = False
+    values: np.ndarray,
+    valid: np.ndarray | None,
+    *,
+    invert: bool = False,
+    overwrite: bool = False,
 ) -> np.ndarray:
     """Min-max normalise a float32 map over the valid pixels to [0, 1] (a constant map
-    becomes 1), or 1 minus that with ``invert``; invalid pixels 0. ``overwrite``: the
-    result may reuse ``values`` (a temporary of the caller's)."""
-    mask = valid.view(np.uint8)
-    if not valid.any():
+    becomes 1), or 1 minus that with ``invert``; invalid pixels 0. ``valid`` None: every
+    pixel is valid (no masked passes). ``overwrite``: the result may reuse ``values`` (a
+    temporary of the caller's)."""
+    mask = None if valid is None else valid.view(np.uint8)
+    if valid is not None and not valid.any():
         return np.zeros(values.shape, dtype=np.float32)
     lo, hi, _, _ = cv2.minMaxLoc(values, mask=mask)
     if hi > lo:
@@ -165,7 +170,8 @@ def _minmax(
         out *= np.float32(1.0 / (hi - lo))
     else:
         out = np.ones(values.shape, dtype=np.float32)
-    out *= mask
+    if mask is not None:
+        out *= mask
     return out
 
 
@@ -201,6 +207,7 @@ def _step_response(blur_px: int) -> float:
     return float(np.abs(grad).max())
 
 
+_FLOAT32_MAX = float(np.finfo(np.float32).max)
 _GRADIENT_UNITS = 256.0  # int16 gradient units per edge_step threshold: resolves the noise
 # estimate finely and saturates only 128 edge_steps up
 
@@ -259,10 +266,11 @@ def _above(x: float) -> float:
     return float(np.nextafter(np.float32(x), np.float32(np.inf)))
 
 
-def _flatness(d: np.ndarray, valid: np.ndarray, valid8: np.ndarray,
+def _flatness(d: np.ndarray, valid: np.ndarray | None, valid8: np.ndarray,
               settings: DepthCostmapSettings):
     """J_FL (eq. 2-3): distance transform (px) to the Canny edges of the depth map ->
-    (clearance_px, flatness_px, flatness), each (H, W) float32 (see :class:`Costmaps`)."""
+    (clearance_px, flatness_px, flatness), each (H, W) float32 (see :class:`Costmaps`);
+    ``valid`` None when every pixel is."""
     h, w = d.shape
     edges = depth_edges(d, valid8, settings)
     clearance_px = cv2.distanceTransform(
@@ -303,9 +311,14 @@ def compute_costmaps(frame: DepthFrame, settings: DepthCostmapSettings) -> Costm
     d = cv2.copyTo(depth, valid8)  # zeros where the mask is 0
     valid = valid8 > 0
     mask8 = valid.view(np.uint8)
+    # Every pixel valid (the common case): the masked passes below are identities, skip them.
+    some_invalid = cv2.countNonZero(valid8) < h * w
+    valid_or_all = valid if some_invalid else None
     # The flatness branch (Canny, distance transform) runs beside the other maps.
-    flat = _flatness_worker().submit(_flatness, d, valid, valid8, s)
-    if valid.any():
+    flat = _flatness_worker().submit(_flatness, d, valid_or_all, valid8, s)
+    if valid_or_all is None:
+        lo, hi, _, _ = cv2.minMaxLoc(d)
+    elif valid.any():
         lo, hi, _, _ = cv2.minMaxLoc(d, mask=mask8)
     else:
         lo, hi = 1.0, 1.0
@@ -319,7 +332,8 @@ def compute_costmaps(frame: DepthFrame, settings: DepthCostmapSettings) -> Costm
         depth_accuracy *= np.float32(1.0 / (hi * hi - lo * lo))
     else:
         depth_accuracy = np.ones_like(d)
-    depth_accuracy *= mask8
+    if some_invalid:
+        depth_accuracy *= mask8
 
     # Median depth (a subsample): the depth-dependent window of the normals.
     coarse = d[::8, ::8]
@@ -371,10 +385,11 @@ def compute_costmaps(frame: DepthFrame, settings: DepthCostmapSettings) -> Costm
     steepness = cv2.exp(theta * np.float32(-0.5 / s.theta_th**2))
     if step > 1:
         steepness = cv2.resize(steepness, (w, h), interpolation=cv2.INTER_LINEAR)
-    steepness *= mask8
+    if some_invalid:
+        steepness *= mask8
 
     # J_EC: distance camera -> point (= depth * |(xn, yn, 1)|), inverted so near scores high.
-    energy = _minmax(d * ray_len, valid, invert=True, overwrite=True)
+    energy = _minmax(d * ray_len, valid_or_all, invert=True, overwrite=True)
 
     pos = np.asarray(frame.position, dtype=np.float64)
     # ((r20 xn + r21 yn) + r22) d + z0, in place: one full-image array, not four.
@@ -382,7 +397,8 @@ def compute_costmaps(frame: DepthFrame, settings: DepthCostmapSettings) -> Costm
     world_z += np.float32(rot[2, 2])
     world_z *= d
     world_z += np.float32(pos[2])
-    cv2.copyTo(_minus_infinity(h, w), cv2.bitwise_not(valid8), world_z)
+    if some_invalid:
+        cv2.copyTo(_minus_infinity(h, w), cv2.bitwise_not(valid8), world_z)
 
     c = s.weights
     clearance_px, flatness_px, flatness = flat.result()
@@ -424,9 +440,12 @@ def footprint_depth(
     mask8 = valid.view(np.uint8)
     # Inverse depth is linear across the image of a plane (1/D = n . ray / offset), so its
     # window mean is the centre's exactly; depth itself is not (tilted views).
-    inverse = np.zeros(depth.shape, dtype=np.float32)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        cv2.copyTo(np.float32(1.0) / np.asarray(depth, dtype=np.float32), mask8, inverse)
+    # Invalid -> 0 -> 1/0 = inf -> 0 (threshold in place): three cheap passes, where one
+    # division of the raw image, NaN and all, costs several times more.
+    inverse = cv2.copyTo(np.asarray(depth, dtype=np.float32), mask8)
+    with np.errstate(divide="ignore"):
+        np.divide(np.float32(1.0), inverse, out=inverse)
+    cv2.threshold(inverse, _FLOAT32_MAX, 0.0, cv2.THRESH_TOZERO_INV, dst=inverse)
     total = cv2.integral(inverse, sdepth=cv2.CV_64F)
     count = cv2.integral(mask8)
     centre = np.asarray(depth)[rows, cols].astype(np.float64)
@@ -694,7 +713,7 @@ class DepthCostmapDetector:
         maps = compute_costmaps(frame, s)
         dense = dense_sites(frame, maps, s)
         self.last_maps, self.last_sites = maps, dense
-        self.counters["pixels_invalid"] += int((~maps.valid).sum())
+        self.counters["pixels_invalid"] += maps.valid.size - int(np.count_nonzero(maps.valid))
         return self.add_sites(dense, frame.timestamp)
 
     def add_sites(self, dense: DenseSites, now: float = 0.0) -> list[SiteObservation]:
