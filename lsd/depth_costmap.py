@@ -37,6 +37,7 @@ within the footprint + margin around the site.
 
 from __future__ import annotations
 
+import os
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from functools import lru_cache
@@ -282,12 +283,17 @@ def _flatness(d: np.ndarray, valid: np.ndarray | None, valid8: np.ndarray,
     return clearance_px, flatness_px, _minmax(flatness_px, valid)
 
 
-@lru_cache(maxsize=1)
 def _flatness_worker() -> ThreadPoolExecutor:
     """One worker thread for the flatness branch: OpenCV and numpy release the GIL, so the
     distance transform (the largest single step) overlaps the normals and the other maps
     on a second core; frames from several callers queue on it (same results)."""
-    return ThreadPoolExecutor(max_workers=1, thread_name_prefix="depth-costmap")
+    # Per process: a forked child does not inherit the parent's thread.
+    return _worker_of_process(os.getpid())
+
+
+@lru_cache(maxsize=1)
+def _worker_of_process(pid: int) -> ThreadPoolExecutor:
+    return ThreadPoolExecutor(max_workers=1, thread_name_prefix=f"depth-costmap-{pid}")
 
 
 def compute_costmaps(frame: DepthFrame, settings: DepthCostmapSettings) -> Costmaps:

@@ -260,6 +260,32 @@ def test_frames_processed_from_several_threads_give_the_maps_of_serial_processin
     assert not np.array_equal(serial[0].flatness_px, serial[3].flatness_px)
 
 
+def _maps_in_child(conn, depth):
+    maps = compute_costmaps(frame(depth), DepthCostmapSettings())
+    conn.send(maps.flatness_px)
+    conn.close()
+
+
+def test_a_forked_process_computes_maps_after_its_parent_did():
+    import multiprocessing
+
+    depth = render(box=(0.0, 0.0, 1.5, 2.0))
+    parent_maps = compute_costmaps(frame(depth), DepthCostmapSettings())
+    ctx = multiprocessing.get_context("fork")
+    receive, send = ctx.Pipe(duplex=False)
+    child = ctx.Process(target=_maps_in_child, args=(send, depth))
+    child.start()
+    try:
+        assert receive.poll(60), "the child never finished its costmaps"
+        np.testing.assert_array_equal(receive.recv(), parent_maps.flatness_px)
+    finally:
+        child.join(10)
+        if child.is_alive():
+            child.kill()
+        receive.close()
+    assert child.exitcode == 0
+
+
 @pytest.mark.parametrize(
     "k",
     [
