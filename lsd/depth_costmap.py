@@ -446,14 +446,18 @@ def footprint_depth(
     mask8 = valid.view(np.uint8)
     # Inverse depth is linear across the image of a plane (1/D = n . ray / offset), so its
     # window mean is the centre's exactly; depth itself is not (tilted views).
-    # Invalid -> 0 -> 1/0 = inf -> 0 (threshold in place): three cheap passes, where one
-    # division of the raw image, NaN and all, costs several times more.
-    inverse = cv2.copyTo(np.asarray(depth, dtype=np.float32), mask8)
-    with np.errstate(divide="ignore"):
-        np.divide(np.float32(1.0), inverse, out=inverse)
-    cv2.threshold(inverse, _FLOAT32_MAX, 0.0, cv2.THRESH_TOZERO_INV, dst=inverse)
+    all_valid = cv2.countNonZero(mask8) == mask8.size
+    if all_valid:
+        with np.errstate(divide="ignore", invalid="ignore"):
+            inverse = np.divide(np.float32(1.0), np.asarray(depth, dtype=np.float32))
+    else:
+        # Invalid -> 0 -> 1/0 = inf -> 0 (threshold in place): three cheap passes, where
+        # one division of the raw image, NaN and all, costs several times more.
+        inverse = cv2.copyTo(np.asarray(depth, dtype=np.float32), mask8)
+        with np.errstate(divide="ignore"):
+            np.divide(np.float32(1.0), inverse, out=inverse)
+        cv2.threshold(inverse, _FLOAT32_MAX, 0.0, cv2.THRESH_TOZERO_INV, dst=inverse)
     total = cv2.integral(inverse, sdepth=cv2.CV_64F)
-    count = cv2.integral(mask8)
     centre = np.asarray(depth)[rows, cols].astype(np.float64)
     a = np.maximum((0.7 * radius / np.maximum(centre, 1e-6)).astype(np.int64), 0)
     r0, r1 = np.maximum(rows - a, 0), np.minimum(rows + a + 1, h)
@@ -464,7 +468,8 @@ def footprint_depth(
             np.float64
         )
 
-    n = box(count)
+    # Valid pixels in each window: its area when every pixel is valid.
+    n = ((r1 - r0) * (c1 - c0)).astype(np.float64) if all_valid else box(cv2.integral(mask8))
     mean_inverse = box(total) / np.maximum(n, 1)
     return np.where((n > 0) & (mean_inverse > 0), 1.0 / np.maximum(mean_inverse, 1e-12), centre)
 
@@ -673,7 +678,7 @@ class SiteList:
             out[idx] = start + np.arange(len(idx))
         if len(dropped) and len(idx):
             # A dropped duplicate maps to the listed site that displaced it.
-            dist, near = cKDTree(new.positions[idx]).query(
+            dist, near = _tree(new.positions[idx]).query(
                 new.positions[dropped], distance_upper_bound=r
             )
             found = np.isfinite(dist)
