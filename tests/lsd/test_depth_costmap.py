@@ -15,6 +15,7 @@ from lsd.depth_costmap import (
     SiteList,
     cluster_sites,
     compute_costmaps,
+    footprint_depth,
 )
 from lsd.frames import DepthFrame, Intrinsics
 
@@ -258,6 +259,19 @@ def test_frames_processed_from_several_threads_give_the_maps_of_serial_processin
             np.testing.assert_allclose(getattr(a, name), getattr(b, name), rtol=0, atol=1e-6)
     # The box moves between frames: the flatness maps differ (the check is not vacuous).
     assert not np.array_equal(serial[0].flatness_px, serial[3].flatness_px)
+
+
+@pytest.mark.parametrize("hole", [False, True])
+def test_footprint_depth_of_a_tilted_plane_is_its_centre_depth_with_or_without_holes(hole):
+    tilt = np.array([[1.0, 0, 0], [0, -0.9659258, -0.2588190], [0, 0.2588190, -0.9659258]])
+    depth = render(rotation=NADIR @ tilt.T)
+    valid = np.ones(depth.shape, dtype=bool)
+    if hole:  # invalid pixels (NaN) far from the sites are ignored
+        depth[:50, :] = np.nan
+        valid[:50, :] = False
+    rows, cols = np.array([120, 240, 400]), np.array([100, 320, 600])
+    d = footprint_depth(depth, valid, rows, cols, K.fx * 1.0)
+    np.testing.assert_allclose(d, depth[rows, cols], rtol=1e-5)
 
 
 def _maps_in_child(conn, depth):
