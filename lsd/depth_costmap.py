@@ -305,6 +305,11 @@ def compute_costmaps(frame: DepthFrame, settings: DepthCostmapSettings) -> Costm
     n_cam = (-fx D_u, -fy D_v, D + fx xn D_u + fy yn D_v), so box-averaged depth gradients
     (a box blur, then central differences) give the averaged 3D-gradient normals without building
     the point image; the world z of the normal is R[2] . n_cam.
+
+    Threads: the flatness maps (Canny, distance transform) are computed on one worker
+    thread of this process while the calling thread computes the others, so a frame takes
+    about the longer of the two branches on a machine with a free core; safe to call from
+    several threads at once (their flatness branches queue on the worker).
     """
     s = settings
     k = frame.intrinsics
