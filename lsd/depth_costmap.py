@@ -745,8 +745,12 @@ class DepthCostmapDetector:
         if len(listed) == 0:
             return []
         touched = np.unique(self._cluster[listed])
-        members = np.flatnonzero(np.isin(self._cluster, touched))
-        labels = np.searchsorted(touched, self._cluster[members])
+        # Touched cluster -> 0..T-1 by a lookup table (cluster ids are 0..C-1).
+        rank = np.full(int(self._cluster.max()) + 1, -1, dtype=np.int64)
+        rank[touched] = np.arange(len(touched))
+        label_of_site = rank[self._cluster]
+        members = np.flatnonzero(label_of_site >= 0)
+        labels = label_of_site[members]
         return self._observations(members, labels, np.arange(len(touched)))
 
     def _link_new_sites(self, first_new: int) -> None:
@@ -777,9 +781,14 @@ class DepthCostmapDetector:
         # Graph nodes: old clusters 0..C-1, then the new sites C..C+n_new-1.
         node_of_site = np.concatenate((old, n_old_clusters + np.arange(n_new)))
         n_nodes = n_old_clusters + n_new
+        # CSR built directly (rows sorted, duplicates harmless): the components do not
+        # depend on the order of a row's entries.
+        rows = n_old_clusters + i
+        order = np.argsort(rows, kind="stable")
+        indptr = np.zeros(n_nodes + 1, dtype=np.int64)
+        np.cumsum(np.bincount(rows, minlength=n_nodes), out=indptr[1:])
         graph = csr_matrix(
-            (np.ones(len(i)), (n_old_clusters + i, node_of_site[j])),
-            shape=(n_nodes, n_nodes),
+            (np.ones(len(order)), node_of_site[j][order], indptr), shape=(n_nodes, n_nodes)
         )
         component = connected_components(graph, directed=False)[1].astype(np.int64)
         self._cluster = component[node_of_site]
