@@ -263,7 +263,8 @@ def _border_distance(h: int, w: int) -> np.ndarray:
 
 
 def _above(x: float) -> float:
-    """The float32 just above ``x``: inRange's lower bound is inclusive, d_min is not."""
+    """The float32 just above ``x``: inRange's lower bound is inclusive, d_min is not
+    (the bounds are float32, as the threshold passes they replace compared them)."""
     return float(np.nextafter(np.float32(x), np.float32(np.inf)))
 
 
@@ -318,7 +319,7 @@ def compute_costmaps(frame: DepthFrame, settings: DepthCostmapSettings) -> Costm
     xn, yn, ray_len = _rays(k.fx, k.fy, k.cx, k.cy, w, h)
     # Valid: d_min < D <= d_max (NaN fails both), one OpenCV pass; invalid depth -> 0 (a
     # masked copy: numpy's where and masked stores cost several times more).
-    valid8 = cv2.inRange(depth, _above(max(s.d_min, 1e-9)), float(s.d_max))
+    valid8 = cv2.inRange(depth, _above(max(s.d_min, 1e-9)), float(np.float32(s.d_max)))
     d = cv2.copyTo(depth, valid8)  # zeros where the mask is 0
     valid = valid8 > 0
     mask8 = valid.view(np.uint8)
