@@ -8,9 +8,10 @@ size, non-maximum suppression picks sites, and a maximum filter gives each site'
 altitude. Sites come out as :class:`lsm.SiteObservation` records, already threshold-filtered.
 
 ``observation_altitude`` is the camera's current height above the site, or, if larger, the
-greatest height from which any cell within ``footprint_radius`` of the site was best seen:
-a site redetected at 2.5 m whose surroundings were only seen from 20 m is not reported as
-seen from 2.5 m, which keeps verification meaningful. A site that passes the step test near
+greatest height from which any cell within ``footprint_radius + look_margin`` of the site was
+best seen: a site redetected at 2.5 m whose surroundings were only seen from 20 m (or
+obliquely from the edge of the view) is not reported as seen from 2.5 m, which keeps
+verification meaningful. A site that passes the step test near
 it only thanks to the noise tolerance is reported as seen from no lower than
 ``doubtful_altitude``.
 
