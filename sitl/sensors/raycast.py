@@ -289,6 +289,70 @@ def _pool(a: np.ndarray, reduce) -> np.ndarray:
     return reduce(a.reshape(a.shape[0] // 2, 2, a.shape[1] // 2, 2), axis=(1, 3))
 
 
+class PinholeRays:
+    """The ray directions of a pinhole camera's pixels, with what the caster derives from
+    them alone (kept between frames: build once per camera orientation and reuse).
+
+    Args:
+        directions: (H, W, 3) ray direction of every pixel (any length; cast results are in
+            their units), all pointing down (z < 0), e.g. with unit optical-axis component
+            so the ray parameter is the depth. Raises ValueError otherwise.
+    """
+
+    def __init__(self, directions: np.ndarray) -> None:
+        d = np.asarray(directions)
+        if d.ndim != 3 or d.shape[2] != 3 or not np.all(d[..., 2] < 0):
+            raise ValueError("directions: need (H, W, 3) rays all pointing down (z < 0)")
+        self.shape = d.shape[:2]
+        self.dx, self.dy, self.dz = (np.ascontiguousarray(d[..., k], np.float64) for k in range(3))
+        self._per_cell: dict[float, dict] = {}
+
+    def _derived(self, cell_size: float) -> dict:
+        """Per-cell-size arrays: flat float32 (du, dv, dz, 1 / horizontal speed) in cells
+        per unit t, and per image tile the corner rays' extremes (float64)."""
+        got = self._per_cell.get(cell_size)
+        if got is not None:
+            return got
+        du, dv, dz = self.dx / cell_size, self.dy / cell_size, self.dz
+        height, width = self.shape
+        tiles = []
+        for tile, passes in _TILE_PASSES:
+            # The tile's rays lie between its four corner rays (at any t >= 0 their
+            # footprint is within the corners' bounding box).
+            r0 = np.arange(0, height, tile)
+            c0 = np.arange(0, width, tile)
+            r1 = np.minimum(r0 + tile - 1, height - 1)
+            c1 = np.minimum(c0 + tile - 1, width - 1)
+            corners = [(a, b) for a in (r0, r1) for b in (c0, c1)]
+            ext = []
+            for comp in (du, dv, dz):
+                at = [comp.take(a, axis=0).take(b, axis=1) for a, b in corners]
+                ext += [np.minimum.reduce(at), np.maximum.reduce(at)]
+            tiles.append((tile, passes, ext))
+        f32 = np.float32
+        hor = np.maximum(np.hypot(du, dv), 1e-6).astype(f32).ravel()
+        got = {
+            "du": du.astype(f32).ravel(),
+            "dv": dv.astype(f32).ravel(),
+            "dz": dz.astype(f32).ravel(),
+            "inv_hor": np.float32(1.0) / hor,
+            "tiles": tiles,
+        }
+        self._per_cell[cell_size] = got
+        return got
+
+    def cast(
+        self,
+        bounds: HeightBounds,
+        origin: np.ndarray,
+        t_max: float = np.inf,
+        step: float | None = None,
+    ) -> np.ndarray:
+        """Ray parameter of every pixel's first hit on ``bounds``' terrain; see
+        :func:`cast_pinhole_rays`. Returns (H, W) float32, NaN beyond ``t_max``."""
+        return _cast(bounds, self, origin, t_max, step)
+
+
 def cast_pinhole_rays(
     bounds: HeightBounds,
     origin: np.ndarray,
@@ -314,54 +378,38 @@ def cast_pinhole_rays(
         origin: (3,) camera centre, ENU metres.
         directions: (H, W, 3) ray direction of every pixel (any length; the result is in
             their units), all pointing down (z < 0), e.g. with unit optical-axis component
-            so the parameter is the depth. Raises ValueError otherwise.
+            so the parameter is the depth. Raises ValueError otherwise. A camera rendering
+            many frames keeps a :class:`PinholeRays` of them instead.
         t_max: hits beyond this parameter report NaN.
         step: horizontal march step (m); default: the cell size.
 
     Returns:
-        (H, W) float64 parameter of the hit point ``origin + t * direction``; NaN beyond
+        (H, W) float32 parameter of the hit point ``origin + t * direction``; NaN beyond
         ``t_max``.
     """
+    return PinholeRays(directions).cast(bounds, origin, t_max, step)
+
+
+def _cast(bounds, rays: PinholeRays, origin, t_max, step) -> np.ndarray:
     ox, oy, oz = (float(c) for c in origin)
-    d = np.asarray(directions, dtype=np.float64)
-    if d.ndim != 3 or d.shape[2] != 3 or not np.all(d[..., 2] < 0):
-        raise ValueError("directions: need (H, W, 3) rays all pointing down (z < 0)")
-    height, width = d.shape[:2]
+    height, width = rays.shape
     cs = bounds.cell_size
+    per = rays._derived(cs)
     # Cell-centre coordinates: u = u_o + t * du (columns), v = v_o + t * dv (rows).
     u_o = (ox - bounds.origin[0]) / cs
     v_o = (oy - bounds.origin[1]) / cs
-    du, dv, dz = d[..., 0] / cs, d[..., 1] / cs, d[..., 2]
 
     lo = hi = None
     tile_prev = 1
-    for tile, passes in _TILE_PASSES:
-        if tile == 1:
-            du_min = du_max = du
-            dv_min = dv_max = dv
-            z_lo = z_hi = dz
-        else:
-            # The tile's rays lie between its four corner rays (at any t >= 0 their
-            # footprint is within the corners' bounding box).
-            r0 = np.arange(0, height, tile)
-            c0 = np.arange(0, width, tile)
-            r1 = np.minimum(r0 + tile - 1, height - 1)
-            c1 = np.minimum(c0 + tile - 1, width - 1)
-            corner = [np.ix_(a, b) for a in (r0, r1) for b in (c0, c1)]
-            du_c = [du[k] for k in corner]
-            dv_c = [dv[k] for k in corner]
-            dz_c = [dz[k] for k in corner]
-            du_min, du_max = np.minimum.reduce(du_c), np.maximum.reduce(du_c)
-            dv_min, dv_max = np.minimum.reduce(dv_c), np.maximum.reduce(dv_c)
-            z_lo, z_hi = np.minimum.reduce(dz_c), np.maximum.reduce(dz_c)
+    for tile, passes, ext in per["tiles"]:
+        du_min, du_max, dv_min, dv_max, z_lo, z_hi = ext
         shape = du_min.shape
         if lo is None:
             lo = np.maximum(0.0, (oz - bounds.top) / -z_lo)
             hi = (oz - bounds.bottom) / -z_hi
         else:
-            n = tile_prev // tile
-            lo = np.repeat(np.repeat(lo, n, 0), n, 1)[: shape[0], : shape[1]]
-            hi = np.repeat(np.repeat(hi, n, 0), n, 1)[: shape[0], : shape[1]]
+            lo = _expand(lo, tile_prev // tile, shape)
+            hi = _expand(hi, tile_prev // tile, shape)
         for _ in range(passes):
             u0 = u_o + np.minimum(du_min * lo, du_min * hi)
             u1 = u_o + np.maximum(du_max * lo, du_max * hi)
@@ -374,12 +422,9 @@ def cast_pinhole_rays(
     # Per ray, in single precision, flat: the bracket to pixels, f(t) = ray height - ground.
     # (Random masks are slow in numpy: subsets go through index arrays and take, and
     # selections are written as arithmetic blends.)
-    n = tile_prev
-    lo = np.repeat(np.repeat(lo, n, 0), n, 1)[:height, :width].astype(np.float32).ravel()
-    hi = np.repeat(np.repeat(hi, n, 0), n, 1)[:height, :width].astype(np.float32).ravel()
-    du = du.astype(np.float32).ravel()
-    dv = dv.astype(np.float32).ravel()
-    dz = dz.astype(np.float32).ravel()
+    lo = _expand(lo.astype(np.float32), tile_prev, (height, width)).ravel()
+    hi = _expand(hi.astype(np.float32), tile_prev, (height, width)).ravel()
+    du, dv, dz = per["du"], per["dv"], per["dz"]
     grid = bounds.grid
     u_o, v_o, oz = np.float32(u_o), np.float32(v_o), np.float32(oz)
 
@@ -388,7 +433,7 @@ def cast_pinhole_rays(
 
     # March a step at a time (horizontally) from lo; a ray's step reaching hi has crossed.
     cells = np.float32(1.0 if step is None else float(step) / cs)
-    step = cells / np.maximum(np.hypot(du, dv), np.float32(1e-6))
+    step = per["inv_hor"] * cells
     # Each ray's bracket [a, b] with f(a) > 0 >= f(b) (fa <= 0: under ground at lo): after
     # the first step for most rays; the others march on (the g_ arrays) and write theirs.
     a, fa = lo, f(lo, du, dv, dz)
@@ -418,7 +463,7 @@ def cast_pinhole_rays(
     # Regula falsi (Illinois) on [a, b], fa > 0 >= fb, until the ray point is within
     # _CLOSE of the ground; a ray already under ground at a (fa <= 0: the camera inside
     # the terrain) keeps a.
-    t = a.astype(np.float64)
+    t = a.copy()
     live = np.flatnonzero(fa > 0)
     if live.size < t.size:
         a, b, fa, fb, du, dv, dz = (x.take(live) for x in (a, b, fa, fb, du, dv, dz))
@@ -444,7 +489,8 @@ def cast_pinhole_rays(
         a = a + above * (c - a)
         b = c + above * (b - c)
     t = t.reshape(height, width)
-    t[t > t_max] = np.nan
+    if t_max < np.inf:
+        t[t > t_max] = np.nan
     return t
 
 
@@ -501,6 +547,13 @@ def _thin_features(bounds, start, a, fa, b, fb, ahead, du, dv, dz, f) -> None:
     k = idx.take(sus.take(np.flatnonzero(found)))
     a[k], fa[k], b[k], fb[k] = lo[found], f_lo[found], hi[found], f_hi[found]
     ahead[k] = False
+
+
+def _expand(a: np.ndarray, n: int, shape: tuple[int, int]) -> np.ndarray:
+    """Per-tile values of ``n`` x ``n`` pixel tiles to pixels, cut to ``shape``."""
+    ny, nx = a.shape
+    full = np.broadcast_to(a[:, None, :, None], (ny, n, nx, n)).reshape(ny * n, nx * n)
+    return full[: shape[0], : shape[1]]
 
 
 def _secant(a, b, fa, fb):
