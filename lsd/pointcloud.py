@@ -168,10 +168,11 @@ def voxel_grid(points: np.ndarray, voxel_size: float) -> VoxelCloud:
 
     Returns:
         The :class:`VoxelCloud` of the ``V`` occupied voxels. One int64 key per point, the
-        voxel's raveled (x, y, z) index with the point's index packed in its low bits,
-        sorted by ``np.sort`` (SIMD, much faster than ``argsort``), groups each voxel's
-        points; the centroids are one sparse-matrix product. The sort order is also the
-        column index (no separate spatial structure to build).
+        voxel's (column, z) index with the point's index packed in its low bits, sorted by
+        ``np.sort`` (SIMD, much faster than ``argsort``), groups each voxel's points; the
+        column is the key's most significant part, so the same order is the column index
+        (no second sort, no separate spatial structure). The centroids are one
+        sparse-matrix product.
     """
     if not voxel_size > 0:
         raise ValueError(f"voxel_size must be positive, got {voxel_size}")
@@ -180,13 +181,15 @@ def voxel_grid(points: np.ndarray, voxel_size: float) -> VoxelCloud:
     if n == 0:
         index = ColumnIndex(np.empty(0, dtype=np.int64), (0.0, 0.0), float(voxel_size), (1, 1))
         return VoxelCloud(np.empty((0, 3)), np.empty(0, dtype=np.int64), index)
-    # Column views: reductions along axis 0 of an (N, 3) array are slow, strided 1-D are not.
-    cols = (pts[:, 0], pts[:, 1], pts[:, 2])
-    lo = [float(c.min()) for c in cols]
+    # One transposed copy: every pass below then runs over contiguous rows (strided column
+    # views of an (N, 3) array are several times slower for each reduction and cast).
+    xyz = np.ascontiguousarray(pts.T)
+    lo = xyz.min(axis=1).tolist()
+    hi = xyz.max(axis=1).tolist()
     inv = 1.0 / voxel_size
     # Voxels per axis from the extremes (the same monotone expression as the indices below),
     # checked before any cast so an absurd extent cannot overflow silently.
-    nx, ny, nz = (int((float(c.max()) - m) * inv) + 1 for c, m in zip(cols, lo, strict=True))
+    nx, ny, nz = (int((h - m) * inv) + 1 for h, m in zip(hi, lo, strict=True))
     z_bits = (nz - 1).bit_length()
     n_bits = (n - 1).bit_length()
     key_bits = (nx * ny - 1).bit_length() + z_bits
@@ -195,9 +198,14 @@ def voxel_grid(points: np.ndarray, voxel_size: float) -> VoxelCloud:
             f"voxel grid of {nx} x {ny} x {nz} voxels is too large for int64 keys "
             f"(cloud extent / voxel_size {voxel_size} m)"
         )
-    # Shifted to non-negative, truncation is floor: voxel indices from the cloud's corner.
-    kx, ky, kz = (((c - m) * inv).astype(np.int64) for c, m in zip(cols, lo, strict=True))
-    key = kx
+    # Shifted to non-negative, truncation is floor: voxel indices from the cloud's corner,
+    # cast to int32 when they fit (the cheapest cast), widened once for the key.
+    small = max(nx, ny, nz) < 2**31
+    kx, ky, kz = (
+        ((row - m) * inv).astype(np.int32 if small else np.int64)
+        for row, m in zip(xyz, lo, strict=True)
+    )
+    key = kx.astype(np.int64)
     key *= ny
     key += ky
     key <<= z_bits
@@ -220,9 +228,8 @@ def voxel_grid(points: np.ndarray, voxel_size: float) -> VoxelCloud:
     # the (N, 3) cloud: a single compiled pass that gathers and sums (no sorted copies).
     weight = np.repeat(1.0 / counts, counts)
     average = sparse.csr_array((weight, order, indptr), shape=(len(counts), n))
-    centroids = average @ np.ascontiguousarray(pts)
-    starts = indptr[:-1]
-    columns = key[starts] >> z_bits
+    centroids = average @ pts
+    columns = key[indptr[:-1]] >> z_bits
     index = ColumnIndex(columns, (lo[0], lo[1]), float(voxel_size), (nx, ny))
     return VoxelCloud(centroids, counts, index)
 
