@@ -11,7 +11,7 @@ import numpy as np
 from scipy.special import ndtri
 
 from sitl.sensors.rangefinder import RangeFinder
-from sitl.sensors.raycast import HeightBounds, PinholeRays
+from sitl.sensors.raycast import HeightBounds, PinholeRays, coarse_terrain
 from sitl.sensors.settings import DepthCameraSettings
 from sitl.terrain import Terrain
 
@@ -21,6 +21,9 @@ SFM = "sfm"
 # Standard normal deviates by inverse transform of 16-bit uniforms: the quantiles of the
 # 65536 equiprobable bins (tails cut at 4.3 sigma). Raw random bytes and one table lookup
 # cost a quarter of Generator.standard_normal per pixel.
+# Coarsest level of detail rendered (2**3 cells per side).
+_MAX_LEVEL = 3
+
 _NORMAL_QUANTILES = ndtri((np.arange(65536) + 0.5) / 65536).astype(np.float32)
 
 
@@ -132,7 +135,7 @@ class DepthCamera:
         self._events: list[dict[str, Any]] = []
         self._history: deque[tuple[float, float, float]] = deque()
         self._last_skip: str | None = None
-        self._bounds: HeightBounds | None = None
+        self._bounds: dict[int, HeightBounds] = {}  # per level of detail
         self.fx = self.fy = float(s.focal_px)
         self.cx = (s.width - 1) / 2.0
         self.cy = (s.height - 1) / 2.0
@@ -206,7 +209,8 @@ class DepthCamera:
                     "agl": None if agl is None else round(float(agl), 2),
                 }
             )
-        if self.rangefinder.true_agl(p) <= 0:
+        true_agl = self.rangefinder.true_agl(p)
+        if true_agl <= 0:
             return self._skip("camera_below_ground")
         if self.selector.source == SFM:
             baseline = self.sfm_baseline()
@@ -217,10 +221,8 @@ class DepthCamera:
             baseline = s.stereo_baseline
             max_range = min(s.stereo_max_range, s.max_depth)
         rotation = nadir_rotation(yaw)
-        if self._bounds is None:
-            self._bounds = HeightBounds(self.terrain)
         depth = self._pinhole_rays(yaw, rotation).cast(
-            self._bounds, p, t_max=max_range, step=s.march_step
+            self._height_bounds(true_agl), p, t_max=max_range, step=s.march_step
         )
         sigma = depth_sigma(
             depth, np.float32(s.focal_px), np.float32(baseline), np.float32(s.disparity_sigma_px)
@@ -247,6 +249,18 @@ class DepthCamera:
             source=self.selector.source or "",
             baseline=float(baseline),
         )
+
+    def _height_bounds(self, agl: float) -> HeightBounds:
+        """Bounds of the terrain at the level of detail of the pixel footprint ``agl / f``
+        (built on first use)."""
+        level = 0
+        if self.settings.level_of_detail:
+            footprint = agl / self.settings.focal_px / self.terrain.cell_size
+            level = int(np.clip(np.rint(np.log2(max(footprint, 1e-9))), 0, _MAX_LEVEL))
+        bounds = self._bounds.get(level)
+        if bounds is None:
+            bounds = self._bounds[level] = HeightBounds(coarse_terrain(self.terrain, level))
+        return bounds
 
     def _pinhole_rays(self, yaw: float, rotation: np.ndarray) -> PinholeRays:
         """The pixels' rays in ENU for heading ``yaw`` (kept while the heading holds)."""

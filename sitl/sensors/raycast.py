@@ -267,19 +267,37 @@ class HeightBounds:
         u1 = np.clip(u1, 0.0, top_u)
         v0 = np.clip(v0, 0.0, top_v)
         v1 = np.clip(v1, 0.0, top_v)
-        span = np.maximum(u1 - u0, v1 - v0)
-        level = np.clip(np.ceil(np.log2(np.maximum(span, 1e-6))), 0, self.levels - 1)
-        level = level.astype(np.intp)
-        scale = self.scale[level]
-        width = self.width[level]
-        row0 = (v0 * scale).astype(np.intp) * width + self.offset[level]
-        row1 = (v1 * scale).astype(np.intp) * width + self.offset[level]
+        # Level ceil(log2(span)), or one coarser when the span is a power of two: the
+        # exponent e of span = m 2**e, 0.5 <= m < 1.
+        level = np.frexp(np.maximum(u1 - u0, v1 - v0))[1]
+        np.clip(level, 0, self.levels - 1, out=level)
+        scale = self.scale.take(level)
+        width = self.width.take(level)
+        base = self.offset.take(level)
+        row0 = (v0 * scale).astype(np.intp) * width + base
+        row1 = (v1 * scale).astype(np.intp) * width + base
         col0 = (u0 * scale).astype(np.intp)
         col1 = (u1 * scale).astype(np.intp)
         keys = (row0 + col0, row0 + col1, row1 + col0, row1 + col1)
         high = np.maximum.reduce([self.high.take(k) for k in keys])
         low = np.minimum.reduce([self.low.take(k) for k in keys])
         return high, low
+
+
+def coarse_terrain(terrain: Terrain, level: int) -> Terrain:
+    """The terrain at a coarser level of detail: the mean height of each block of
+    ``2**level`` x ``2**level`` cells (edge cells repeated to fill the last blocks), as a
+    grid of ``2**level`` times the cell size centred on the blocks. Level 0 is
+    ``terrain`` itself. A planar terrain stays the same plane."""
+    if level <= 0:
+        return terrain
+    grid = terrain.grid.astype(np.float64)
+    for _ in range(level):
+        grid = _pool(grid, np.mean)
+    n = 2**level
+    shift = (n - 1) / 2 * terrain.cell_size
+    origin = (terrain.origin[0] + shift, terrain.origin[1] + shift)
+    return Terrain(grid, n * terrain.cell_size, origin=origin, kind=terrain.kind)
 
 
 def _pool(a: np.ndarray, reduce) -> np.ndarray:
@@ -464,9 +482,14 @@ def _cast(bounds, rays: PinholeRays, origin, t_max, step) -> np.ndarray:
     # _CLOSE of the ground; a ray already under ground at a (fa <= 0: the camera inside
     # the terrain) keeps a.
     t = a.copy()
-    live = np.flatnonzero(fa > 0)
-    if live.size < t.size:
-        a, b, fa, fb, du, dv, dz = (x.take(live) for x in (a, b, fa, fb, du, dv, dz))
+    live = np.arange(t.size)
+    under = fa <= 0
+    if under.any():
+        # A ray under ground at a (by the fixed-point heights' millimetres at a bound, or
+        # the camera inside the terrain) keeps a: a bracket [a, a] with f(a) > 0 pretended.
+        b[under] = a[under]
+        fb[under] = fa[under]
+        fa[under] = np.float32(1e-30)
     half = np.float32(0.5)
     for k in range(_FALSI):
         c = _secant(a, b, fa, fb)

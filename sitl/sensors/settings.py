@@ -49,6 +49,11 @@ class DepthCameraSettings(BaseModel):
     sfm_max_baseline: float = Field(15.0, gt=0, description="SfM keyframe spacing cap (m)")
     stereo_below: float = Field(15.0, gt=0, description="switch to stereo below this AGL (m)")
     sfm_above: float = Field(20.0, gt=0, description="switch to SfM above this AGL (m)")
+    level_of_detail: bool = Field(
+        True,
+        description="render from the terrain's mean-height level whose cell is nearest the "
+        "pixel footprint (depth / focal_px, log2 rounded); False: always full resolution",
+    )
     march_step: float | None = Field(
         None, gt=0, description="horizontal ray-march step (m); None: the terrain cell size"
     )
