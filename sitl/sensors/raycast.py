@@ -209,7 +209,7 @@ def cast_rays(
 # refine with bilinear samples from cv2.remap. -------------------------------------------
 
 # Tile sizes (px) of the image-space hierarchy and bound iterations at each.
-_TILE_PASSES = ((16, 4), (4, 3))
+_TILE_PASSES = ((16, 3), (4, 2))
 # Most regula falsi (Illinois) iterations on a ray's final bracket.
 _FALSI = 16
 # A ray point this close (m, vertically) to the ground is the hit.
@@ -248,6 +248,8 @@ class HeightBounds:
         self.offset = np.cumsum([0] + [a.size for a in his[:-1]]).astype(np.intp)
         self.high = np.concatenate([a.ravel() for a in his])
         self.low = np.concatenate([a.ravel() for a in los])
+        # (high, -low) per node: one gather and one max give both bounds.
+        self._high_neg_low = np.stack((self.high, -self.low), axis=1)
         self.scale = np.ldexp(1.0, -np.arange(self.levels))
         self.cells = (g.shape[0] - 1, g.shape[1] - 1)
         self.top = float(his[-1][0, 0])
@@ -263,24 +265,30 @@ class HeightBounds:
         nodes of the finest level whose nodes are at least as wide as it)."""
         ncy, ncx = self.cells
         top_u, top_v = ncx - 1e-3, ncy - 1e-3
-        u0 = np.clip(u0, 0.0, top_u)
-        u1 = np.clip(u1, 0.0, top_u)
-        v0 = np.clip(v0, 0.0, top_v)
-        v1 = np.clip(v1, 0.0, top_v)
+        u0 = np.minimum(np.maximum(u0, 0.0), top_u)
+        u1 = np.minimum(np.maximum(u1, 0.0), top_u)
+        v0 = np.minimum(np.maximum(v0, 0.0), top_v)
+        v1 = np.minimum(np.maximum(v1, 0.0), top_v)
         # Level ceil(log2(span)), or one coarser when the span is a power of two: the
         # exponent e of span = m 2**e, 0.5 <= m < 1.
         level = np.frexp(np.maximum(u1 - u0, v1 - v0))[1]
-        np.clip(level, 0, self.levels - 1, out=level)
+        np.minimum(np.maximum(level, 0, out=level), self.levels - 1, out=level)
         scale = self.scale.take(level)
         width = self.width.take(level)
-        base = self.offset.take(level)
-        row0 = (v0 * scale).astype(np.intp) * width + base
-        row1 = (v1 * scale).astype(np.intp) * width + base
+        row0 = (v0 * scale).astype(np.intp)
+        row0 *= width
+        row0 += self.offset.take(level)
+        row1 = (v1 * scale).astype(np.intp)
+        row1 *= width
+        row1 += self.offset.take(level)
         col0 = (u0 * scale).astype(np.intp)
         col1 = (u1 * scale).astype(np.intp)
-        keys = (row0 + col0, row0 + col1, row1 + col0, row1 + col1)
-        high = np.maximum.reduce([self.high.take(k) for k in keys])
-        low = np.minimum.reduce([self.low.take(k) for k in keys])
+        nodes = self._high_neg_low
+        both = np.maximum(
+            np.maximum(nodes.take(row0 + col0, axis=0), nodes.take(row0 + col1, axis=0)),
+            np.maximum(nodes.take(row1 + col0, axis=0), nodes.take(row1 + col1, axis=0)),
+        )
+        high, low = both[..., 0], -both[..., 1]
         return high, low
 
 
@@ -483,12 +491,12 @@ def _cast(bounds, rays: PinholeRays, origin, t_max, step) -> np.ndarray:
     # the terrain) keeps a.
     t = a.copy()
     live = np.arange(t.size)
-    under = fa <= 0
-    if under.any():
+    under = np.flatnonzero(fa <= 0)
+    if under.size:
         # A ray under ground at a (by the fixed-point heights' millimetres at a bound, or
         # the camera inside the terrain) keeps a: a bracket [a, a] with f(a) > 0 pretended.
-        b[under] = a[under]
-        fb[under] = fa[under]
+        b[under] = a.take(under)
+        fb[under] = fa.take(under)
         fa[under] = np.float32(1e-30)
     half = np.float32(0.5)
     for k in range(_FALSI):
