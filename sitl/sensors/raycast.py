@@ -499,6 +499,8 @@ def _cast(bounds, rays: PinholeRays, origin, t_max, step) -> np.ndarray:
         fb[under] = fa.take(under)
         fa[under] = np.float32(1e-30)
     half = np.float32(0.5)
+    # Which end the previous step replaced (+1: a, -1: b, 0: none yet).
+    last = np.zeros(t.size, dtype=np.int8)
     for k in range(_FALSI):
         c = _secant(a, b, fa, fb)
         fc = f(c, du, dv, dz)
@@ -510,15 +512,17 @@ def _cast(bounds, rays: PinholeRays, origin, t_max, step) -> np.ndarray:
         if n_close > live.size // 4:
             t[live] = c  # the close ones are final; the others are overwritten later
             on = np.flatnonzero(~close)
-            live, a, b, fa, fb, c, fc, du, dv, dz = (
-                x.take(on) for x in (live, a, b, fa, fb, c, fc, du, dv, dz)
+            live, a, b, fa, fb, c, fc, du, dv, dz, last = (
+                x.take(on) for x in (live, a, b, fa, fb, c, fc, du, dv, dz, last)
             )
-        # c replaces a where f(c) > 0, else b; Illinois: the kept end's value is halved.
-        above = (fc > 0).astype(np.float32)
-        fb = fc + above * (half * fb - fc)
-        fa = half * fa + above * (fc - half * fa)
-        a = a + above * (c - a)
-        b = c + above * (b - c)
+        # c replaces a where f(c) > 0, else b; Illinois: an end kept twice in a row has
+        # its value halved.
+        above = fc > 0
+        fb = np.where(above, np.where(last > 0, half * fb, fb), fc)
+        fa = np.where(above, fc, np.where(last < 0, half * fa, fa))
+        a = np.where(above, c, a)
+        b = np.where(above, b, c)
+        last = np.where(above, np.int8(1), np.int8(-1))
     t = t.reshape(height, width)
     if t_max < np.inf:
         t[t > t_max] = np.nan
