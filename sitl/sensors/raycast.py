@@ -486,11 +486,6 @@ def _cast(bounds, rays: PinholeRays, origin, t_max, step) -> np.ndarray:
         going, g_a, g_fa = going.take(on), g_b.take(on), g_fb.take(on)
         g_du, g_dv, g_dz = g_du.take(on), g_dv.take(on), g_dz.take(on)
         g_step, g_hi = g_step.take(on), g_hi.take(on)
-    # Regula falsi (Illinois) on [a, b], fa > 0 >= fb, until the ray point is within
-    # _CLOSE of the ground; a ray already under ground at a (fa <= 0: the camera inside
-    # the terrain) keeps a.
-    t = a.copy()
-    live = np.arange(t.size)
     under = np.flatnonzero(fa <= 0)
     if under.size:
         # A ray under ground at a (by the fixed-point heights' millimetres at a bound, or
@@ -498,31 +493,44 @@ def _cast(bounds, rays: PinholeRays, origin, t_max, step) -> np.ndarray:
         b[under] = a.take(under)
         fb[under] = fa.take(under)
         fa[under] = np.float32(1e-30)
+    # Regula falsi (Illinois) on [a, b], fa > 0 >= fb, until the ray point is within
+    # _CLOSE of the ground. First step on every ray, then on those not yet close.
+    t = _secant(a, b, fa, fb)
+    fc = f(t, du, dv, dz)
+    live = np.flatnonzero(np.abs(fc) > _CLOSE)
+    a, b, fa, fb, c, fc, du, dv, dz = (x.take(live) for x in (a, b, fa, fb, t, fc, du, dv, dz))
     half = np.float32(0.5)
-    # Which end the previous step replaced (+1: a, -1: b, 0: none yet).
-    last = np.zeros(t.size, dtype=np.int8)
-    for k in range(_FALSI):
+    # Which end the previous step replaced (+1: a, -1: b).
+    last = None
+    for k in range(1, _FALSI):
+        if not live.size:
+            break
+        # c replaces a where f(c) > 0, else b; Illinois: an end kept twice in a row has
+        # its value halved.
+        above = fc > 0
+        if last is None:
+            fb = np.where(above, fb, fc)
+            fa = np.where(above, fc, fa)
+        else:
+            fb = np.where(above, np.where(last > 0, half * fb, fb), fc)
+            fa = np.where(above, fc, np.where(last < 0, half * fa, fa))
+        a = np.where(above, c, a)
+        b = np.where(above, b, c)
+        last = np.where(above, np.int8(1), np.int8(-1))
         c = _secant(a, b, fa, fb)
         fc = f(c, du, dv, dz)
+        t[live] = c  # final for the close ones, overwritten later for the others
+        if k == _FALSI - 1:
+            break
         close = np.abs(fc) <= _CLOSE
         n_close = np.count_nonzero(close)
-        if k == _FALSI - 1 or n_close == live.size:
-            t[live] = c
+        if n_close == live.size:
             break
         if n_close > live.size // 4:
-            t[live] = c  # the close ones are final; the others are overwritten later
             on = np.flatnonzero(~close)
             live, a, b, fa, fb, c, fc, du, dv, dz, last = (
                 x.take(on) for x in (live, a, b, fa, fb, c, fc, du, dv, dz, last)
             )
-        # c replaces a where f(c) > 0, else b; Illinois: an end kept twice in a row has
-        # its value halved.
-        above = fc > 0
-        fb = np.where(above, np.where(last > 0, half * fb, fb), fc)
-        fa = np.where(above, fc, np.where(last < 0, half * fa, fa))
-        a = np.where(above, c, a)
-        b = np.where(above, b, c)
-        last = np.where(above, np.int8(1), np.int8(-1))
     t = t.reshape(height, width)
     if t_max < np.inf:
         t[t > t_max] = np.nan
@@ -569,18 +577,21 @@ def _thin_features(bounds, start, a, fa, b, fb, ahead, du, dv, dz, f) -> None:
     if not sus.size:
         return
     sa, sb, sdu, sdv, sdz = (x.take(sus) for x in (sa, sb, sdu, sdv, sdz))
-    prev, f_prev = sa, fa.take(idx.take(sus))
-    found = np.zeros(sus.size, dtype=bool)
-    lo, f_lo, hi, f_hi = sa.copy(), f_prev.copy(), sb.copy(), f_prev.copy()
-    for k in range(1, 8):
-        s = sa + np.float32(k / 8) * (sb - sa)
-        fs = f(s, sdu, sdv, sdz)
-        new = (fs <= 0) & ~found
-        lo[new], f_lo[new], hi[new], f_hi[new] = prev[new], f_prev[new], s[new], fs[new]
-        found |= new
-        prev, f_prev = s, fs
-    k = idx.take(sus.take(np.flatnonzero(found)))
-    a[k], fa[k], b[k], fb[k] = lo[found], f_lo[found], hi[found], f_hi[found]
+    # The eighths of all suspicious steps in one lookup: (8, n) samples, row 0 = a.
+    frac = np.arange(8, dtype=np.float32)[:, None] / np.float32(8)
+    s = sa + frac * (sb - sa)
+    fs = f(s[1:], sdu, sdv, sdz)
+    under = fs <= 0
+    first = under.argmax(axis=0)  # first eighth under ground (0 if none)
+    hit = np.flatnonzero(under.any(axis=0))
+    if not hit.size:
+        return
+    row = first.take(hit)
+    fs = np.concatenate((fa.take(idx.take(sus))[None], fs))
+    # crossing between eighth `row` (above ground) and `row + 1` (under it)
+    k = idx.take(sus.take(hit))
+    a[k], fa[k] = s[row, hit], fs[row, hit]
+    b[k], fb[k] = s[row + 1, hit], fs[row + 1, hit]
     ahead[k] = False
 
 
