@@ -168,9 +168,9 @@ class _Pairs:
     these pairs, so the cloud is queried once.
 
     Attributes: owner (P,) search point of each pair; x, y, z (P,) coordinates relative to
-    it; shell (P,) index of the smallest of ``radii`` whose sphere holds the point
-    (len(radii) beyond the largest); counts (S,) pairs per search point; origin (S, 3) the
-    search points; n = S.
+    it; shell (P,) index of the smallest of ``radii`` whose
+    sphere holds the point (len(radii) beyond the largest); counts (S,) pairs per search
+    point; origin (S, 3) the search points; n = S.
     """
 
     def __init__(
@@ -183,13 +183,14 @@ class _Pairs:
     ):
         self.origin = coords[:, seeds].T
         self.n = len(seeds)
-        self.owner, flat, self.x, self.y = index.cylinders(
+        self.owner, flat, dx, dy = index.cylinders(
             coords[0], coords[1], self.origin[:, :2], radius
         )
+        self.x, self.y = dx, dy
         self.z = coords[2][flat]
         self.z -= self.origin[:, 2][self.owner]
-        d2 = self.x * self.x
-        d2 += self.y * self.y
+        d2 = dx * dx
+        d2 += dy * dy
         d2 += self.z * self.z
         self.shell = np.searchsorted(radii * radii, d2, side="left")
         self.counts = np.bincount(self.owner, minlength=self.n)
@@ -201,6 +202,9 @@ class _Pairs:
 
 # Upper-triangle moment k of (x, y, z) for each entry of a 3 x 3 covariance.
 _COV_ENTRY = np.array([[0, 1, 2], [1, 3, 4], [2, 4, 5]])
+# The two coordinates of each of those six second moments (xx, xy, xz, yy, yz, zz).
+_MOMENT_I = np.array([0, 0, 0, 1, 1, 2])
+_MOMENT_J = np.array([0, 1, 2, 1, 2, 2])
 
 
 def _shell_pca(pairs: _Pairs, r: int):
@@ -215,10 +219,15 @@ def _shell_pca(pairs: _Pairs, r: int):
     """
     s = pairs.n
     inside = np.flatnonzero(pairs.shell < r)
-    key = pairs.owner[inside] * r + pairs.shell[inside]
+    key = pairs.owner[inside] * r
+    key += pairs.shell[inside]
     x, y, z = pairs.x[inside], pairs.y[inside], pairs.z[inside]
+    # One bincount per moment over contiguous 1-D weights (faster than one over (P, 10)
+    # rows once the spheres hold thousands of points).
     weights = (None, x, y, z, x * x, x * y, x * z, y * y, y * z, z * z)
-    m = np.stack([np.bincount(key, w, minlength=s * r) for w in weights], axis=-1)
+    m = np.empty((s * r, 10))
+    for k, w in enumerate(weights):
+        m[:, k] = np.bincount(key, w, minlength=s * r)
     m = np.cumsum(m.reshape(s, r, 10), axis=1)
     count = m[..., 0].copy()
     m /= np.maximum(count, 1.0)[..., None]
@@ -227,8 +236,8 @@ def _shell_pca(pairs: _Pairs, r: int):
     evals, evecs = np.linalg.eigh(cov)
     normal = evecs[..., 0]
     normal *= np.where(normal[..., 2] < 0, -1.0, 1.0)[..., None]
-    zstd = np.sqrt(np.clip(cov[..., 2, 2], 0.0, None))
-    return count, mean, np.clip(evals, 0.0, None), normal, zstd
+    zstd = np.sqrt(np.maximum(cov[..., 2, 2], 0.0))
+    return count, mean, np.maximum(evals, 0.0), normal, zstd
 
 
 def _max_plane_distance(pairs: _Pairs, mean, normal, need: np.ndarray) -> np.ndarray:
@@ -248,9 +257,15 @@ def _max_plane_distance(pairs: _Pairs, mean, normal, need: np.ndarray) -> np.nda
     radius = np.arange(total) - np.repeat(start - pairs.shell, copies)
     sphere = pairs.owner[pair] * r + radius
     # Plane through the centroid: distance = p . n - m . n, as one 4-vector dot product.
-    plane = np.concatenate((normal, -(mean * normal).sum(axis=-1, keepdims=True)), axis=-1)
-    point = np.stack((pairs.x[pair], pairs.y[pair], pairs.z[pair], np.ones(total)), axis=1)
-    dist = np.abs(np.einsum("ij,ij->i", point, np.take(plane.reshape(s * r, 4), sphere, axis=0)))
+    plane = np.empty((s * r, 4))
+    plane[:, :3] = normal.reshape(-1, 3)
+    plane[:, 3] = -(mean * normal).sum(axis=-1).ravel()
+    point = np.empty((total, 4))
+    point[:, 0] = pairs.x[pair]
+    point[:, 1] = pairs.y[pair]
+    point[:, 2] = pairs.z[pair]
+    point[:, 3] = 1.0
+    dist = np.abs(np.einsum("ij,ij->i", point, plane[sphere]))
     out = np.zeros(s * r)
     np.maximum.at(out, sphere, dist)
     return out.reshape(s, r)
@@ -259,10 +274,9 @@ def _max_plane_distance(pairs: _Pairs, mean, normal, need: np.ndarray) -> np.nda
 @dataclass
 class _Growth:
     """Algorithm 1 on one set of pairs: per search point the index of the largest radius
-    that passed (-1: none), why r_min failed, the fits done, and the PCA of every radius."""
+    that passed (-1: none), the fits done, and the PCA of every radius."""
 
     level: np.ndarray
-    first_fail: np.ndarray
     fits: int
     count: np.ndarray
     mean: np.ndarray
@@ -275,15 +289,11 @@ def _grow(pairs: _Pairs, radii: np.ndarray, settings: LidarPcaSettings, max_step
     """Grow every search point's sphere over ``radii`` (the Algorithm 1 loop, batched over
     search points and radii): a point stays alive while each larger sphere has n_min points,
     slope <= theta_max, no point farther than max_step from its plane and its centroid
-    within max_offset * r (horizontally) of the search point."""
-    r, s = len(radii), pairs.n
-    if np.bincount(pairs.owner[pairs.shell == 0], minlength=s).max() < settings.n_min:
-        # No r_min sphere holds n_min points (sparse clouds): nothing to fit.
-        z = np.zeros((s, r))
-        none = np.full(s, -1)
-        return _Growth(none, np.ones(s, dtype=np.int8), 0, z, *np.zeros((3, s, r, 3)), z)
+    within max_offset * r (horizontally) of the search point. The search points are those
+    that passed r_min (:func:`_first_radius`), which is fitted again here."""
+    r = len(radii)
     count, mean, evals, normal, zstd = _shell_pca(pairs, r)
-    slope = np.arccos(np.clip(normal[..., 2], 0.0, 1.0))
+    slope = np.arccos(np.minimum(normal[..., 2], 1.0))  # normal z >= 0
     enough = count >= settings.n_min
     fit = enough & (slope <= settings.theta_max)  # a plane flat enough
     lopsided = np.zeros_like(fit)
@@ -302,12 +312,82 @@ def _grow(pairs: _Pairs, radii: np.ndarray, settings: LidarPcaSettings, max_step
     alive = np.ones_like(fit)  # alive before trying each radius
     alive[:, 1:] = passed[:, :-1]
     fits = int((alive & enough).sum())
-    first_fail = np.zeros(pairs.n, dtype=np.int8)  # at r_min: 1 points, 2 slope, 3 step, 4 edge
-    first_fail[~fit[:, 0]] = 2
-    first_fail[~enough[:, 0]] = 1
-    first_fail[fit[:, 0] & off[:, 0]] = 3
-    first_fail[fit[:, 0] & ~off[:, 0] & lopsided[:, 0]] = 4
-    return _Growth(level, first_fail, fits, count, mean, evals, normal, zstd)
+    return _Growth(level, fits, count, mean, evals, normal, zstd)
+
+
+def _first_radius(
+    points: np.ndarray,
+    index: ColumnIndex,
+    work: np.ndarray,
+    settings: LidarPcaSettings,
+    max_step: float,
+) -> tuple[np.ndarray, np.ndarray, int]:
+    """Algorithm 1's first step for every search point at once: the r_min sphere's plane.
+
+    The same tests as :func:`_grow` on one radius, in fewer and larger numpy calls (every
+    sphere holds its own search point, so each is one non-empty run of pairs and the
+    per-sphere sums are one ``np.add.reduceat``; no shells). Small search budgets spend
+    their time here, mostly in fixed per-call costs.
+
+    Args:
+        points: ``(V, 3)`` indexed cloud (sorted by column).
+        index: its column index.
+        work: ``(S,)`` search points (rows of ``points``).
+
+    Returns:
+        ``(passed, first_fail, fits)``: (S,) bool the sphere passed; (S,) int8 why not
+        (1 points, 2 slope, 3 step, 4 edge; 0 passed); PCA fits done.
+    """
+    s = len(work)
+    r0 = settings.radii[0]
+    origin = points[work]
+    owner, flat = index.candidates(origin[:, :2], r0)
+    rel = points[flat]
+    rel -= origin[owner]
+    x, y, z = rel.T
+    d2 = x * x
+    d2 += y * y
+    d2 += z * z
+    inside = np.flatnonzero(d2 <= r0 * r0)
+    owner = owner[inside]
+    rel = rel[inside]
+    starts = np.searchsorted(owner, np.arange(s))
+    moments = np.empty((len(rel), 10))
+    moments[:, 0] = 1.0
+    moments[:, 1:4] = rel
+    np.multiply(rel[:, _MOMENT_I], rel[:, _MOMENT_J], out=moments[:, 4:])
+    m = np.add.reduceat(moments, starts, axis=0)  # (S, 10) sums over each sphere
+    count = m[:, 0].copy()
+    enough = count >= settings.n_min
+    first_fail = np.ones(s, dtype=np.int8)  # 1: fewer than n_min points
+    if not enough.any():  # sparse clouds: nothing to fit
+        return np.zeros(s, dtype=bool), first_fail, 0
+    m /= count[:, None]
+    mean = m[:, 1:4]
+    cov = m[:, 4:10][:, _COV_ENTRY] - mean[:, :, None] * mean[:, None, :]
+    normal = np.linalg.eigh(cov)[1][..., 0]
+    normal *= np.where(normal[:, 2] < 0, -1.0, 1.0)[:, None]
+    fit = enough & (np.arccos(np.minimum(normal[:, 2], 1.0)) <= settings.theta_max)
+    lopsided = np.zeros(s, dtype=bool)
+    if settings.max_offset is not None:  # centroid relative to the seed
+        lopsided = np.hypot(mean[:, 0], mean[:, 1]) > settings.max_offset * r0
+    off = np.zeros(s, dtype=bool)
+    if np.isfinite(max_step) and fit.any():
+        # Plane through the centroid: distance = p . n - m . n, as one 4-vector dot product.
+        plane = np.empty((s, 4))
+        plane[:, :3] = normal
+        plane[:, 3] = -(mean * normal).sum(axis=-1)
+        point = np.empty((len(rel), 4))
+        point[:, :3] = rel
+        point[:, 3] = 1.0
+        dist = np.abs(np.einsum("ij,ij->i", point, plane[owner]))
+        off = fit & (np.maximum.reduceat(dist, starts) > max_step)
+    first_fail[enough] = 2
+    first_fail[fit] = 3
+    first_fail[fit & ~off] = 4
+    passed = fit & ~off & ~lopsided
+    first_fail[passed] = 0
+    return passed, first_fail, int(enough.sum())
 
 
 def detect_planes(
@@ -358,77 +438,56 @@ def detect_planes(
     max_step = settings.max_step if settings.max_step is not None else np.inf
     # Most search points fail at r_min (the paper's env II): test r_min on small cylinders
     # first and query the full reach only for the points that passed.
-    first = _grow(_Pairs(coords, index, work, radii[0], radii[:1]), radii[:1], settings,
-                  max_step)  # fmt: skip
-    first_fail = first.first_fail
-    level = first.level
-    fits = first.fits
-    if level.max() < 0:  # every search point failed at r_min (common on rough ground)
-        reasons = np.bincount(first_fail, minlength=5)
+    passed, first_fail, fits = _first_radius(coords.T, index, work, settings, max_step)
+    reasons = np.bincount(first_fail, minlength=5)
+    if not passed.any():  # every search point failed at r_min (common on rough ground)
         return PlaneSearch(
             SpotTable(), seeds, accepted, rejected_points=int(reasons[1]),
             rejected_slope=int(reasons[2]), rejected_step=int(reasons[3]),
             rejected_edge=int(reasons[4]), pca_fits=fits,
         )  # fmt: skip
-    mean = np.zeros((s, 3))
-    origin = coords[:, work].T
-    normal = np.zeros((s, 3))
-    normal[:, 2] = 1.0
-    evals = np.zeros((s, 3))
-    zstd = np.zeros(s)
-    count = np.zeros(s)
-    live = np.flatnonzero(level >= 0)
-    pairs = None
-    if len(live):
-        pairs = _Pairs(coords, index, work[live], reach, radii)
-        grow = _grow(pairs, radii, settings, max_step)
-        fits += grow.fits - len(live)  # r_min was fitted twice
-        level[live] = grow.level
-        pick = np.maximum(grow.level, 0)
-        sub = np.arange(len(live))
-        mean[live] = grow.mean[sub, pick]
-        normal[live] = grow.normal[sub, pick]
-        evals[live] = grow.evals[sub, pick]
-        zstd[live] = grow.zstd[sub, pick]
-        count[live] = grow.count[sub, pick]
-    grown = level >= 0
-    best_r = np.where(grown, radii[np.maximum(level, 0)], np.nan)
-    best_c = mean + origin
-    best_n, best_e, best_z = normal, evals, zstd
-    best_count = count.astype(np.int64)
-    obstacle = best_c[:, 2].copy()
-    if pairs is not None:
-        clearance, obstacle_live = _clearance_and_obstacle(
-            pairs, best_c[live], best_n[live], best_r[live], max_step, settings.obstacle_margin
-        )
-        best_r[live] = np.minimum(best_r[live], clearance)
-        obstacle[live] = obstacle_live
-    clear = grown & (best_r >= settings.r_min - 1e-9)
+    # The points that passed r_min: their full reach, every radius.
+    live = np.flatnonzero(passed)
+    pairs = _Pairs(coords, index, work[live], reach, radii)
+    grow = _grow(pairs, radii, settings, max_step)
+    fits += grow.fits - len(live)  # r_min was fitted twice
+    pick = (np.arange(len(live)), np.maximum(grow.level, 0))
+    best_r = radii[pick[1]]
+    best_c = grow.mean[pick] + pairs.origin
+    best_n = grow.normal[pick]
+    best_e = grow.evals[pick]
+    best_z = grow.zstd[pick]
+    clearance, obstacle = _clearance_and_obstacle(
+        pairs, best_c, best_n, best_r, max_step, settings.obstacle_margin
+    )
+    np.minimum(best_r, clearance, out=best_r)
+    clear = best_r >= settings.r_min - 1e-9
     sigma_ok = clear & (best_z <= settings.sigma_max)
-    accepted[:] = sigma_ok
+    accepted[live[sigma_ok]] = True
+    best_e = best_e[sigma_ok]
     total = best_e.sum(axis=1)
-    planarity = np.clip(3.0 * best_e[:, 0] / np.where(total > 0, total, 1.0), 0.0, 1.0)
-    k = int(sigma_ok.sum())
+    planarity = 3.0 * best_e[:, 0] / np.where(total > 0, total, 1.0)
+    best_n = best_n[sigma_ok]
     spots = SpotTable(
         centre=best_c[sigma_ok],
         radius=best_r[sigma_ok],
-        slope=np.arccos(np.clip(best_n[sigma_ok, 2], 0.0, 1.0)),
+        slope=np.arccos(np.minimum(np.maximum(best_n[:, 2], 0.0), 1.0)),
         sigma=best_z[sigma_ok],
-        normal=best_n[sigma_ok],
-        planarity=planarity[sigma_ok],
-        count=best_count[sigma_ok],
+        normal=best_n,
+        planarity=np.minimum(np.maximum(planarity, 0.0), 1.0),
+        count=grow.count[pick][sigma_ok].astype(np.int64),
         obstacle_altitude=obstacle[sigma_ok],
-        timestamp=np.full(k, float(timestamp)),
+        timestamp=np.full(len(best_n), float(timestamp)),
     )
     return PlaneSearch(
         spots=spots,
         seeds=seeds,
         accepted=accepted,
-        rejected_slope=int((first_fail == 2).sum()),
-        rejected_points=int((first_fail == 1).sum()),
-        rejected_step=int((first_fail == 3).sum()),
-        rejected_edge=int((first_fail == 4).sum()),
-        rejected_clearance=int((grown & ~clear).sum()),
+        rejected_slope=int(reasons[2]),
+        rejected_points=int(reasons[1]),
+        rejected_step=int(reasons[3]),
+        rejected_edge=int(reasons[4]),
+        rejected_clearance=int(len(live) - clear.sum()),
         rejected_sigma=int((clear & ~sigma_ok).sum()),
         pca_fits=fits,
     )

@@ -74,6 +74,54 @@ class ColumnIndex:
         order = np.argsort(keys, kind="stable")
         return ColumnIndex(keys[order], lo, float(cell), (nx, ny)), order
 
+    def candidates(self, centres: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray]:
+        """Points of the grid cells that cover a horizontal disc around each centre (a
+        superset of the disc: whole cells along its edge).
+
+        Args:
+            centres: ``(S, 2)`` horizontal centres, metres.
+            radius: disc radius, metres.
+
+        Returns:
+            ``(owner, index)``, both ``(P,)`` int64: centre and point of every candidate,
+            contiguous per centre, centres in order, points in index order within a centre.
+            Each grid row crossing a disc is one slice of the sorted keys (the disc's chord
+            over the row bounds its y-range); one ``searchsorted`` finds both ends of every
+            slice. No tree walk.
+        """
+        cell, inv = self.cell, 1.0 / self.cell
+        ny = self.shape[1]
+        s = len(centres)
+        m = int(radius * inv) + 2  # rows each side (one of slack against rounding)
+        c = centres - self.origin  # (S, 2) from the grid corner
+        kx = np.floor(c[:, :1] * inv) + np.arange(-m, m + 1)  # (S, R) rows, as floats
+        # Horizontal gap from the centre to each row's x-interval; the disc's half chord
+        # over that row bounds the row's y-range (1e-9 m slack against rounding). A row the
+        # disc misses gets a zero chord: a few extra candidates, dropped by the caller.
+        gap = np.abs(c[:, :1] - (kx + 0.5) * cell)
+        gap -= 0.5 * cell
+        np.maximum(gap, 0.0, out=gap)
+        half = np.sqrt(np.maximum(radius * radius - gap * gap, 0.0))
+        half += 1e-9
+        y = c[:, 1:]
+        ky = np.floor(np.stack((y - half, y + half)) * inv)  # (2, S, R): first, last column
+        # Kept inside the grid so a slice never runs into the next row; rows outside the grid
+        # give keys below 0 or past the last key: empty slices.
+        np.clip(ky, 0, ny - 1, out=ky)
+        ky[1] += 1  # one past the last column
+        ky += kx * ny
+        bounds = np.searchsorted(self.keys, ky.astype(np.int64))
+        start = bounds[0].ravel()
+        length = bounds[1].ravel() - start
+        per_centre = length.reshape(s, -1).sum(axis=1)
+        owner = np.repeat(np.arange(s), per_centre)
+        # Flatten the slices: index = start of its slice + position within it.
+        offset = np.cumsum(length)
+        offset -= length
+        index = np.repeat(start - offset, length)
+        index += np.arange(len(index))
+        return owner, index
+
     def cylinders(
         self, x: np.ndarray, y: np.ndarray, centres: np.ndarray, radius: float
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -87,12 +135,9 @@ class ColumnIndex:
         Returns:
             ``(owner, index, dx, dy)``, all ``(P,)``: centre and point (int64) of every
             pair, contiguous per centre, centres in order, and the point's x, y offsets
-            from its centre. Candidate points come from one slice
-            per grid row crossing each disc (two ``searchsorted`` per row, no tree walk).
+            from its centre (the :meth:`candidates` within the disc).
         """
-        cell, inv = self.cell, 1.0 / self.cell
-        nx, ny = self.shape
-        m = int(radius * inv) + 2
+        m = int(radius / self.cell) + 2
         batch = max(1, _ROWS_PER_CALL // (2 * m + 1))
         if len(centres) > batch:  # bound the (centres, rows) temporaries for large radii
             firsts = range(0, len(centres), batch)
@@ -100,30 +145,8 @@ class ColumnIndex:
             owner = np.concatenate([p[0] + i for p, i in zip(parts, firsts, strict=True)])
             rest = (np.concatenate([p[k] for p in parts]) for k in range(1, 4))
             return (owner, *rest)
-        cx = centres[:, 0:1]
-        cy = centres[:, 1:2]
-        kx = np.floor((cx - self.origin[0]) * inv).astype(np.int64) + np.arange(-m, m + 1)
-        left = self.origin[0] + kx * cell
-        # Horizontal gap from the centre to each row's x-interval; the disc's half chord
-        # over that row bounds the row's y-range (1e-9 m slack against rounding).
-        gap = np.maximum(np.maximum(left - cx, cx - left - cell), 0.0)
-        half = np.sqrt(np.maximum(radius * radius - gap * gap, 0.0)) + 1e-9
-        valid = (gap <= radius + 1e-9) & (kx >= 0) & (kx < nx)
-        ky_lo = np.floor((cy - half - self.origin[1]) * inv).astype(np.int64)
-        ky_hi = np.floor((cy + half - self.origin[1]) * inv).astype(np.int64)
-        np.clip(ky_lo, 0, ny - 1, out=ky_lo)
-        np.clip(ky_hi, 0, ny - 1, out=ky_hi)
-        row = kx * ny
-        start = np.searchsorted(self.keys, row + ky_lo, side="left")
-        end = np.searchsorted(self.keys, row + ky_hi, side="right")
-        length = np.where(valid & (ky_hi >= ky_lo), end - start, 0).ravel()
-        start = start.ravel()
-        total = int(length.sum())
-        # Flatten the slices: index = start of its slice + position within it.
-        offset = np.cumsum(length) - length
-        index = np.arange(total, dtype=np.int64) + np.repeat(start - offset, length)
-        per_centre = length.reshape(len(centres), -1).sum(axis=1)
-        owner = np.repeat(np.arange(len(centres), dtype=np.int64), per_centre)
+        owner, index = self.candidates(centres, radius)
+        per_centre = np.bincount(owner, minlength=len(centres))
         dx = x[index] - np.repeat(centres[:, 0], per_centre)
         dy = y[index] - np.repeat(centres[:, 1], per_centre)
         keep = np.flatnonzero(dx * dx + dy * dy <= radius * radius)
