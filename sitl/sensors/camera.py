@@ -72,7 +72,7 @@ def nadir_rotation(yaw: float) -> np.ndarray:
 
 def depth_sigma(depth: np.ndarray, focal_px: float, baseline: float, disparity_sigma: float):
     """Thesis eq. 3.2: sigma_z = z^2 / (f b) * sigma_d (same shape as ``depth``)."""
-    return np.square(depth) / (focal_px * baseline) * disparity_sigma
+    return np.square(depth) * (disparity_sigma / (focal_px * baseline))
 
 
 class DepthSourceSelector:

@@ -362,6 +362,7 @@ class PinholeRays:
             "dv": dv.astype(f32).ravel(),
             "dz": dz.astype(f32).ravel(),
             "inv_hor": np.float32(1.0) / hor,
+            "nadir": bool(np.all(dz == -1.0)),  # ray height oz - t: one product less
             "tiles": tiles,
         }
         self._per_cell[cell_size] = got
@@ -454,12 +455,24 @@ def _cast(bounds, rays: PinholeRays, origin, t_max, step) -> np.ndarray:
     grid = bounds.grid
     u_o, v_o, oz = np.float32(u_o), np.float32(v_o), np.float32(oz)
 
+    nadir = per["nadir"]
+
     def f(t, du, dv, dz):
-        return oz + t * dz - _bilinear(grid, u_o + t * du, v_o + t * dv)
+        u = t * du
+        u += u_o
+        v = t * dv
+        v += v_o
+        h = _bilinear(grid, u, v)
+        if nadir:
+            z = oz - t
+        else:
+            z = t * dz
+            z += oz
+        z -= h
+        return z
 
     # March a step at a time (horizontally) from lo; a ray's step reaching hi has crossed.
-    cells = np.float32(1.0 if step is None else float(step) / cs)
-    step = per["inv_hor"] * cells
+    step = per["inv_hor"] if step is None else per["inv_hor"] * np.float32(float(step) / cs)
     # Each ray's bracket [a, b] with f(a) > 0 >= f(b) (fa <= 0: under ground at lo): after
     # the first step for most rays; the others march on (the g_ arrays) and write theirs.
     a, fa = lo, f(lo, du, dv, dz)
@@ -604,8 +617,14 @@ def _expand(a: np.ndarray, n: int, shape: tuple[int, int]) -> np.ndarray:
 
 def _secant(a, b, fa, fb):
     """Zero of the line through (a, fa) and (b, fa), fa > 0 >= fb, clipped to [a, b]."""
-    frac = fa / np.maximum(fa - fb, np.float32(1e-30))
-    return a + np.minimum(frac, np.float32(1.0)) * (b - a)
+    frac = fa - fb
+    np.maximum(frac, np.float32(1e-30), out=frac)
+    np.divide(fa, frac, out=frac)
+    np.minimum(frac, np.float32(1.0), out=frac)
+    c = b - a
+    c *= frac
+    c += a
+    return c
 
 
 def _bilinear(grid: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
