@@ -221,8 +221,10 @@ class DepthCamera:
             baseline = s.stereo_baseline
             max_range = min(s.stereo_max_range, s.max_depth)
         rotation = nadir_rotation(yaw)
+        bounds, level = self._height_bounds(true_agl)
+        # Refined to 0.5 mm at full resolution, coarser with the level of detail.
         depth = self._pinhole_rays(yaw, rotation).cast(
-            self._height_bounds(true_agl), p, t_max=max_range, step=s.march_step
+            bounds, p, t_max=max_range, step=s.march_step, tolerance=5e-4 * 2**level
         )
         sigma = depth_sigma(
             depth, np.float32(s.focal_px), np.float32(baseline), np.float32(s.disparity_sigma_px)
@@ -250,9 +252,9 @@ class DepthCamera:
             baseline=float(baseline),
         )
 
-    def _height_bounds(self, agl: float) -> HeightBounds:
+    def _height_bounds(self, agl: float) -> tuple[HeightBounds, int]:
         """Bounds of the terrain at the level of detail of the pixel footprint ``agl / f``
-        (built on first use)."""
+        (built on first use), and that level."""
         level = 0
         if self.settings.level_of_detail:
             footprint = agl / self.settings.focal_px / self.terrain.cell_size
@@ -260,7 +262,7 @@ class DepthCamera:
         bounds = self._bounds.get(level)
         if bounds is None:
             bounds = self._bounds[level] = HeightBounds(coarse_terrain(self.terrain, level))
-        return bounds
+        return bounds, level
 
     def _pinhole_rays(self, yaw: float, rotation: np.ndarray) -> PinholeRays:
         """The pixels' rays in ENU for heading ``yaw`` (kept while the heading holds)."""

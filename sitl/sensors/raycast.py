@@ -374,10 +374,13 @@ class PinholeRays:
         origin: np.ndarray,
         t_max: float = np.inf,
         step: float | None = None,
+        tolerance: float = _CLOSE,
     ) -> np.ndarray:
         """Ray parameter of every pixel's first hit on ``bounds``' terrain; see
-        :func:`cast_pinhole_rays`. Returns (H, W) float32, NaN beyond ``t_max``."""
-        return _cast(bounds, self, origin, t_max, step)
+        :func:`cast_pinhole_rays`. The refinement stops where the ray point is within
+        ``tolerance`` (m, vertically) of the ground. Returns (H, W) float32, NaN beyond
+        ``t_max``."""
+        return _cast(bounds, self, origin, t_max, step, np.float32(tolerance))
 
 
 def cast_pinhole_rays(
@@ -414,10 +417,10 @@ def cast_pinhole_rays(
         (H, W) float32 parameter of the hit point ``origin + t * direction``; NaN beyond
         ``t_max``.
     """
-    return PinholeRays(directions).cast(bounds, origin, t_max, step)
+    return _cast(bounds, PinholeRays(directions), origin, t_max, step, np.float32(_CLOSE))
 
 
-def _cast(bounds, rays: PinholeRays, origin, t_max, step) -> np.ndarray:
+def _cast(bounds, rays: PinholeRays, origin, t_max, step, close) -> np.ndarray:
     ox, oy, oz = (float(c) for c in origin)
     height, width = rays.shape
     cs = bounds.cell_size
@@ -507,10 +510,10 @@ def _cast(bounds, rays: PinholeRays, origin, t_max, step) -> np.ndarray:
         fb[under] = fa.take(under)
         fa[under] = np.float32(1e-30)
     # Regula falsi (Illinois) on [a, b], fa > 0 >= fb, until the ray point is within
-    # _CLOSE of the ground. First step on every ray, then on those not yet close.
+    # ``close`` of the ground. First step on every ray, then on those not yet close.
     t = _secant(a, b, fa, fb)
     fc = f(t, du, dv, dz)
-    live = np.flatnonzero(np.abs(fc) > _CLOSE)
+    live = np.flatnonzero(np.abs(fc) > close)
     a, b, fa, fb, c, fc, du, dv, dz = (x.take(live) for x in (a, b, fa, fb, t, fc, du, dv, dz))
     half = np.float32(0.5)
     # Which end the previous step replaced (+1: a, -1: b).
@@ -535,12 +538,12 @@ def _cast(bounds, rays: PinholeRays, origin, t_max, step) -> np.ndarray:
         t[live] = c  # final for the close ones, overwritten later for the others
         if k == _FALSI - 1:
             break
-        close = np.abs(fc) <= _CLOSE
-        n_close = np.count_nonzero(close)
+        near = np.abs(fc) <= close
+        n_close = np.count_nonzero(near)
         if n_close == live.size:
             break
         if n_close > live.size // 4:
-            on = np.flatnonzero(~close)
+            on = np.flatnonzero(~near)
             live, a, b, fa, fb, c, fc, du, dv, dz, last = (
                 x.take(on) for x in (live, a, b, fa, fb, c, fc, du, dv, dz, last)
             )
