@@ -141,8 +141,10 @@ class DepthCamera:
         self.cy = (s.height - 1) / 2.0
         v, u = np.mgrid[0 : s.height, 0 : s.width]
         # Ray directions in the camera frame with unit z: the ray parameter is the depth.
-        self._xc = (u - self.cx) / self.fx
-        self._yc = (v - self.cy) / self.fy
+        self._xc = ((u - self.cx) / self.fx).astype(np.float32)
+        self._yc = ((v - self.cy) / self.fy).astype(np.float32)
+        # A nadir camera's rays all have ENU z = -1 (the optical axis points down).
+        self._dz = np.full(u.shape, -1.0, dtype=np.float32)
         self._rays: tuple[float, PinholeRays] | None = None  # (yaw, its rays)
 
     @property
@@ -267,11 +269,9 @@ class DepthCamera:
     def _pinhole_rays(self, yaw: float, rotation: np.ndarray) -> PinholeRays:
         """The pixels' rays in ENU for heading ``yaw`` (kept while the heading holds)."""
         if self._rays is None or self._rays[0] != yaw:
-            r = rotation
-            directions = np.stack(
-                [r[k, 0] * self._xc + r[k, 1] * self._yc + r[k, 2] for k in range(3)], axis=-1
-            )
-            self._rays = (yaw, PinholeRays(directions))
+            r = rotation.astype(np.float32)
+            dx, dy = (r[k, 0] * self._xc + r[k, 1] * self._yc + r[k, 2] for k in range(2))
+            self._rays = (yaw, PinholeRays.from_components(dx, dy, self._dz))
         return self._rays[1]
 
     def _skip(self, reason: str, **details: Any) -> None:

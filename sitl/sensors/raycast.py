@@ -327,10 +327,23 @@ class PinholeRays:
 
     def __init__(self, directions: np.ndarray) -> None:
         d = np.asarray(directions)
-        if d.ndim != 3 or d.shape[2] != 3 or not np.all(d[..., 2] < 0):
+        if d.ndim != 3 or d.shape[2] != 3:
             raise ValueError("directions: need (H, W, 3) rays all pointing down (z < 0)")
-        self.shape = d.shape[:2]
-        self.dx, self.dy, self.dz = (np.ascontiguousarray(d[..., k], np.float64) for k in range(3))
+        self._set(d[..., 0], d[..., 1], d[..., 2])
+
+    @classmethod
+    def from_components(cls, dx, dy, dz) -> PinholeRays:
+        """The same from the three (H, W) component arrays of the directions."""
+        rays = cls.__new__(cls)
+        rays._set(dx, dy, dz)
+        return rays
+
+    def _set(self, dx, dy, dz) -> None:
+        dx, dy, dz = (np.ascontiguousarray(c, dtype=np.float32) for c in (dx, dy, dz))
+        if dx.ndim != 2 or not (dx.shape == dy.shape == dz.shape) or not np.all(dz < 0):
+            raise ValueError("directions: need (H, W, 3) rays all pointing down (z < 0)")
+        self.shape = dx.shape
+        self.dx, self.dy, self.dz = dx, dy, dz
         self._per_cell: dict[float, dict] = {}
 
     def _derived(self, cell_size: float) -> dict:
@@ -339,12 +352,14 @@ class PinholeRays:
         got = self._per_cell.get(cell_size)
         if got is not None:
             return got
-        du, dv, dz = self.dx / cell_size, self.dy / cell_size, self.dz
+        scale = np.float32(1.0 / cell_size)
+        du, dv, dz = self.dx * scale, self.dy * scale, self.dz
         height, width = self.shape
         tiles = []
         for tile, passes in _TILE_PASSES:
-            # The tile's rays lie between its four corner rays (at any t >= 0 their
-            # footprint is within the corners' bounding box).
+            # The tile's rays lie between its four corner rays (the components are affine
+            # in the pixel coordinates; at any t >= 0 the footprint is within the corners'
+            # bounding box).
             r0 = np.arange(0, height, tile)
             c0 = np.arange(0, width, tile)
             r1 = np.minimum(r0 + tile - 1, height - 1)
@@ -353,15 +368,17 @@ class PinholeRays:
             ext = []
             for comp in (du, dv, dz):
                 at = [comp.take(a, axis=0).take(b, axis=1) for a, b in corners]
-                ext += [np.minimum.reduce(at), np.maximum.reduce(at)]
+                lo = np.minimum(np.minimum(at[0], at[1]), np.minimum(at[2], at[3]))
+                hi = np.maximum(np.maximum(at[0], at[1]), np.maximum(at[2], at[3]))
+                ext += [lo.astype(np.float64), hi.astype(np.float64)]
             tiles.append((tile, passes, ext))
-        f32 = np.float32
-        hor = np.maximum(np.hypot(du, dv), 1e-6).astype(f32).ravel()
+        hor = np.hypot(du, dv)
+        np.maximum(hor, np.float32(1e-6), out=hor)
         got = {
-            "du": du.astype(f32).ravel(),
-            "dv": dv.astype(f32).ravel(),
-            "dz": dz.astype(f32).ravel(),
-            "inv_hor": np.float32(1.0) / hor,
+            "du": du.ravel(),
+            "dv": dv.ravel(),
+            "dz": dz.ravel(),
+            "inv_hor": np.divide(np.float32(1.0), hor.ravel()),
             "nadir": bool(np.all(dz == -1.0)),  # ray height oz - t: one product less
             "tiles": tiles,
         }
