@@ -111,6 +111,13 @@ class DepthCamera:
     ground, SfM without enough lateral motion); the reasons are counted in
     :attr:`skipped` and reported as events, never raised.
 
+    With ``settings.level_of_detail`` (the default) a frame is rendered from the terrain's
+    mean-height level whose cell is nearest the pixel footprint (AGL / focal_px, log2
+    rounded): full resolution below 1.41 cells per pixel (72 m AGL for a 256 px focal
+    length over 0.2 m cells), 0.4 m cells up to 145 m, what a depth pixel averages. There the
+    depth is within a fifth of its noise sigma of the full-resolution one on 99% of the
+    pixels (tests/sitl/test_sensors.py).
+
     Args:
         terrain: the world.
         settings: camera and error model.

@@ -1,8 +1,10 @@
 """Ray / height-field intersection, vectorised over rays.
 
 :func:`cast_rays` marches any set of rays (the LiDAR's, and the fine-step reference);
-:func:`cast_pinhole_rays` renders a downward pinhole camera's image several times faster,
-from bounds on the ground a :class:`HeightBounds` pyramid gives per image tile."""
+:func:`cast_pinhole_rays` (or :meth:`PinholeRays.cast`, keeping what it derives from the
+rays between frames) renders a downward pinhole camera's image many times faster, from
+bounds on the ground a :class:`HeightBounds` pyramid gives per image tile;
+:func:`coarse_terrain` gives the mean-height levels of detail a distant camera renders."""
 
 from __future__ import annotations
 
