@@ -265,7 +265,7 @@ def _max_plane_distance(pairs: _Pairs, mean, normal, need: np.ndarray) -> np.nda
     point[:, 1] = pairs.y[pair]
     point[:, 2] = pairs.z[pair]
     point[:, 3] = 1.0
-    dist = np.abs(np.einsum("ij,ij->i", point, plane[sphere]))
+    dist = np.abs(np.einsum("ij,ij->i", point, np.take(plane, sphere, axis=0)))
     out = np.zeros(s * r)
     np.maximum.at(out, sphere, dist)
     return out.reshape(s, r)
@@ -340,17 +340,18 @@ def _first_radius(
     """
     s = len(work)
     r0 = settings.radii[0]
-    origin = points[work]
+    # Rows gathered with np.take: several times faster than fancy indexing of (., 3) arrays.
+    origin = np.take(points, work, axis=0)
     owner, flat = index.candidates(origin[:, :2], r0)
-    rel = points[flat]
-    rel -= origin[owner]
+    rel = np.take(points, flat, axis=0)
+    rel -= np.take(origin, owner, axis=0)
     x, y, z = rel.T
     d2 = x * x
     d2 += y * y
     d2 += z * z
     inside = np.flatnonzero(d2 <= r0 * r0)
     owner = owner[inside]
-    rel = rel[inside]
+    rel = np.take(rel, inside, axis=0)
     starts = np.searchsorted(owner, np.arange(s))
     moments = np.empty((len(rel), 10))
     moments[:, 0] = 1.0
@@ -380,7 +381,7 @@ def _first_radius(
         point = np.empty((len(rel), 4))
         point[:, :3] = rel
         point[:, 3] = 1.0
-        dist = np.abs(np.einsum("ij,ij->i", point, plane[owner]))
+        dist = np.abs(np.einsum("ij,ij->i", point, np.take(plane, owner, axis=0)))
         off = fit & (np.maximum.reduceat(dist, starts) > max_step)
     first_fail[enough] = 2
     first_fail[fit] = 3
