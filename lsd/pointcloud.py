@@ -33,6 +33,7 @@ def clean_points(points: np.ndarray) -> tuple[np.ndarray, int]:
 
 
 _ROWS_PER_CALL = 1 << 16  # (centre, grid row) slices looked up at once by cylinders()
+_SQUARE_ROWS = 12  # up to this many rows each side, candidates() covers a disc by a square
 
 # Voxel keys (and the point index packed beside them) must fit one int64.
 _KEY_BITS = 63
@@ -95,22 +96,30 @@ class ColumnIndex:
         m = int(radius * inv) + 2  # rows each side (one of slack against rounding)
         c = centres - self.origin  # (S, 2) from the grid corner
         kx = np.floor(c[:, :1] * inv) + np.arange(-m, m + 1)  # (S, R) rows, as floats
-        # Horizontal gap from the centre to each row's x-interval; the disc's half chord
-        # over that row bounds the row's y-range (1e-9 m slack against rounding). A row the
-        # disc misses gets a zero chord: a few extra candidates, dropped by the caller.
-        gap = np.abs(c[:, :1] - (kx + 0.5) * cell)
-        gap -= 0.5 * cell
-        np.maximum(gap, 0.0, out=gap)
-        half = np.sqrt(np.maximum(radius * radius - gap * gap, 0.0))
-        half += 1e-9
-        y = c[:, 1:]
-        ky = np.floor(np.stack((y - half, y + half)) * inv)  # (2, S, R): first, last column
+        if m <= _SQUARE_ROWS:
+            # Few rows: one y-range per centre (a square; fewer calls than per-row chords
+            # for a few more candidates).
+            ky = np.floor((c[:, 1:] + [-radius, radius]) * inv).T[:, :, None]  # (2, S, 1)
+            ky += [[[-1.0]], [[1.0]]]  # a cell of slack against rounding
+        else:
+            # Horizontal gap from the centre to each row's x-interval; the disc's half chord
+            # over that row bounds the row's y-range (1e-9 m slack against rounding). A row
+            # the disc misses gets a zero chord: a few extra candidates, dropped by the caller.
+            gap = np.abs(c[:, :1] - (kx + 0.5) * cell)
+            gap -= 0.5 * cell
+            np.maximum(gap, 0.0, out=gap)
+            half = np.sqrt(np.maximum(radius * radius - gap * gap, 0.0))
+            half += 1e-9
+            ky = np.empty((2, *half.shape))  # first and last column of each row's slice
+            np.subtract(c[:, 1:], half, out=ky[0])
+            np.add(c[:, 1:], half, out=ky[1])
+            ky *= inv
+            np.floor(ky, out=ky)
         # Kept inside the grid so a slice never runs into the next row; rows outside the grid
         # give keys below 0 or past the last key: empty slices.
-        np.clip(ky, 0, ny - 1, out=ky)
+        ky = np.minimum(np.maximum(ky, 0.0), ny - 1)
         ky[1] += 1  # one past the last column
-        ky += kx * ny
-        bounds = np.searchsorted(self.keys, ky.astype(np.int64))
+        bounds = np.searchsorted(self.keys, (ky + kx * ny).astype(np.int64))
         start = bounds[0].ravel()
         length = bounds[1].ravel() - start
         per_centre = length.reshape(s, -1).sum(axis=1)
