@@ -8,11 +8,13 @@ Algorithm 1 on search points (random as in the paper, or a grid covering the clo
 z-std above sigma_max -> grade (eq. 6) -> register; the registered spots are re-graded as the
 vehicle moves and the best one is the emergency output.
 
-Algorithm 1 is batched over search points and radii, with no Python loop over either: one
-cylinder query per phase collects every search point's neighbours (r_min first, then the full
-reach for the points that passed), per-shell moment sums (``np.bincount``) give the PCA of
-every sphere radius at once (one stacked ``eigh``), and one pass over (pair, radius) copies
-checks every needed sphere's largest distance from its plane (``np.maximum.at``).
+Algorithm 1 is batched over search points and radii, with no Python loop over either. Most
+search points fail at r_min, so that step runs first for all of them in a few large numpy
+calls (one column-index query, one ``np.add.reduceat`` of the ten moments per sphere, one
+stacked ``eigh``, one plane-distance pass); the points that passed then get one cylinder query
+of their full reach, per-shell moment sums (``np.bincount``) give the PCA of every sphere
+radius at once (one stacked ``eigh``), and one pass over (pair, radius) copies checks every
+needed sphere's largest distance from its plane (``np.maximum.at``).
 
 Grades (the paper leaves the 0..20 mapping open; ours is linear):
 
