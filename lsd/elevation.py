@@ -35,7 +35,7 @@ from typing import Any
 import cv2
 import numpy as np
 
-from lsd.elevation_map import ElevationMap
+from lsd.elevation_map import ElevationMap, pooled_level
 from lsd.elevation_settings import DetectorSettings, ElevationMapSettings
 from lsd.frames import DepthFrame
 from lsd.plane_fit import PlaneFit, copy_where, fit_planes
@@ -198,14 +198,22 @@ class ElevationDetector:
         north += f32(position[1])
         drop += f32(position[2])
         maps = (self.map, self.fine_map) if self.low else (self.map,)
+        blocks: dict[int, tuple] = {}
         for index, grid in enumerate(maps):
             grid.recentre(position[0], position[1])
             self._counters["cells_forgotten"] += grid.forget_older_than(now)
             # The coarse map is not analysed while the fine one is: blurrier blocks will do.
             share = 0.5 if self.low and index == 0 else 0.25
             block = _pixel_block(grid.resolution, ground_per_pixel, depth.shape, share)
+            if not self.low and self._analysis_pool(grid) > 1:
+                # Analysed in pooled cells: 2 x 2 pixel blocks no larger than an analysed
+                # cell blur it no more than the analysis does (a quarter of the points).
+                pooled = grid.resolution * self._analysis_pool(grid)
+                block = max(block, min(2, _pixel_block(pooled, ground_per_pixel, depth.shape, 1.0)))
             if block > 1:
-                x, y, z, var, count = _block_points(east, north, drop, variance, valid, block)
+                if block not in blocks:  # both maps may take the same blocks
+                    blocks[block] = _block_points(east, north, drop, variance, valid, block)
+                x, y, z, var, count = blocks[block]
             elif everything:
                 x, y, z, var = (a.reshape(-1) for a in (east, north, drop, variance))
                 count = None
@@ -238,37 +246,63 @@ class ElevationDetector:
         s = self.settings
         m = self.fine_map if self.low else self.map
         self._counters["cells_forgotten"] += m.forget_older_than(now)
-        r = m.resolution
+        # The fine map is never pooled: the sites it gives are the ones verification
+        # re-detects from low altitude, in its own cells.
+        pool = self._analysis_pool(m) if m is self.map else 1
+        r = m.resolution * pool  # side of an analysed cell
         # Only the cells within a footprint window of an observed cell can get a fit, and
         # so be safe: analyse the bounding box of the observed cells grown by that window
         # plus one ring (never safe), which gives the same sites as the whole grid.
         half = max(1, int(round(s.footprint_radius / r)))
         reach = int(np.ceil(s.footprint_radius / r - 1e-9))
-        box = _observed_box(m.observed, max(half, reach) + 1)
+        box = _observed_box(m.observed, (max(half, reach) + 1) * pool)
         self._last_analysis = None
         if box is None:
             self._analysis = None
             return []
+        origin = (int(m.origin_index[0]), int(m.origin_index[1]))
+        if pool > 1:
+            # Blocks aligned to world cell indices, so that sites keep their positions.
+            box = _aligned(box, origin, pool, m.shape)
+            if box is None:
+                self._analysis = None
+                return []
         window = (slice(box[0], box[1]), slice(box[2], box[3]))
+        if pool > 1:
+            mean, variance, top, cell_variance, looks = pooled_level(
+                m.mean[window], m.variance[window], m.top[window], m.closest[window], pool
+            )
+            looks = looks.astype(np.float32)
+        else:
+            mean, variance, top, cell_variance = (
+                m.mean[window], m.variance[window], m.top[window], None
+            )
+            looks = m.closest[window].astype(np.float32)
+            copy_where(looks, 0.0, np.isinf(looks))  # unobserved: no say
         fit = fit_planes(
-            m.mean[window],
-            m.variance[window],
+            mean,
+            variance,
             r,
             s.footprint_radius,
-            top=m.top[window],
+            top=top,
             tolerance=s.noise_tolerance,
+            cell_variance=cell_variance,
         )
         hazard, doubtful = step_hazards(fit, s, r)
         safe = safe_mask(fit, s, hazard)
         size = site_size(safe, r)
-        origin = (int(m.origin_index[0]), int(m.origin_index[1]))
-        self._analysis = (fit, safe, size, m.shape, window, origin, r)
+        # World index (in analysed cells) of the analysed window's cell [0, 0].
+        box_origin = ((origin[0] + box[0]) // pool, (origin[1] + box[2]) // pool)
+        if pool > 1:  # the analysis is its own grid
+            n0, n1 = mean.shape
+            self._analysis = (fit, safe, size, (n0, n1), (slice(0, n0), slice(0, n1)),
+                              box_origin, r)
+        else:
+            self._analysis = (fit, safe, size, m.shape, window, origin, r)
         # A site is only as trustworthy as the farthest look at the ground under its
         # footprint (the smallest camera height each cell was seen from, largest over the
         # footprint).
         f32 = np.float32
-        looks = m.closest[window].astype(f32)
-        copy_where(looks, 0.0, np.isinf(looks))  # unobserved: no say
         farthest_look = maximum_box(looks, 2 * reach + 1)
         with np.errstate(invalid="ignore"):
             # Between equally roomy cells prefer the best-seen one (so that a low hover
@@ -278,15 +312,21 @@ class ElevationDetector:
             quality += f32(0.3)
             quality += np.exp(farthest_look * f32(-0.1)) * f32(0.7)
         cv2.patchNaNs(quality, 0.0)
-        box_origin = (origin[0] + box[0], origin[1] + box[2])
         i, j = select_sites(size, quality, box_origin, r, s)
         if len(i) == 0:
             return []
+        # The obstacle altitude from the map's own cells (the highest, not a block's mean),
+        # around the map cell at the centre of each analysed cell.
         top = obstacle_altitude(
-            m.top[window], m.variance[window], r, s.obstacle_radius, sites=(i, j)
+            m.top[window],
+            m.variance[window],
+            m.resolution,
+            s.obstacle_radius,
+            sites=(i * pool + pool // 2, j * pool + pool // 2),
         )
-        xs, ys = m.cell_centres()
-        xs, ys = xs[window[0]], ys[window[1]]
+        n0, n1 = size.shape
+        xs = (box_origin[0] + np.arange(n0) + 0.5) * r
+        ys = (box_origin[1] + np.arange(n1) + 0.5) * r
         z = fit.height[i, j]
         roughness = np.clip(fit.roughness[i, j] / s.max_roughness, 0.0, 1.0)
         uncertainty = np.clip(fit.sigma[i, j] / s.max_uncertainty, 0.0, 1.0)
@@ -317,6 +357,19 @@ class ElevationDetector:
         ]
         self._counters["observations_emitted"] += len(observations)
         return observations
+
+    def _analysis_pool(self, grid: ElevationMap) -> int:
+        """How many cells of ``grid`` (per side) one analysed cell pools at the last frame's
+        height: the largest power of two up to ``max_analysis_pool`` whose cell side is at
+        most ``analysis_cell_ratio`` times that height and at most the footprint radius."""
+        s = self.settings
+        if self.agl is None:
+            return 1
+        largest = min(s.analysis_cell_ratio * self.agl, s.footprint_radius)
+        pool = 1
+        while 2 * pool <= s.max_analysis_pool and 2 * pool * grid.resolution <= largest:
+            pool *= 2
+        return pool
 
     # -- input checks -------------------------------------------------------------------
 
@@ -376,21 +429,30 @@ class ElevationDetector:
     def _valid_pixels(self, frame: DepthFrame, depth: np.ndarray) -> np.ndarray:
         """(H, W) bool usable pixels; counts every dropped pixel by reason."""
         s = self.map_settings
-        finite = np.isfinite(depth)
         with np.errstate(invalid="ignore"):
-            positive = depth > 0
-            in_range = (depth >= s.min_range) & (depth <= s.max_range)
-        valid = finite & positive & in_range
+            # NaN fails every comparison; min_range >= 0 leaves only 0 to the last test.
+            valid = depth >= s.min_range
+            valid &= depth <= s.max_range
+            if s.min_range <= 0:
+                valid &= depth > 0
         c = self._counters
-        c["pixels_dropped_nonfinite"] += int(np.count_nonzero(~finite))
-        c["pixels_dropped_nonpositive"] += int(np.count_nonzero(finite & ~positive))
-        c["pixels_dropped_out_of_range"] += int(np.count_nonzero(finite & positive & ~in_range))
+        if not valid.all():  # the reasons are only worth counting when something failed
+            finite = np.isfinite(depth)
+            with np.errstate(invalid="ignore"):
+                positive = depth > 0
+            c["pixels_dropped_nonfinite"] += int(np.count_nonzero(~finite))
+            c["pixels_dropped_nonpositive"] += int(np.count_nonzero(finite & ~positive))
+            c["pixels_dropped_out_of_range"] += int(
+                np.count_nonzero(finite & positive & ~valid)
+            )
         if frame.sigma is not None:
             sigma = np.asarray(frame.sigma, dtype=np.float32)
             with np.errstate(invalid="ignore"):
-                good_sigma = np.isfinite(sigma) & (sigma >= 0)
-            c["pixels_dropped_bad_sigma"] += int(np.count_nonzero(valid & ~good_sigma))
-            valid &= good_sigma
+                good_sigma = sigma >= 0
+                good_sigma &= sigma < np.inf
+            if not good_sigma.all():
+                c["pixels_dropped_bad_sigma"] += int(np.count_nonzero(valid & ~good_sigma))
+                valid &= good_sigma
         return valid
 
 
@@ -399,6 +461,8 @@ def _placement_depth(depth: np.ndarray, valid: np.ndarray, kernel: int) -> np.nd
     (``depth`` itself where ``kernel`` is 1), used only to place points horizontally."""
     if kernel <= 1:
         return depth
+    if valid.all():  # the plain box mean (the border reflects valid pixels too)
+        return cv2.blur(depth, (kernel, kernel))
     total = cv2.blur(np.where(valid, depth, np.float32(0.0)), (kernel, kernel))
     share = cv2.blur(valid.astype(np.float32), (kernel, kernel))
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -484,6 +548,27 @@ def _largest_within(grid: np.ndarray, i: np.ndarray, j: np.ndarray, radius: floa
     rows = np.clip(i[:, None] + di[inside], 0, grid.shape[0] - 1)
     cols = np.clip(j[:, None] + dj[inside], 0, grid.shape[1] - 1)
     return grid[rows, cols].max(axis=1).astype(np.float64)
+
+
+def _aligned(
+    box: tuple[int, int, int, int], origin: tuple[int, int], pool: int, shape: tuple[int, int]
+) -> tuple[int, int, int, int] | None:
+    """``box`` (i0, i1, j0, j1) moved out to whole blocks of ``pool`` cells whose world
+    indices are multiples of ``pool`` (blocks cut by the grid's edge are left out), or None
+    when no whole block is left."""
+    out = []
+    sides = ((box[0], box[1], origin[0], shape[0]), (box[2], box[3], origin[1], shape[1]))
+    for lo, hi, o, n in sides:
+        lo -= (o + lo) % pool
+        if lo < 0:
+            lo += pool
+        hi = lo + -(-(hi - lo) // pool) * pool
+        while hi > n:
+            hi -= pool
+        if hi <= lo:
+            return None
+        out += [lo, hi]
+    return out[0], out[1], out[2], out[3]
 
 
 def _observed_box(observed: np.ndarray, margin: int) -> tuple[int, int, int, int] | None:

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 
+import cv2
 import numpy as np
 
 from lsd.elevation_settings import ElevationMapSettings
@@ -302,3 +303,77 @@ class ElevationMap:
         self.variance.fill(np.inf)
         self.closest.fill(np.inf)
         self.last_update.fill(-np.inf)
+
+
+def pooled_level(
+    mean: np.ndarray,
+    variance: np.ndarray,
+    top: np.ndarray,
+    closest: np.ndarray,
+    factor: int,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """A coarser level of a map window: ``factor`` x ``factor`` blocks of cells pooled.
+
+    Each block's observed cells are combined by inverse-variance weighting, as the map
+    fuses measurements: the pooled height and top are the weighted means of the cells'
+    heights and tops and the pooled variance is ``1 / sum(1 / variance)``. The plain mean
+    of the cells' variances is kept apart (what one cell of the block is worth, for the
+    reported uncertainty), and the block's ``closest`` is its largest finite one (a block
+    is only as closely seen as its farthest-seen cell).
+
+    Args:
+        mean, variance, top, closest: (n, m) window of an :class:`ElevationMap`'s grids
+            (NaN / inf where unobserved), n and m multiples of ``factor``.
+        factor: block side, cells.
+
+    Returns:
+        mean, variance, top, cell_variance, closest: (n / factor, m / factor) float64
+        (NaN, inf, NaN, inf and 0 where the block holds no observed cell).
+    """
+    f32 = np.float32
+    n0, n1 = mean.shape
+    shape = (n1 // factor, n0 // factor)  # OpenCV's (width, height)
+    hidden = np.isnan(mean)
+    if hidden.all():
+        empty = np.full((n0 // factor, n1 // factor), np.nan)
+        inf = np.full_like(empty, np.inf)
+        return empty, inf, empty.copy(), inf.copy(), np.zeros_like(empty)
+    # Heights from a reference keep the sums exact enough in single precision.
+    ref = float(mean[~hidden].flat[0])
+    var = variance.astype(f32)
+    weight = np.divide(f32(1.0), var)  # 0 where unobserved (infinite variance)
+    copy_where(var, 0.0, hidden)
+    z = np.subtract(mean, ref, dtype=f32)
+    t = np.subtract(top, ref, dtype=f32)
+    cv2.patchNaNs(z, 0.0)
+    cv2.patchNaNs(t, 0.0)
+    z *= weight
+    t *= weight
+
+    def block_mean(grid: np.ndarray) -> np.ndarray:
+        # INTER_AREA with a whole-number factor is exactly the block mean.
+        return cv2.resize(grid, shape, interpolation=cv2.INTER_AREA).astype(np.float64)
+
+    sum_w = block_mean(weight)
+    count = 1.0 - block_mean(hidden.view(np.uint8).astype(f32))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        pooled_mean = block_mean(z) / sum_w
+        pooled_top = block_mean(t) / sum_w
+        pooled_var = 1.0 / (sum_w * float(factor * factor))
+        cell_var = block_mean(var) / count
+    pooled_mean += ref
+    pooled_top += ref
+    empty = count < 0.5 / (factor * factor)
+    copy_where(pooled_mean, np.nan, empty)
+    copy_where(pooled_top, np.nan, empty)
+    copy_where(pooled_var, np.inf, empty)
+    copy_where(cell_var, np.inf, empty)
+    np.maximum(pooled_top, pooled_mean, out=pooled_top)
+    looks = closest.astype(f32)
+    copy_where(looks, 0.0, np.isinf(looks))
+    pooled_looks = looks[::factor, ::factor].copy()
+    for a in range(factor):
+        for b in range(factor):
+            if a or b:  # block offsets, not cells
+                np.maximum(pooled_looks, looks[a::factor, b::factor], out=pooled_looks)
+    return pooled_mean, pooled_var, pooled_top, cell_var, pooled_looks.astype(np.float64)

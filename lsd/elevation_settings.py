@@ -131,6 +131,18 @@ class DetectorSettings(BaseModel):
     obstacle_radius: float = Field(
         5.0, ge=0, description="radius around a site searched for the obstacle altitude (m)"
     )
+    analysis_cell_ratio: float = Field(
+        0.02,
+        ge=0,
+        description="while the coarse map is analysed, its cells are pooled in 2 x 2 or "
+        "4 x 4 blocks (inverse-variance weighted) so that the analysed cell side grows to at "
+        "most this fraction of the camera's height above the ground: far depth is too noisy "
+        "for fine cells to add anything, and the analysis costs less (0: never pooled; the "
+        "fine map is never pooled)",
+    )
+    max_analysis_pool: int = Field(
+        4, ge=1, le=8, description="largest pooling factor (cells per analysed cell side)"
+    )
     max_sites: int = Field(50, ge=1, description="most observations emitted per frame")
     source: str = Field("elevation", description="prefix of the observations' source field")
 

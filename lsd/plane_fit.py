@@ -74,6 +74,7 @@ def fit_planes(
     radius: float,
     top: np.ndarray | None = None,
     tolerance: float = 0.0,
+    cell_variance: np.ndarray | None = None,
 ) -> PlaneFit:
     """Fit a plane in the square window of half-side ``radius`` around every cell.
 
@@ -85,6 +86,9 @@ def fit_planes(
         top: (n, m) top of each cell, metres, or None (only ``step`` uses it).
         tolerance: how many standard errors the step test will forgive; decides whether
             the mean's or the top's step (each less that many errors) is the larger.
+        cell_variance: (n, m) variance whose window RMS is reported as ``sigma``, m^2, or
+            None for ``variance``; for a pooled grid, the mean variance of the cells each
+            pooled cell stands for, so that pooling does not make the map look more certain.
 
     Returns:
         a :class:`PlaneFit`. A cell gets a fit only when its window holds at least three
@@ -211,6 +215,9 @@ def fit_planes(
             use_top &= observed
             copy_where(step, top_step, use_top)
             copy_where(step_error, top_error, use_top)
+        if cell_variance is not None:
+            var = cell_variance.astype(f32)
+            copy_where(var, 0.0, hidden)
         sigma = box(var)
         sigma /= frac
         np.sqrt(sigma, out=sigma)

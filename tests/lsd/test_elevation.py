@@ -241,7 +241,9 @@ def test_noisy_high_altitude_frames_give_high_uncertainty():
     assert high_obs and low_obs
     assert_valid(high_obs + low_obs, high.settings)
     assert min(o.uncertainty for o in high_obs) > 0.3
-    assert max(o.uncertainty for o in low_obs) < 0.5 * min(o.uncertainty for o in high_obs)
+    # (At 100 m, 2 x 2 pixel blocks are fused: each cell's estimate is better than one
+    # pixel's, so the margin over this deliberately noisy close look is no longer 2x.)
+    assert max(o.uncertainty for o in low_obs) < min(o.uncertainty for o in high_obs)
     assert all(o.observation_altitude > 90 for o in high_obs)
 
 
@@ -388,7 +390,8 @@ def test_settings_are_validated_by_field():
 
 def test_the_fine_map_takes_over_below_fine_below():
     settings = ElevationMapSettings(fine_below=20.0)
-    detector = ElevationDetector(settings)
+    # Unpooled, so that the analysed grid is the coarse map's own.
+    detector = ElevationDetector(settings, DetectorSettings(analysis_cell_ratio=0.0))
     detector.process(render(flat, (0.0, 0.0, 52.0), n=256, f=256))
     assert not detector.low
     assert detector.last_analysis.resolution == settings.resolution

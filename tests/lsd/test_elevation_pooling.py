@@ -1,0 +1,92 @@
+"""The coarse map analysed on a pooled grid while the camera is high."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from lsd.elevation import ElevationDetector
+from lsd.elevation_map import pooled_level
+from lsd.elevation_settings import DetectorSettings
+from tests.lsd.test_elevation import assert_valid, flat, render
+
+BOX = (10.0, 6.0)  # centre of a 6 m x 6 m, 3 m high block, world x/y
+
+
+def block(x, y):
+    """Flat ground at z=2 with a 6 m square, 3 m high block."""
+    inside = (np.abs(x - BOX[0]) < 3.0) & (np.abs(y - BOX[1]) < 3.0)
+    return 2.0 + 3.0 * inside
+
+
+def test_pooled_level_combines_blocks_by_inverse_variance():
+    mean = np.array([[1.0, 3.0, np.nan, np.nan], [np.nan, np.nan, np.nan, np.nan]])
+    variance = np.array([[1.0, 3.0, np.inf, np.inf], [np.inf, np.inf, np.inf, np.inf]])
+    top = mean + 0.5
+    closest = np.array([[10.0, 40.0, np.inf, np.inf], [np.inf, np.inf, np.inf, np.inf]])
+    pooled_mean, pooled_var, pooled_top, cell_var, looks = pooled_level(
+        mean, variance, top, closest, 2
+    )
+    assert pooled_mean.shape == (1, 2)
+    # Weights 1 and 1/3: (1 * 1 + 3 / 3) / (4 / 3) = 1.5; variance 1 / (4 / 3).
+    assert pooled_mean[0, 0] == pytest.approx(1.5)
+    assert pooled_var[0, 0] == pytest.approx(0.75)
+    assert pooled_top[0, 0] == pytest.approx(2.0)
+    assert cell_var[0, 0] == pytest.approx(2.0)  # the plain mean of the cells' variances
+    assert looks[0, 0] == pytest.approx(40.0)  # the farthest look of the block
+    # A block with no observed cell stays unobserved.
+    assert math.isnan(pooled_mean[0, 1]) and math.isinf(pooled_var[0, 1])
+    assert math.isnan(pooled_top[0, 1]) and looks[0, 1] == 0.0
+
+
+def test_a_high_camera_analyses_coarser_cells_and_a_low_one_does_not():
+    settings = DetectorSettings()
+    detector = ElevationDetector(settings=settings)
+    resolution = detector.map_settings.resolution
+    detector.process(render(flat, (0.0, 0.0, 102.0), n=256, f=256))
+    high = detector.last_analysis.resolution
+    detector.process(render(flat, (0.0, 0.0, 32.0), n=256, f=256, timestamp=1.0))
+    mid = detector.last_analysis.resolution
+    assert high > mid >= resolution
+    # Never coarser than the footprint nor than max_analysis_pool cells.
+    assert high <= min(settings.footprint_radius, settings.max_analysis_pool * resolution)
+
+
+def test_pooled_sites_keep_a_footprint_away_from_a_block():
+    # Every site of the view; an obstacle square that reaches past the nearest ones.
+    settings = DetectorSettings(max_sites=1000, obstacle_radius=8.0)
+    detector = ElevationDetector(settings=settings)
+    observations = detector.process(render(block, (0.0, 0.0, 82.0), n=256, f=256))
+    assert detector.last_analysis.resolution > detector.map_settings.resolution
+    assert_valid(observations, settings)
+    assert len(observations) >= 10
+    for o in observations:
+        gap = max(abs(o.x - BOX[0]) - 3.0, abs(o.y - BOX[1]) - 3.0)
+        assert gap >= settings.footprint_radius
+        assert o.z == pytest.approx(2.0, abs=0.05)
+    # Sites whose obstacle square (half-side obstacle_radius) reaches the block see it.
+    near = [
+        o
+        for o in observations
+        if max(abs(o.x - BOX[0]), abs(o.y - BOX[1])) - 3.0 < settings.obstacle_radius - 0.5
+    ]
+    assert near and all(o.obstacle_altitude >= 4.9 for o in near)
+
+
+def test_pooled_sites_stay_put_when_the_vehicle_moves():
+    settings = DetectorSettings(max_sites=1000)
+    first = ElevationDetector(settings=settings)
+    a = first.process(render(flat, (0.0, 0.0, 102.0), n=256, f=256))
+    second = ElevationDetector(settings=settings)
+    b = second.process(render(flat, (1.3, -0.7, 102.0), n=256, f=256))
+    assert second.last_analysis.resolution > second.map_settings.resolution
+    a = np.array([(o.x, o.y) for o in a])
+    b = np.array([(o.x, o.y) for o in b])
+    # Blocks are world-aligned: seen from elsewhere, a site is found again nearby (away
+    # from the edges of either view, where the room around a site differs).
+    gap = np.hypot(a[:, None, 0] - b[None, :, 0], a[:, None, 1] - b[None, :, 1]).min(axis=1)
+    overlap = (np.abs(a[:, 0] - 0.65) < 25.0) & (np.abs(a[:, 1] + 0.35) < 25.0)
+    assert overlap.sum() >= 10
+    assert np.all(gap[overlap] < 1.0)
