@@ -354,6 +354,22 @@ def test_column_index_cylinders_equal_a_kd_tree_ball_query(cell):
         assert sorted(found[owner == k]) == sorted(ref)
 
 
+@pytest.mark.parametrize("cell", [0.05, 0.3])  # per-row chords, one square per centre
+def test_column_index_candidates_cover_each_disc_once(cell):
+    rng = np.random.default_rng(11)
+    xy = rng.uniform(-10, 10, (4000, 2))
+    index, order = ColumnIndex.build(xy[:, 0], xy[:, 1], cell)
+    sorted_xy = xy[order]
+    centres = np.r_[rng.uniform(-12, 12, (20, 2)), [[-10.0, 10.0]]]
+    owner, found = index.candidates(centres, 1.3)
+    assert np.all(np.diff(owner) >= 0)
+    tree = cKDTree(sorted_xy)
+    for k, ref in enumerate(tree.query_ball_point(centres, 1.3)):
+        mine = found[owner == k]
+        assert len(np.unique(mine)) == len(mine)  # each point once
+        assert set(ref) <= set(mine.tolist())
+
+
 def test_detect_planes_gives_the_same_spots_on_a_voxel_grid_and_its_points():
     cloud = voxel_grid(box_scene(), SETTINGS.voxel_size)
     s = SETTINGS.model_copy(update={"seeding": "random", "n_points": 60})
