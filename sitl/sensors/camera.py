@@ -21,8 +21,10 @@ SFM = "sfm"
 # Standard normal deviates by inverse transform of 16-bit uniforms: the quantiles of the
 # 65536 equiprobable bins (tails cut at 4.3 sigma). Raw random bytes and one table lookup
 # cost a quarter of Generator.standard_normal per pixel.
-# Coarsest level of detail rendered (2**3 cells per side).
-_MAX_LEVEL = 3
+# Coarsest level of detail rendered: 2 x 2 cells. Coarser levels (0.8 m cells for the Mars
+# mission's f = 128 px camera at cruise) smooth rocks out of the cruise-altitude map, and
+# the flights then spend their verifications on sites the low pass rejects.
+_MAX_LEVEL = 1
 
 _NORMAL_QUANTILES = ndtri((np.arange(65536) + 0.5) / 65536).astype(np.float32)
 
@@ -113,8 +115,9 @@ class DepthCamera:
 
     With ``settings.level_of_detail`` (the default) a frame is rendered from the terrain's
     mean-height level whose cell is nearest the pixel footprint (AGL / focal_px, log2
-    rounded): full resolution below 1.41 cells per pixel (72 m AGL for a 256 px focal
-    length over 0.2 m cells), 0.4 m cells up to 145 m, what a depth pixel averages. There the
+    rounded, at most 2 x 2 cells): full resolution below 1.41 cells per pixel (72 m AGL
+    for a 256 px focal length over 0.2 m cells), 0.4 m cells above, nearer what a depth
+    pixel averages than one point of the full terrain per pixel. There the
     depth is within a fifth of its noise sigma of the full-resolution one on 99% of the
     pixels (tests/sitl/test_sensors.py).
 

@@ -52,7 +52,8 @@ class DepthCameraSettings(BaseModel):
     level_of_detail: bool = Field(
         True,
         description="render from the terrain's mean-height level whose cell is nearest the "
-        "pixel footprint (depth / focal_px, log2 rounded); False: always full resolution",
+        "pixel footprint (depth / focal_px, log2 rounded; at most 2 x 2 cells); False: "
+        "always full resolution",
     )
     march_step: float | None = Field(
         None, gt=0, description="horizontal ray-march step (m); None: the terrain cell size"

@@ -303,7 +303,7 @@ def test_depth_over_rocky_mars_matches_a_fine_step_reference(agl, seed):
 @pytest.mark.parametrize("agl, seed", [(100.0, 1), (60.0, 2), (40.0, 3)])
 def test_at_altitude_depth_stays_within_a_fifth_of_its_noise_of_the_full_terrain(agl, seed):
     # At 40-100 m the 128 px / f = 128 px camera's pixel covers 0.3-0.8 m: the default
-    # renders the mean heights of 0.4-0.8 m cells. Against the full-resolution depth it is
+    # renders the mean heights of 0.4 m cells. Against the full-resolution depth it is
     # off by less than a fifth of the depth noise sigma (the best case: the 15 m SfM
     # keyframe baseline) on 99% of the pixels, a centimetre at the median; only rock and
     # crater edges, smoothed over a pixel, differ more.
