@@ -200,10 +200,14 @@ class ElevationDetector:
         maps = (self.map, self.fine_map) if self.low else (self.map,)
         blocks: dict[int, tuple] = {}
         for index, grid in enumerate(maps):
-            grid.recentre(position[0], position[1])
+            # A coarse map that is not analysed need only hold the (small, low) view: it
+            # follows the camera in steps of a quarter of its side.
+            slack = 0.25 * grid.settings.size if self.low and index == 0 else 0.0
+            grid.recentre(position[0], position[1], slack)
             self._counters["cells_forgotten"] += grid.forget_older_than(now)
-            # The coarse map is not analysed while the fine one is: blurrier blocks will do.
-            share = 0.5 if self.low and index == 0 else 0.25
+            # The coarse map is not analysed while the fine one is: blocks as large as its
+            # cells will do.
+            share = 1.0 if self.low and index == 0 else 0.25
             block = _pixel_block(grid.resolution, ground_per_pixel, depth.shape, share)
             if not self.low and self._analysis_pool(grid) > 1:
                 # Analysed in pooled cells: 2 x 2 pixel blocks no larger than an analysed

@@ -109,10 +109,12 @@ class ElevationMap:
         out[inside] = self.mean[i[inside], j[inside]]
         return out
 
-    def recentre(self, x: float, y: float) -> int:
+    def recentre(self, x: float, y: float, slack: float = 0.0) -> int:
         """Move the window by whole cells so that world (x, y) lies in its centre cell.
 
         Cells that leave the window are forgotten; cells that enter it are unobserved.
+        With ``slack`` (metres), the window stays put while (x, y) is no farther than that
+        from its centre cell along either axis (each move copies the whole grid).
         Returns how many cells the window moved (Chebyshev distance).
         """
         n0, n1 = self.shape
@@ -125,7 +127,7 @@ class ElevationMap:
             self._centred = True
             return 0
         di, dj = (int(v) for v in target - self.origin_index)
-        if di == 0 and dj == 0:
+        if max(abs(di), abs(dj)) <= slack / self.resolution:
             return 0
         self.mean = _shifted(self.mean, di, dj, np.nan)
         self.top = _shifted(self.top, di, dj, np.nan)
@@ -191,11 +193,18 @@ class ElevationMap:
         # single precision); NaN fails every comparison and so falls outside.
         fi = x * inv_r - float(self.origin_index[0])
         fj = y * inv_r - float(self.origin_index[1])
-        inside = (fi >= 0) & (fi < n0) & (fj >= 0) & (fj < n1)
-        n_inside = int(np.count_nonzero(inside))
+        if len(fi) == 0:
+            return 0
+        # Four reductions tell when every point is inside (the common case, and NaN
+        # makes them fail); only otherwise is each point tested.
+        if fi.min() >= 0 and fi.max() < n0 and fj.min() >= 0 and fj.max() < n1:
+            n_inside = len(fi)
+        else:
+            inside = (fi >= 0) & (fi < n0) & (fj >= 0) & (fj < n1)
+            n_inside = int(np.count_nonzero(inside))
         if n_inside == 0:
             return 0
-        if n_inside < len(inside):
+        if n_inside < len(fi):
             fi, fj, z, variance = fi[inside], fj[inside], z[inside], variance[inside]
             count = None if count is None else count[inside]
         fused = n_inside if count is None else int(count.sum())
@@ -218,7 +227,8 @@ class ElevationMap:
         # the keys themselves (no argsort) orders the points by cell, then by height.
         cell_bits = max(1, (span_cells - 1).bit_length())
         height_bits = min(50, 62 - cell_bits)
-        low, span = float(z.min()), float(np.ptp(z)) + 1e-9
+        low = float(z.min())
+        span = float(z.max()) - low + 1e-9
         quantum = span / float(1 << height_bits)
         level = ((z - low) * (1.0 / quantum)).astype(np.int64)
         np.minimum(level, (1 << height_bits) - 1, out=level)

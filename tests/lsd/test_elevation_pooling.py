@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from lsd.elevation import ElevationDetector
-from lsd.elevation_map import pooled_level
-from lsd.elevation_settings import DetectorSettings
+from lsd.elevation_map import ElevationMap, pooled_level
+from lsd.elevation_settings import DetectorSettings, ElevationMapSettings
 from tests.lsd.test_elevation import assert_valid, flat, render
 
 BOX = (10.0, 6.0)  # centre of a 6 m x 6 m, 3 m high block, world x/y
@@ -90,3 +90,15 @@ def test_pooled_sites_stay_put_when_the_vehicle_moves():
     overlap = (np.abs(a[:, 0] - 0.65) < 25.0) & (np.abs(a[:, 1] + 0.35) < 25.0)
     assert overlap.sum() >= 10
     assert np.all(gap[overlap] < 1.0)
+
+
+def test_a_recentring_slack_keeps_the_window_until_the_camera_strays_that_far():
+    emap = ElevationMap(ElevationMapSettings(size=20.0, resolution=0.5))
+    emap.recentre(0.0, 0.0)
+    emap.fuse(np.array([[1.2, -0.7, 3.0]]), np.array([0.01]), now=0.0)
+    origin = emap.origin_index.copy()
+    assert emap.recentre(4.0, -3.0, slack=5.0) == 0  # within the slack: no move
+    assert np.array_equal(emap.origin_index, origin)
+    assert emap.recentre(6.0, 0.0, slack=5.0) == 12  # beyond it: centred on the camera
+    assert emap.height_at(1.2, -0.7) == pytest.approx(3.0)  # estimates keep their place
+    assert emap.cell_of(6.0, 0.0)[0] == 20
