@@ -250,7 +250,7 @@ def _max_plane_distance(pairs: _Pairs, mean, normal, need: np.ndarray) -> np.nda
     checked in one pass (no loop over radii) and reduced with ``np.maximum.at``.
     """
     s, r = need.shape
-    last = np.where(need.any(axis=1), r - 1 - np.argmax(need[:, ::-1], axis=1), -1)
+    last = need.sum(axis=1) - 1  # the last needed radius (a prefix), -1 for none
     copies = np.maximum(last[pairs.owner] - pairs.shell + 1, 0)
     pair = np.repeat(np.arange(len(copies)), copies)
     total = len(pair)
