@@ -18,14 +18,14 @@ from sitl.terrain import Terrain
 STEREO = "stereo"
 SFM = "sfm"
 
-# Standard normal deviates by inverse transform of 16-bit uniforms: the quantiles of the
-# 65536 equiprobable bins (tails cut at 4.3 sigma). Raw random bytes and one table lookup
-# cost a quarter of Generator.standard_normal per pixel.
 # Coarsest level of detail rendered: 2 x 2 cells. Coarser levels (0.8 m cells for the Mars
 # mission's f = 128 px camera at cruise) smooth rocks out of the cruise-altitude map, and
 # the flights then spend their verifications on sites the low pass rejects.
 _MAX_LEVEL = 1
 
+# Standard normal deviates by inverse transform of 16-bit uniforms: the quantiles of the
+# 65536 equiprobable bins (tails cut at 4.3 sigma). Raw random bytes and one table lookup
+# cost a quarter of Generator.standard_normal per pixel.
 _NORMAL_QUANTILES = ndtri((np.arange(65536) + 0.5) / 65536).astype(np.float32)
 
 
@@ -117,9 +117,9 @@ class DepthCamera:
     mean-height level whose cell is nearest the pixel footprint (AGL / focal_px, log2
     rounded, at most 2 x 2 cells): full resolution below 1.41 cells per pixel (72 m AGL
     for a 256 px focal length over 0.2 m cells), 0.4 m cells above, nearer what a depth
-    pixel averages than one point of the full terrain per pixel. There the
-    depth is within a fifth of its noise sigma of the full-resolution one on 99% of the
-    pixels (tests/sitl/test_sensors.py).
+    pixel averages than one point of the full terrain per pixel. There the depth is within
+    a fifth of its noise sigma of the full-resolution one on 99% of the pixels
+    (tests/sitl/test_sensors.py).
 
     Args:
         terrain: the world.
