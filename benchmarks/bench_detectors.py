@@ -158,7 +158,7 @@ def why_not_10x(paper_down, paper_pca, ours, clouds, settings) -> str:
     if paper_down / ours["down_ms"] < 10:
         floor = floor_down_ms(clouds, settings.voxel_size)
         verdict = "above" if floor > paper_down / 10 else "under"
-        notes.append(f"down: 10x = {paper_down / 10:.2f} ms; one np.sort of the "
+        notes.append(f"down: 10x = {paper_down / 10:.2f} ms, one np.sort of the "
                      f"{len(clouds[0])} keys + one centroid sum alone {floor:.2f} ms ({verdict})")
     if paper_pca / ours["pca_ms"] < 10:
         floor = floor_one_point_ms(clouds, settings)
@@ -168,15 +168,18 @@ def why_not_10x(paper_down, paper_pca, ours, clouds, settings) -> str:
     return "; ".join(notes)
 
 
-NOTES = {"above": 0, "under": 0}
+NOTES = {(kind, verdict): 0 for kind in ("down", "PCA") for verdict in ("above", "under")}
 
 
 def note(text: str) -> None:
-    """Print a row's why-not-10x note under it and count the floors above/under 10x."""
+    """Print a row's why-not-10x note under it and count, per column, the floors above and
+    under paper/10."""
     if text:
         print(f"      ^ {text}")
-        NOTES["above"] += text.count("(above)")
-        NOTES["under"] += text.count("(under)")
+        for part in text.split("; "):
+            for key in NOTES:
+                if part.startswith(key[0]) and part.endswith(f"({key[1]})"):
+                    NOTES[key] += 1
 
 
 def add_lidar_ratios(paper_down, paper_pca, ours):
@@ -462,11 +465,13 @@ def main(argv=None) -> int:
     for name, ratios in RATIOS.items():
         print(f"   {name:<14} min {min(ratios):6.1f}x   median {np.median(ratios):6.1f}x   "
               f"({len(ratios)} figures)")
-    print(f"   LiDAR figures under 10x: {NOTES['above'] + NOTES['under']}; for "
-          f"{NOTES['above']} of them a measured floor (printed under the row) is already above "
-          f"paper/10: for the voxel grid, one np.sort of the cloud's int64 keys plus one sparse "
-          f"centroid sum (it also yields the column index the paper builds separately); for "
-          f"the PCA, the plane search with a single search point")
+    for kind, floor in (("down", "one np.sort of the cloud's int64 keys + one sparse centroid "
+                                  "sum (the grid also yields the column index)"),
+                        ("PCA", "the plane search with a single search point")):
+        above, under = NOTES[(kind, "above")], NOTES[(kind, "under")]
+        print(f"   {kind} figures under 10x: {above + under}; measured floor ({floor}) already "
+              f"above paper/10 for {above} of them, under it for {under} (printed under each "
+              f"row)")
     print(f"   total run {time.perf_counter() - t0:.0f} s; load average now "
           f"{os.getloadavg()[0]:.1f}")
     return 0
