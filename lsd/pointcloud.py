@@ -213,15 +213,16 @@ def voxel_grid(points: np.ndarray, voxel_size: float) -> VoxelCloud:
     if n == 0:
         index = ColumnIndex(np.empty(0, dtype=np.int64), (0.0, 0.0), float(voxel_size), (1, 1))
         return VoxelCloud(np.empty((0, 3)), np.empty(0, dtype=np.int64), index)
-    # One transposed copy: every pass below then runs over contiguous rows (strided column
-    # views of an (N, 3) array are several times slower for each reduction and cast).
-    xyz = np.ascontiguousarray(pts.T)
-    lo = xyz.min(axis=1).tolist()
+    # One transposed copy (ours, shifted and scaled in place below): every pass then runs over
+    # contiguous rows (strided column views of an (N, 3) array are several times slower for
+    # each reduction and cast).
+    xyz = pts.T.copy()
+    lo = xyz.min(axis=1)
     hi = xyz.max(axis=1).tolist()
     inv = 1.0 / voxel_size
     # Voxels per axis from the extremes (the same monotone expression as the indices below),
     # checked before any cast so an absurd extent cannot overflow silently.
-    nx, ny, nz = (int((h - m) * inv) + 1 for h, m in zip(hi, lo, strict=True))
+    nx, ny, nz = (int((h - m) * inv) + 1 for h, m in zip(hi, lo.tolist(), strict=True))
     z_bits = (nz - 1).bit_length()
     n_bits = (n - 1).bit_length()
     key_bits = (nx * ny - 1).bit_length() + z_bits
@@ -230,21 +231,32 @@ def voxel_grid(points: np.ndarray, voxel_size: float) -> VoxelCloud:
             f"voxel grid of {nx} x {ny} x {nz} voxels is too large for int64 keys "
             f"(cloud extent / voxel_size {voxel_size} m)"
         )
-    # Shifted to non-negative, truncation is floor: voxel indices from the cloud's corner,
-    # cast to int32 when they fit (the cheapest cast), widened once for the key.
-    small = max(nx, ny, nz) < 2**31
-    kx, ky, kz = (
-        ((row - m) * inv).astype(np.int32 if small else np.int64)
-        for row, m in zip(xyz, lo, strict=True)
-    )
-    key = kx.astype(np.int64)
-    key *= ny
-    key += ky
-    key <<= z_bits
-    key |= kz  # the voxel key: (column, z), column = kx * ny + ky
-    if key_bits + n_bits <= _KEY_BITS:
-        key <<= n_bits
-        key |= np.arange(n, dtype=np.int64)
+    # Shifted to non-negative, truncation is floor: voxel indices from the cloud's corner.
+    xyz -= lo[:, None]
+    xyz *= inv
+    packed = key_bits + n_bits <= _KEY_BITS
+    if packed and nx * ny < 2**31 and z_bits + n_bits < 31:
+        # The usual case, mostly in int32 (half the bytes per pass): the column kx * ny + ky,
+        # and the low word (z index, point index), joined once in int64.
+        kx, ky, kz = xyz.astype(np.int32)
+        kx *= ny
+        kx += ky  # column
+        kz <<= n_bits
+        kz |= np.arange(n, dtype=np.int32)
+        key = kx.astype(np.int64)
+        key <<= z_bits + n_bits
+        key |= kz
+    else:
+        kx, ky, kz = xyz.astype(np.int64)
+        key = kx
+        key *= ny
+        key += ky
+        key <<= z_bits
+        key |= kz  # the voxel key: (column, z), column = kx * ny + ky
+        if packed:
+            key <<= n_bits
+            key |= np.arange(n, dtype=np.int64)
+    if packed:  # the point index in the low bits: one SIMD sort, no argsort
         key.sort()
         order = key & ((1 << n_bits) - 1)
         key >>= n_bits
