@@ -339,6 +339,21 @@ def test_voxel_grid_centroids_match_a_per_voxel_reference():
     assert np.all(np.diff(grid.index.keys) >= 0)
 
 
+@pytest.mark.parametrize("extent", [1e6, 1e8])  # int64 keys; keys too wide to pack the index
+def test_voxel_grid_of_a_very_wide_cloud_matches_a_per_voxel_reference(extent):
+    rng = np.random.default_rng(6)
+    pts = np.r_[rng.uniform(0, 2, (300, 3)), [[extent, extent, 1.0], [-extent, 3.0, 0.0]]]
+    grid = voxel_grid(pts, 0.5)
+    keys = np.floor((pts - pts.min(axis=0)) / 0.5).astype(np.int64)
+    uniq, inverse, counts = np.unique(keys, axis=0, return_inverse=True, return_counts=True)
+    expected = np.stack([np.bincount(inverse.ravel(), pts[:, k]) for k in range(3)], axis=1)
+    expected /= counts[:, None]
+    assert len(grid) == len(uniq)
+    # np.unique orders voxels by (x, y, z) index, as the grid's key does.
+    np.testing.assert_allclose(grid.points, expected, rtol=1e-12)
+    np.testing.assert_array_equal(grid.counts, counts)
+
+
 @pytest.mark.parametrize("cell", [0.05, 0.3, 2.0])
 def test_column_index_cylinders_equal_a_kd_tree_ball_query(cell):
     rng = np.random.default_rng(9)
