@@ -519,15 +519,19 @@ def _block_points(
     # out); INTER_AREA averages each block exactly.
     crop = (slice(0, rows * block), slice(0, cols * block))
     mask = valid[crop]
-    weight = np.zeros(mask.shape, f32)
-    np.divide(f32(1.0), variance[crop], out=weight, where=mask)
+    every = bool(mask.all())  # then no pixel needs masking out
+    if every:
+        weight = np.divide(f32(1.0), variance[crop])
+    else:
+        weight = np.zeros(mask.shape, f32)
+        np.divide(f32(1.0), variance[crop], out=weight, where=mask)
     share = mask.astype(f32)
 
     def mean(image: np.ndarray) -> np.ndarray:
         return cv2.resize(image, (cols, rows), interpolation=cv2.INTER_AREA).reshape(-1)
 
     def masked(image: np.ndarray) -> np.ndarray:
-        return np.where(mask, image[crop], f32(0.0))
+        return image[crop] if every else np.where(mask, image[crop], f32(0.0))
 
     area = f32(block * block)
     count = mean(share) * area

@@ -92,6 +92,12 @@ def site_size(safe: np.ndarray, resolution: float) -> np.ndarray:
     if safe.all():  # no unsafe cell at all: as scipy's transform, distance to the border
         return np.asarray(ndimage.distance_transform_edt(safe) - 0.5, np.float64) * resolution
     distance = cv2.distanceTransform(safe.view(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
+    # OpenCV's exact transform is not reproducible in its last bits from call to call,
+    # which can flip ties between sites; its squares are whole numbers (cells squared),
+    # so rounding them gives the same distances every time.
+    np.multiply(distance, distance, out=distance)
+    np.rint(distance, out=distance)
+    np.sqrt(distance, out=distance)
     # Unsafe cells are at distance 0, so they come out as 0.
     size = np.subtract(distance, np.float32(0.5), dtype=np.float64)
     np.maximum(size, 0.0, out=size)
