@@ -443,8 +443,8 @@ def test_sites_seen_from_below_5_m_on_mars_are_ground_truth_safe():
     for o in sorted(cruise, key=lambda o: o.roughness + o.uncertainty - o.size / 10.0):
         if all(math.hypot(o.x - c.x, o.y - c.y) > 10.0 for c in chosen):
             chosen.append(o)
-    for site in chosen[:3]:
-        for height in (15.0, 10.0, 7.0, 5.0, 4.0, 3.2, 2.7) + (2.5,) * 5:
+    for site in chosen[:10]:
+        for height in (15.0, 10.0, 7.0, 5.0, 4.0, 3.2, 2.7) + (2.5,) * 8:
             t += 0.5
             look([site.x, site.y, site.z + height])
         t += 60.0  # fly on: the low cells age out before the next descent
