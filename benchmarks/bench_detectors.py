@@ -151,35 +151,35 @@ def floor_one_point_ms(clouds, settings) -> float:
     return float(np.mean(out))
 
 
-def why_not_10x(paper_down, paper_pca, ours, clouds, settings) -> str:
-    """For a figure under 10x, the measured floor that keeps it there (empty when >= 10x or
-    when no floor explains it)."""
+def why_not_10x(paper_down, paper_pca, ours, clouds, settings) -> list[tuple[str, str, str]]:
+    """For each figure of a row under 10x, the measured floor that keeps it there:
+    ``(kind, verdict, text)`` with kind "down" or "PCA" and verdict "above" or "under"
+    paper/10 (empty when both figures are >= 10x)."""
     notes = []
     if paper_down / ours["down_ms"] < 10:
         floor = floor_down_ms(clouds, settings.voxel_size)
         verdict = "above" if floor > paper_down / 10 else "under"
-        notes.append(f"down: 10x = {paper_down / 10:.2f} ms, one np.sort of the "
-                     f"{len(clouds[0])} keys + one centroid sum alone {floor:.2f} ms ({verdict})")
+        notes.append(("down", verdict, f"down: 10x = {paper_down / 10:.2f} ms, one np.sort of "
+                      f"the {len(clouds[0])} keys + one centroid sum alone {floor:.2f} ms "
+                      f"({verdict})"))
     if paper_pca / ours["pca_ms"] < 10:
         floor = floor_one_point_ms(clouds, settings)
         verdict = "above" if floor > paper_pca / 10 else "under"
-        notes.append(f"PCA: 10x = {paper_pca / 10:.2f} ms, our search with 1 point "
-                     f"{floor:.2f} ms ({verdict})")
-    return "; ".join(notes)
+        notes.append(("PCA", verdict, f"PCA: 10x = {paper_pca / 10:.2f} ms, our search with "
+                      f"1 point {floor:.2f} ms ({verdict})"))
+    return notes
 
 
 NOTES = {(kind, verdict): 0 for kind in ("down", "PCA") for verdict in ("above", "under")}
 
 
-def note(text: str) -> None:
-    """Print a row's why-not-10x note under it and count, per column, the floors above and
-    under paper/10."""
-    if text:
-        print(f"      ^ {text}")
-        for part in text.split("; "):
-            for key in NOTES:
-                if part.startswith(key[0]) and part.endswith(f"({key[1]})"):
-                    NOTES[key] += 1
+def note(notes: list[tuple[str, str, str]]) -> None:
+    """Print a row's why-not-10x notes under it and count, per column, the floors above
+    and under paper/10."""
+    if notes:
+        print(f"      ^ {'; '.join(text for _, _, text in notes)}")
+        for kind, verdict, _ in notes:
+            NOTES[(kind, verdict)] += 1
 
 
 def add_lidar_ratios(paper_down, paper_pca, ours):

@@ -20,6 +20,7 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 import argparse  # noqa: E402
 
 import numpy as np  # noqa: E402
+from pydantic import ValidationError  # noqa: E402
 
 from autonomy.config import load_mission  # noqa: E402
 from autonomy.perception.elevation import ElevationMapSource  # noqa: E402
@@ -39,8 +40,15 @@ def main() -> None:
     args = parser.parse_args()
     mission = load_mission(args.mission)
     p = mission.perception
-    changes = {k: float(v) for k, v in (kv.split("=", 1) for kv in args.set)}
-    detector = p.detection.model_copy(update=changes)
+    if any("=" not in kv for kv in args.set):
+        parser.error("--set: need KEY=VALUE")
+    changes = dict(kv.split("=", 1) for kv in args.set)
+    try:  # validated like the mission file: an unknown or bad setting names its field
+        detector = type(p.detection).model_validate({**p.detection.model_dump(), **changes})
+    except ValidationError as exc:
+        first = exc.errors()[0]
+        parser.error(f"--set {'.'.join(map(str, first['loc']))}: {first['msg']}")
+    changes = {key: getattr(detector, key) for key in changes}
     ceiling = mission.landing.verification_altitude + mission.lsm.verification_tolerance
     radius = mission.lsm.match_radius
 

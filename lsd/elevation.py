@@ -209,10 +209,11 @@ class ElevationDetector:
             # cells will do.
             share = 1.0 if self.low and index == 0 else 0.25
             block = _pixel_block(grid.resolution, ground_per_pixel, depth.shape, share)
-            if not self.low and self._analysis_pool(grid) > 1:
+            pool = 1 if self.low else self._analysis_pool(grid)
+            if pool > 1:
                 # Analysed in pooled cells: 2 x 2 pixel blocks no larger than an analysed
                 # cell blur it no more than the analysis does (a quarter of the points).
-                pooled = grid.resolution * self._analysis_pool(grid)
+                pooled = grid.resolution * pool
                 block = max(block, min(2, _pixel_block(pooled, ground_per_pixel, depth.shape, 1.0)))
             if block > 1:
                 if block not in blocks:  # both maps may take the same blocks

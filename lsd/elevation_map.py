@@ -381,9 +381,5 @@ def pooled_level(
     np.maximum(pooled_top, pooled_mean, out=pooled_top)
     looks = closest.astype(f32)
     copy_where(looks, 0.0, np.isinf(looks))
-    pooled_looks = looks[::factor, ::factor].copy()
-    for a in range(factor):
-        for b in range(factor):
-            if a or b:  # block offsets, not cells
-                np.maximum(pooled_looks, looks[a::factor, b::factor], out=pooled_looks)
+    pooled_looks = looks.reshape(n0 // factor, factor, n1 // factor, factor).max(axis=(1, 3))
     return pooled_mean, pooled_var, pooled_top, cell_var, pooled_looks.astype(np.float64)

@@ -209,6 +209,34 @@ _MOMENT_I = np.array([0, 0, 0, 1, 1, 2])
 _MOMENT_J = np.array([0, 1, 2, 1, 2, 2])
 
 
+def _pca_planes(cov: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Eigenvalues (..., 3), ascending, and the plane normal (..., 3) of covariances
+    (..., 3, 3): the eigenvector of the smallest eigenvalue, turned to point up (z >= 0)."""
+    evals, evecs = np.linalg.eigh(cov)
+    normal = evecs[..., 0]
+    normal *= np.where(normal[..., 2] < 0, -1.0, 1.0)[..., None]
+    return evals, normal
+
+
+def _plane_distance(xyz, mean: np.ndarray, normal: np.ndarray, plane: np.ndarray) -> np.ndarray:
+    """(P,) distance of each point from its plane.
+
+    Args:
+        xyz: the points' x, y, z, each (P,), in the frame of ``mean``.
+        mean, normal: (K, 3) a point on each plane (its centroid) and its unit normal.
+        plane: (P,) which plane each point is measured against.
+    """
+    # distance = p . n - m . n, as one 4-vector dot product per point.
+    planes = np.empty((len(mean), 4))
+    planes[:, :3] = normal
+    planes[:, 3] = -(mean * normal).sum(axis=-1)
+    point = np.empty((len(plane), 4))
+    for k, coordinate in enumerate(xyz):
+        point[:, k] = coordinate
+    point[:, 3] = 1.0
+    return np.abs(np.einsum("ij,ij->i", point, np.take(planes, plane, axis=0)))
+
+
 def _shell_pca(pairs: _Pairs, r: int):
     """PCA of every search point's sphere at each of the ``r`` radii at once.
 
@@ -235,9 +263,7 @@ def _shell_pca(pairs: _Pairs, r: int):
     m /= np.maximum(count, 1.0)[..., None]
     mean = m[..., 1:4]
     cov = m[..., 4:10][..., _COV_ENTRY] - mean[..., :, None] * mean[..., None, :]
-    evals, evecs = np.linalg.eigh(cov)
-    normal = evecs[..., 0]
-    normal *= np.where(normal[..., 2] < 0, -1.0, 1.0)[..., None]
+    evals, normal = _pca_planes(cov)
     zstd = np.sqrt(np.maximum(cov[..., 2, 2], 0.0))
     return count, mean, np.maximum(evals, 0.0), normal, zstd
 
@@ -258,16 +284,12 @@ def _max_plane_distance(pairs: _Pairs, mean, normal, need: np.ndarray) -> np.nda
     start = np.cumsum(copies) - copies
     radius = np.arange(total) - np.repeat(start - pairs.shell, copies)
     sphere = pairs.owner[pair] * r + radius
-    # Plane through the centroid: distance = p . n - m . n, as one 4-vector dot product.
-    plane = np.empty((s * r, 4))
-    plane[:, :3] = normal.reshape(-1, 3)
-    plane[:, 3] = -(mean * normal).sum(axis=-1).ravel()
-    point = np.empty((total, 4))
-    point[:, 0] = pairs.x[pair]
-    point[:, 1] = pairs.y[pair]
-    point[:, 2] = pairs.z[pair]
-    point[:, 3] = 1.0
-    dist = np.abs(np.einsum("ij,ij->i", point, np.take(plane, sphere, axis=0)))
+    dist = _plane_distance(
+        (pairs.x[pair], pairs.y[pair], pairs.z[pair]),
+        mean.reshape(-1, 3),
+        normal.reshape(-1, 3),
+        sphere,
+    )
     out = np.zeros(s * r)
     np.maximum.at(out, sphere, dist)
     return out.reshape(s, r)
@@ -368,22 +390,14 @@ def _first_radius(
     m /= count[:, None]
     mean = m[:, 1:4]
     cov = m[:, 4:10][:, _COV_ENTRY] - mean[:, :, None] * mean[:, None, :]
-    normal = np.linalg.eigh(cov)[1][..., 0]
-    normal *= np.where(normal[:, 2] < 0, -1.0, 1.0)[:, None]
+    normal = _pca_planes(cov)[1]
     fit = enough & (np.arccos(np.minimum(normal[:, 2], 1.0)) <= settings.theta_max)
     lopsided = np.zeros(s, dtype=bool)
     if settings.max_offset is not None:  # centroid relative to the seed
         lopsided = np.hypot(mean[:, 0], mean[:, 1]) > settings.max_offset * r0
     off = np.zeros(s, dtype=bool)
     if np.isfinite(max_step) and fit.any():
-        # Plane through the centroid: distance = p . n - m . n, as one 4-vector dot product.
-        plane = np.empty((s, 4))
-        plane[:, :3] = normal
-        plane[:, 3] = -(mean * normal).sum(axis=-1)
-        point = np.empty((len(rel), 4))
-        point[:, :3] = rel
-        point[:, 3] = 1.0
-        dist = np.abs(np.einsum("ij,ij->i", point, np.take(plane, owner, axis=0)))
+        dist = _plane_distance(rel.T, mean, normal, owner)
         off = fit & (np.maximum.reduceat(dist, starts) > max_step)
     first_fail[enough] = 2
     first_fail[fit] = 3
