@@ -13,10 +13,13 @@ from dataclasses import dataclass
 
 GRAVITY = 9.80665  # m/s^2
 
-# Controller gains: position error -> velocity (1/s), velocity error -> acceleration (1/s).
-# Both roughly ArduPilot's PSC_POSXY_P / PSC_VELXY_P defaults.
+# Controller gains: position error -> velocity (1/s), velocity error -> acceleration (1/s),
+# its integral -> acceleration (1/s^2) up to a limit (m/s^2). Roughly ArduPilot's PSC_POSXY_P,
+# PSC_VELXY_P, PSC_VELXY_I and a fifth of PSC_VELXY_IMAX.
 _KP_XY = 1.0
 _KV_XY = 3.0
+_KI_XY = 1.0
+_IMAX_XY = 2.0
 _KP_Z = 1.0
 _KV_Z = 4.0
 _KYAW = 2.0
@@ -62,7 +65,9 @@ class Contact:
 
 
 class Multicopter:
-    """Point-mass multicopter with a cascaded P controller and the airframe's limits.
+    """Point-mass multicopter with a cascaded position (P) / velocity (PI) controller and the
+    airframe's limits. The velocity loop's integrator learns the steady push of the wind, as
+    ArduPilot's does, so a hover or a landing holds its point in a steady wind.
 
     Args:
         max_horizontal_speed, max_climb_speed, max_descent_speed: m/s.
@@ -94,6 +99,8 @@ class Multicopter:
         self.vx = self.vy = self.vz = 0.0
         # Thrust acceleration (ENU, without gravity) of the last step: gives the attitude.
         self.ax = self.ay = self.az = 0.0
+        # Velocity-loop integrator (ENU m/s^2): cleared whenever the vehicle rests.
+        self.ix = self.iy = 0.0
         self.heading = 0.0
         self.yaw_speed = 0.0
         self.on_ground = True
@@ -126,6 +133,7 @@ class Multicopter:
         vx, vy, vz = self.vx, self.vy, self.vz
         wx, wy = wind
         if not self.motors_on:
+            self.ix = self.iy = 0.0
             if self.on_ground:
                 self.vx = self.vy = self.vz = 0.0
                 self.ax = self.ay = self.az = 0.0
@@ -140,18 +148,26 @@ class Multicopter:
                 # Resting on the ground at idle: the controller does not push it around.
                 self.vx = self.vy = self.vz = 0.0
                 self.ax = self.ay = self.az = 0.0
+                self.ix = self.iy = 0.0
                 self._turn(dt, setpoint)
                 return None
-            # Velocity loop with drag feed-forward on the vehicle's own velocity (it cannot
-            # see the wind, hence the small steady error the wind leaves).
-            ax = _KV_XY * (dvx - vx) + self.drag * vx
-            ay = _KV_XY * (dvy - vy) + self.drag * vy
+            # Velocity loop: P with drag feed-forward on the vehicle's own velocity (it cannot
+            # see the wind) plus the integrator, which takes up the wind's steady push.
+            ex, ey = dvx - vx, dvy - vy
+            ax = _KV_XY * ex + self.drag * vx + self.ix
+            ay = _KV_XY * ey + self.drag * vy + self.iy
             az = _KV_Z * (dvz - vz)
             ah = math.hypot(ax, ay)
             amax = self.max_horizontal_acceleration
             if ah > amax:
                 ax *= amax / ah
                 ay *= amax / ah
+            else:  # integrate only while unsaturated (no wind-up during hard manoeuvres)
+                ix, iy = self.ix + _KI_XY * ex * dt, self.iy + _KI_XY * ey * dt
+                ih = math.hypot(ix, iy)
+                if ih > _IMAX_XY:
+                    ix, iy = ix * _IMAX_XY / ih, iy * _IMAX_XY / ih
+                self.ix, self.iy = ix, iy
             azmax = self.max_vertical_acceleration
             az = min(max(az, -azmax), azmax)
             self.ax, self.ay, self.az = ax, ay, az
