@@ -46,10 +46,11 @@ CLEAR_ALTITUDE = "/landing/clear_altitude"
 
 OUTCOME_HINT = "/mission/outcome_hint"
 """str | None: why the mission ended the way it did when not at a verified site:
-"no_site" (every landing attempt failed, landed in place), "battery_critical" (landed in
-place on the critical battery level), "gps_lost" (landed in place after losing the 3D GPS
-fix), "battery_reserve" (waypoints skipped on the reserve level; the landing phase still
-ran)."""
+"no_site" (no landing try left, by count or by battery: landed in place on purpose),
+"battery_critical" (the failsafe landed where the vehicle was on the critical battery
+level), "gps_lost" (the failsafe landed where the vehicle was after losing the 3D GPS fix),
+"battery_reserve" (waypoints skipped on the reserve level; the landing phase still ran).
+A failsafe's hint replaces any earlier one: the failsafe is what happened."""
 
 FAILURE_REASON = "/mission/failure_reason"
 """str | None: why the last behaviour that failed did so (a denied command carries the
@@ -60,6 +61,10 @@ failed verification, are counted in their own keys)."""
 FAILSAFE = "/mission/failsafe"
 """str | None: the failsafe that took over the mission ("battery_critical", "gps_lost"),
 latched: the mission branch never resumes once it is set."""
+
+FAILSAFE_KINDS: tuple[str, ...] = ("battery_critical", "gps_lost")
+"""The values FAILSAFE takes; the failsafe writes the same value to OUTCOME_HINT, so a
+flight whose OUTCOME_HINT is one of these ended with a failsafe landing."""
 
 VERIFICATION_ATTEMPTS = "/landing/verification_attempts"
 """int: landing-site verifications started."""

@@ -52,6 +52,11 @@ class LandingSettings(BaseModel):
     landing_retries: int = Field(
         5, ge=1, description="Retry(N): attempts of the landing phase (sites tried)"
     )
+    landing_try_battery: float = Field(
+        5.0, ge=0, le=100, description="% of battery a landing try is expected to cost at "
+        "least: after a failed try another starts only if the battery, less the larger of "
+        "this and the largest drop of a try so far, stays at or above battery_critical"
+    )
     battery_reserve: float = Field(
         30.0, ge=0, le=100, description="% at or below which the remaining waypoints are skipped"
     )

@@ -14,7 +14,8 @@
          │   ├─ Battery reserve?               [SUCCESS skips the remaining waypoints]
          │   └─ Mission waypoints (Sequence of NavigateToWaypoint)
          └─ Landing (Selector, memory)
-             ├─ Landing phase = Retry(N) ─ Landing attempt (Sequence, memory)
+             ├─ Landing phase = RetryWhileBattery(N) ─ Landing attempt (Sequence, memory)
+             │   [a new try only if it is not expected to reach the critical battery level]
              │   ├─ Ensure sites = Selector[CheckLandingSite, LandingSiteSearch,
              │   │                          Retry(M) ─ Sequence[GetNextPatternCenterWP,
              │   │                                              LandingSiteSearch]]
@@ -26,6 +27,15 @@
              │   ├─ Centre over verified site  [ChangeAltitudeLS to the verified record]
              │   └─ Land
              └─ Land in place                  [OUTCOME_HINT "no_site"]
+
+The landing phase learns what a try costs (the largest battery drop of a finished try, at
+least ``landing_try_battery``) and stops trying while there is still room to land in place
+above the critical level: a flight that runs out of tries or of battery lands on purpose
+(outcome hint "no_site") rather than being caught mid-try by the failsafe, whose landing
+wherever the vehicle is is reported as its own outcome (OUTCOME_HINT "battery_critical" or
+"gps_lost"). The pattern retries keep py_trees' plain ``Retry``: every search behaviour
+already stops at the battery reserve, a stricter bound than the critical level, and a
+search cut short only ends the search.
 
 Every action that flies or waits runs under a :class:`~behaviors.decorators.ClockTimeout`
 (``navigation_timeout``; ``preflight_timeout`` for Preflight); a denied or unanswered
@@ -46,7 +56,7 @@ from py_trees.composites import Selector, Sequence
 from py_trees.decorators import Retry
 
 from behaviors import blackboard
-from behaviors.decorators import ClockTimeout
+from behaviors.decorators import ClockTimeout, RetryWhileBattery
 from behaviors.failsafe import BatteryCritical, BatteryReserve, GpsLost, NoFailsafe
 from behaviors.flight import (
     ChangeAltitudeLS,
@@ -266,7 +276,14 @@ def build_mission_tree(
         "Landing",
         memory=True,
         children=[
-            Retry("Landing phase", attempt, s.landing_retries),
+            RetryWhileBattery(
+                "Landing phase",
+                attempt,
+                vehicle,
+                s.landing_retries,
+                critical=s.battery_critical,
+                attempt_cost=s.landing_try_battery,
+            ),
             _within(
                 Land(
                     "Land in place",

@@ -25,6 +25,7 @@ OUTCOME_COLOURS = {
     "landed_unsafe": "#ff7f0e",
     "crashed": "#d62728",
     "no_site": "#9467bd",
+    "failsafe": "#e377c2",
     "aborted": "#8c564b",
     "error": "#7f7f7f",
 }

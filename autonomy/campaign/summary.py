@@ -1,7 +1,8 @@
 """Per-variant tables of campaign outcomes, and paired comparisons of missions.
 
 Outcome classes: ``landed`` (safe touchdown), ``landed_unsafe``, ``crashed``, ``no_site``,
-``aborted``, and ``error`` (the run raised or its worker died). The success rate is
+``failsafe`` (a failsafe landed the vehicle wherever it was: not a success, even on safe
+ground), ``aborted``, and ``error`` (the run raised or its worker died). The success rate is
 landed-safe runs over runs that flew (errors excluded: they say nothing about the landing
 procedure), with its Wilson 95 % interval; time-to-land statistics are over landed runs.
 """
@@ -17,12 +18,15 @@ import numpy as np
 from autonomy.campaign.spec import Variant
 from autonomy.campaign.stats import newcombe_paired_interval, wilson_interval
 
-OUTCOMES: tuple[str, ...] = ("landed", "landed_unsafe", "crashed", "no_site", "aborted", "error")
+OUTCOMES: tuple[str, ...] = (
+    "landed", "landed_unsafe", "crashed", "no_site", "failsafe", "aborted", "error"
+)
 OUTCOME_TITLES: dict[str, str] = {
     "landed": "landed safe",
     "landed_unsafe": "landed unsafe",
     "crashed": "crashed",
     "no_site": "no site",
+    "failsafe": "failsafe landing",
     "aborted": "aborted",
     "error": "error",
 }

@@ -11,12 +11,23 @@ import numpy as np
 
 from autonomy.report.data import FlightData
 from autonomy.report.events import _clean
+from behaviors.blackboard import FAILSAFE_KINDS
 
-OUTCOMES = ("landed", "landed_unsafe", "crashed", "no_site", "aborted")
+OUTCOMES = ("landed", "landed_unsafe", "crashed", "no_site", "failsafe", "aborted")
 """landed: touched down and disarmed on ground-truth-safe ground (or unjudged ground when
 there is no simulated truth); landed_unsafe: touched down on unsafe ground; crashed: the
-simulator flagged a crash; no_site: every landing attempt failed and the vehicle landed in
-place; aborted: the mission failed, hit the time limit or was interrupted before landing."""
+simulator flagged a crash; no_site: no landing try was left (by count or by battery) and the
+vehicle landed in place on purpose; failsafe: a failsafe (critical battery, GPS loss) took
+over and landed wherever the vehicle was, on safe ground or not; aborted: the mission
+failed, hit the time limit or was interrupted before landing."""
+
+HINT_WORDS = {
+    "no_site": "no landing try left: landed in place",
+    "battery_critical": "the battery reached the critical level: landed where it was",
+    "gps_lost": "the 3D GPS fix was lost: landed where it was",
+    "battery_reserve": "waypoints skipped at the battery reserve",
+}
+"""What each outcome hint (behaviors.blackboard.OUTCOME_HINT) means, for the console."""
 
 
 def classify(data: FlightData) -> str:
@@ -25,6 +36,8 @@ def classify(data: FlightData) -> str:
         return "crashed"
     if data.status != "SUCCESS":
         return "aborted"
+    if data.outcome_hint in FAILSAFE_KINDS:
+        return "failsafe"
     if data.outcome_hint == "no_site":
         return "no_site"
     if data.touchdown_safe is False:
@@ -108,9 +121,10 @@ def format_summary(summary: dict[str, Any]) -> str:
     def num(value: Any, fmt: str = ".1f", unit: str = "") -> str:
         return "-" if value is None else f"{value:{fmt}}{unit}"
 
+    hint = summary.get("outcome_hint")
     lines = [f"outcome: {summary['outcome']}"]
-    if summary.get("outcome_hint"):
-        lines[0] += f" ({summary['outcome_hint']})"
+    if hint:
+        lines[0] += f" ({hint}: {HINT_WORDS[hint]})" if hint in HINT_WORDS else f" ({hint})"
     if summary.get("failure_reason") and summary["outcome"] == "aborted":
         lines.append(f"reason: {summary['failure_reason']}")
     elif summary["outcome"] == "aborted":

@@ -90,6 +90,20 @@ def test_outcome_classification():
     assert classify(flight_data(status="RUNNING")) == "aborted"
 
 
+def test_a_failsafe_landing_is_its_own_outcome_on_safe_ground_or_not():
+    for kind in ("battery_critical", "gps_lost"):
+        assert classify(flight_data(outcome_hint=kind)) == "failsafe"
+        assert classify(flight_data(outcome_hint=kind, touchdown_safe=False)) == "failsafe"
+    # The waypoints skipped at the reserve, then a landing at a site: still a landing.
+    assert classify(flight_data(outcome_hint="battery_reserve")) == "landed"
+    assert classify(flight_data(outcome_hint="battery_critical", crashed=True)) == "crashed"
+    summary = build_summary(flight_data(outcome_hint="battery_critical"))
+    assert summary["outcome"] == "failsafe" and summary["touchdown_safe"] is True
+    first = format_summary(summary).splitlines()[0]
+    assert first == ("outcome: failsafe (battery_critical: the battery reached the critical "
+                     "level: landed where it was)")
+
+
 def test_summary_figures():
     summary = build_summary(flight_data())
     json.dumps(summary)

@@ -427,3 +427,48 @@ def test_a_mission_started_in_flight_climbs_without_a_takeoff_command():
     assert_landed_at(m, flight, site)
     assert m.vehicle.gotos()[0] == (0.0, 0.0, 80.0)
     assert "takeoff" not in [name for name, _ in m.vehicle.commands]
+
+
+def test_landing_tries_stop_while_the_battery_still_allows_a_landing_in_place():
+    # Eight false positives near the last waypoint: every verification fails, and each try
+    # costs 6 % of the battery. From 50 %: tries at 50, 44, 38, 32, 26; at 20 % another
+    # 6 % try could end under the critical 15 %, so the phase stops and lands in place on
+    # purpose, before the failsafe has anything to do.
+    sites = [ScriptedSite(100.0 + 10.0 * (i % 4), 10.0 * (i // 4), fails_verification=True)
+             for i in range(8)]
+    m = make_mission([(0, 0, 100), (110, 0, 100)], sites,
+                     landing={"landing_retries": 12, "landing_try_battery": 5.0},
+                     vehicle={"battery": 50.0})
+
+    def drain(_tick):
+        m.vehicle.battery = 50.0 - 6.0 * m.read(keys.VERIFICATION_ATTEMPTS)
+
+    flight = m.fly(on_tick=drain)
+
+    assert flight.status == Status.SUCCESS
+    assert m.read(keys.VERIFICATION_ATTEMPTS) == 5
+    assert m.read(keys.OUTCOME_HINT) == "no_site"
+    assert m.read(keys.FAILSAFE) is None
+    assert m.read(keys.PHASE) == "done"
+    assert m.vehicle.battery == pytest.approx(20.0)
+    assert not m.vehicle.armed and m.vehicle.commands[-1][0] == "land"
+    phase = next(n for n in m.tree.root.iterate() if n.name == "Landing phase")
+    assert "battery 20.0 % leaves no room for another try" in phase.feedback_message
+
+
+def test_with_room_for_every_try_the_landing_phase_uses_them_all():
+    # The same flight on a full battery: the try count ends the phase, not the battery.
+    sites = [ScriptedSite(100.0 + 10.0 * (i % 4), 10.0 * (i // 4), fails_verification=True)
+             for i in range(8)]
+    m = make_mission([(0, 0, 100), (110, 0, 100)], sites,
+                     landing={"landing_retries": 4})
+
+    def drain(_tick):
+        m.vehicle.battery = 100.0 - 6.0 * m.read(keys.VERIFICATION_ATTEMPTS)
+
+    flight = m.fly(on_tick=drain)
+
+    assert flight.status == Status.SUCCESS
+    assert m.read(keys.VERIFICATION_ATTEMPTS) == 4
+    assert m.read(keys.OUTCOME_HINT) == "no_site"
+    assert m.read(keys.FAILSAFE) is None

@@ -15,8 +15,9 @@ from pydantic import ValidationError
 from autonomy.clock import SimClock
 from behaviors import blackboard as keys
 from behaviors import render_ascii, write_dot
-from behaviors.decorators import ClockTimeout
+from behaviors.decorators import ClockTimeout, RetryWhileBattery
 from behaviors.display import dot_text
+from behaviors.failsafe import BatteryCritical, GpsLost
 from behaviors.landing import GetClearAltitude, clear_altitude
 from behaviors.search import random_point_in_disc, rectangle_pattern
 from behaviors.settings import LandingSettings, MissionPlan
@@ -178,6 +179,7 @@ def test_random_pattern_centres_are_seeded_and_inside_the_radius():
         ({"battery_critical": 40, "battery_reserve": 30}, "battery_critical"),
         ({"search_rectangle": (60, 0)}, "search_rectangle"),
         ({"landing_retries": 0}, "landing_retries"),
+        ({"landing_try_battery": -1}, "landing_try_battery"),
         ({"verification_duration": float("nan")}, "verification_duration"),
         ({"unknown_field": 1}, "unknown_field"),
     ],
@@ -233,6 +235,21 @@ def test_retry_counts_come_from_the_landing_settings():
         if isinstance(node, py_trees.decorators.Retry)
     }
     assert retries == {"Landing phase": 4, "Pattern retries": 2}
+
+
+def test_the_landing_phase_is_bounded_by_the_critical_level_and_the_try_cost_setting():
+    clock = SimClock()
+    landing = LandingSettings(battery_critical=12, landing_try_battery=7.5)
+    tree = build_mission_tree(
+        MissionPlan(waypoints=[(0, 0, 50)], landing=landing), FakeVehicle(clock),
+        LandingSiteManager(), clock, np.random.default_rng(0),
+    )
+    phase, = (n for n in tree.root.iterate() if isinstance(n, RetryWhileBattery))
+    assert (phase.name, phase.critical, phase.attempt_cost) == ("Landing phase", 12, 7.5)
+
+
+def test_every_failsafe_writes_a_kind_the_reports_know():
+    assert {BatteryCritical.kind, GpsLost.kind} == set(keys.FAILSAFE_KINDS)
 
 
 def test_render_ascii_and_write_dot_show_every_node(tmp_path):

@@ -131,6 +131,24 @@ def test_unsafe_touchdowns_count_landings_in_place_on_unsafe_ground_too():
     assert compare_missions(["a", "b"], [runs, runs])[0]["unsafe"] == 2
 
 
+def test_failsafe_landings_have_their_own_column_and_are_no_success():
+    from autonomy.campaign import format_table, summarise
+
+    runs = [record("landed", 0, 90.0, True), record("landed", 1, 95.0, True),
+            record("failsafe", 2, 700.0, True), record("failsafe", 3, 710.0, False),
+            record("no_site", 4, 650.0, True)]
+    row = summarise(runs)
+    assert (row["landed"], row["failsafe"], row["no_site"]) == (2, 2, 1)
+    assert row["success_rate"] == pytest.approx(2 / 5)
+    assert (row["success_low"], row["success_high"]) == pytest.approx(wilson_interval(2, 5))
+    assert row["unsafe_touchdowns"] == 1  # the failsafe landing on unsafe ground
+    assert row["time_to_land_median"] == pytest.approx(92.5)  # landed runs only
+    head, line = format_table([row]).splitlines()
+    columns = [c.strip() for c in head.split("  ") if c.strip()]  # 2+ blanks between
+    assert columns.index("failsafe landing") == columns.index("no site") + 1
+    assert line.split()[columns.index("failsafe landing")] == "2"
+
+
 def test_comparison_pairs_runs_by_seed():
     from autonomy.campaign import compare_missions
 
