@@ -1,18 +1,23 @@
 """Ground-truth landing safety of a terrain for a vehicle footprint.
 
-A point is safe when, over the footprint around it,
+A point is safe when
 
-- the slope of the least-squares plane is at most ``max_slope_deg``;
-- the largest |deviation| of the ground from the local plane is at most ``max_rock_height``;
-- nothing stands more than ``max_rock_height`` above the local plane within the footprint
-  widened by ``clearance_margin`` (rotor clearance).
+- the least-squares plane fitted over the footprint disk (radius ``footprint_radius``) around
+  it slopes by at most ``max_slope_deg``;
+- the ground deviates by at most ``max_rock_height`` from the local plane anywhere in that
+  disk (roughness);
+- nothing stands more than ``max_rock_height`` above the local plane anywhere in the
+  clearance disk (radius ``footprint_radius + clearance_margin``, rotor clearance).
 
-Footprints are the axis-aligned squares circumscribing the footprint disks (conservative),
-so every statistic is a separable box filter: plane fits from box filters of moments
-(``scipy.ndimage.uniform_filter`` / ``correlate1d``), deviations from maximum filters. The
-"local plane" of a cell is the plane fitted over the footprint centred on that cell; its
-value there is the footprint mean, so the deviation field is ``z - mean_footprint(z)``,
-exact on planar ground.
+Disks are sets of grid cells: the cells whose centres lie within the radius of the centre
+cell's, i.e. offsets (dx, dy) in cells with dx^2 + dy^2 <= (R / cell_size)^2 (at least the
+four neighbours). The "local plane" of a cell is the plane fitted over the footprint disk
+centred on that cell. The disk is symmetric, so its gradient is sum(d * z) / sum(d^2) over the
+disk and its value at the centre is the disk mean: the deviation field is
+``z - mean_footprint(z)``, exact on planar ground. Moments are correlations with disk kernels
+(``scipy.ndimage.correlate``); maxima over a disk are exact, as the union of its rows: a
+``scipy.ndimage.maximum_filter1d`` along x per distinct row half-width, then the maximum over
+the row offsets. Edges repeat the nearest cell (``mode="nearest"``).
 """
 
 from __future__ import annotations
@@ -39,45 +44,89 @@ class SafetySettings(BaseModel):
     )
 
 
-def _half_cells(length: float, cell_size: float) -> int:
-    return max(1, int(np.ceil(length / cell_size - 1e-9)))
+class _Disk:
+    """A disk of grid cells: the offsets (dx, dy) with dx^2 + dy^2 <= (radius / cell)^2.
+
+    Attributes:
+        half: h, the largest |offset| in cells (at least 1).
+        half_widths: (2h + 1,) int, the half width w_k of row k = -h .. h (|dx| <= w_k).
+        mask: (2h + 1, 2h + 1) bool, the disk, row index dy + h, column index dx + h.
+    """
+
+    def __init__(self, radius: float, cell_size: float) -> None:
+        # A disk smaller than one cell would have no plane to fit: keep the 4 neighbours.
+        r2 = max(radius / cell_size, 1.0) ** 2 * (1 + 1e-12)
+        self.half = int(np.floor(np.sqrt(r2)))
+        rows = np.arange(-self.half, self.half + 1)
+        self.half_widths = np.floor(np.sqrt(r2 - rows**2)).astype(int)
+        self.mask = np.abs(rows)[None, :] <= self.half_widths[:, None]
+
+
+def _row_passes(a: np.ndarray, disk: _Disk, row_filter):
+    """Yield, per distinct row half-width w of ``disk``, the row offsets k (cells) of the
+    rows that wide and ``row_filter(padded, w)``: a filter along x of ``a`` padded by h
+    repeated edge rows, so that its rows ``h + k .. h + k + ny`` line up with ``a``'s."""
+    h = disk.half
+    padded = np.pad(a, [(0, 0)] * (a.ndim - 2) + [(h, h), (0, 0)], mode="edge")
+    for w in np.unique(disk.half_widths):
+        yield np.flatnonzero(disk.half_widths == w) - h, row_filter(padded, int(w))
+
+
+def _disk_moments(z: np.ndarray, disk: _Disk, cell_size: float):
+    """Mean and least-squares plane gradient (d/dx, d/dy) of ``z`` over the disk around every
+    cell of its last two axes: disk sums as sums of row sums (``correlate1d`` along x)."""
+    h, ny = disk.half, z.shape[-2]
+    total, moment_x, moment_y = (np.zeros_like(z) for _ in range(3))
+
+    def row_sums(padded, w):
+        ones = ndimage.correlate1d(padded, np.ones(2 * w + 1), axis=-1, mode="nearest")
+        ramp = np.arange(-w, w + 1) * cell_size
+        return ones, ndimage.correlate1d(padded, ramp, axis=-1, mode="nearest") if w else None
+
+    for offsets, (ones, ramp) in _row_passes(z, disk, row_sums):
+        for k in offsets:
+            rows = slice(h + k, h + k + ny)
+            total += ones[..., rows, :]
+            if k:
+                moment_y += (k * cell_size) * ones[..., rows, :]
+            if ramp is not None:
+                moment_x += ramp[..., rows, :]
+    d = np.arange(-h, h + 1) * cell_size
+    sum_d2 = np.sum(np.where(disk.mask, d[None, :] ** 2, 0.0))  # same along x and y
+    return total / disk.mask.sum(), moment_x / sum_d2, moment_y / sum_d2
+
+
+def _disk_max(a: np.ndarray, disk: _Disk) -> np.ndarray:
+    """Maximum of ``a`` over the disk around every cell of its last two axes (exact): the
+    maximum over its rows of ``maximum_filter1d`` along x."""
+    h, ny = disk.half, a.shape[-2]
+    out = np.full_like(a, -np.inf)
+
+    def row_max(padded, w):
+        return ndimage.maximum_filter1d(padded, 2 * w + 1, axis=-1, mode="nearest")
+
+    for offsets, row_maxima in _row_passes(a, disk, row_max):
+        for k in offsets:
+            np.maximum(out, row_maxima[..., h + k : h + k + ny, :], out=out)
+    return out
+
+
+def _disks(cell_size: float, settings: SafetySettings) -> tuple[_Disk, _Disk]:
+    return (
+        _Disk(settings.footprint_radius, cell_size),
+        _Disk(settings.footprint_radius + settings.clearance_margin, cell_size),
+    )
 
 
 def _evaluate(z: np.ndarray, cell_size: float, settings: SafetySettings):
-    """Slope (rad), roughness (m) and the obstacle height (m) over the last two axes of
-    ``z`` (float64; leading axes are independent patches)."""
-    k = _half_cells(settings.footprint_radius, cell_size)
-    m = _half_cells(settings.footprint_radius + settings.clearance_margin, cell_size)
-    lead = (1,) * (z.ndim - 2)
-    size = 2 * k + 1
-    mean = ndimage.uniform_filter(z, size=lead + (size, size), mode="nearest")
-    # Least-squares plane over a symmetric square: gradient = sum(d * z) / sum(d^2).
-    offsets = np.arange(-k, k + 1, dtype=np.float64) * cell_size
-    ones = np.ones(size)
-    sum_d2 = size * np.sum(offsets**2)
-    ax_y, ax_x = z.ndim - 2, z.ndim - 1
-    gx = (
-        ndimage.correlate1d(
-            ndimage.correlate1d(z, ones, axis=ax_y, mode="nearest"),
-            offsets,
-            axis=ax_x,
-            mode="nearest",
-        )
-        / sum_d2
-    )
-    gy = (
-        ndimage.correlate1d(
-            ndimage.correlate1d(z, ones, axis=ax_x, mode="nearest"),
-            offsets,
-            axis=ax_y,
-            mode="nearest",
-        )
-        / sum_d2
-    )
+    """Slope (rad), roughness (m) and obstacle height (m) at every cell of ``z`` (float64,
+    (h, w))."""
+    footprint, clearance = _disks(cell_size, settings)
+    mean, gx, gy = _disk_moments(z, footprint, cell_size)
     slope = np.arctan(np.hypot(gx, gy))
     deviation = z - mean
-    roughness = ndimage.maximum_filter(np.abs(deviation), size=lead + (size, size), mode="nearest")
-    obstacle = ndimage.maximum_filter(deviation, size=lead + (2 * m + 1, 2 * m + 1), mode="nearest")
+    roughness = _disk_max(np.abs(deviation), footprint)
+    obstacle = _disk_max(deviation, clearance)
     return slope, roughness, obstacle
 
 
@@ -90,11 +139,10 @@ def _mask(slope, roughness, obstacle, settings: SafetySettings) -> np.ndarray:
 
 
 def _reach_cells(cell_size: float, settings: SafetySettings) -> int:
-    # cells whose height influences a point's verdict: the obstacle window plus the
-    # footprint around each of its cells (their mean).
-    return _half_cells(settings.footprint_radius, cell_size) + _half_cells(
-        settings.footprint_radius + settings.clearance_margin, cell_size
-    )
+    # cells whose height influences a point's verdict: the clearance disk plus the
+    # footprint disk around each of its cells (their mean).
+    footprint, clearance = _disks(cell_size, settings)
+    return footprint.half + clearance.half
 
 
 def safety_map(
@@ -112,7 +160,7 @@ def safety_map(
 
     Returns:
         mask: (h, w) bool, True where landing is safe.
-        slope: (h, w) float32, plane slope in radians.
+        slope: (h, w) float32, slope of the footprint's plane in radians.
         roughness: (h, w) float32, largest |deviation| from the plane (m) in the footprint.
     """
     settings = settings or SafetySettings()
@@ -120,6 +168,11 @@ def safety_map(
         rows, cols = slice(0, terrain.shape[0]), slice(0, terrain.shape[1])
     else:
         rows, cols = terrain.window(region)
+    return _window_map(terrain, rows, cols, settings)
+
+
+def _window_map(terrain: Terrain, rows: slice, cols: slice, settings: SafetySettings):
+    """:func:`safety_map` of the cells ``grid[rows, cols]``."""
     # Evaluate on the window padded by the reach so results equal the whole-grid ones.
     pad = _reach_cells(terrain.cell_size, settings)
     ny, nx = terrain.shape
@@ -141,12 +194,43 @@ def safety_map(
     )
 
 
+def _evaluate_centres(patches: np.ndarray, cell_size: float, settings: SafetySettings):
+    """Slope, roughness and obstacle height at the centre cell of each (n, 2p + 1, 2p + 1)
+    patch, p the reach: the same arithmetic as :func:`_evaluate` at that cell, done only
+    where the centre needs it."""
+    footprint, clearance = _disks(cell_size, settings)
+    p, f, c = patches.shape[-1] // 2, footprint.half, clearance.half
+    # the centre's plane needs only the footprint around it; the deviations over the
+    # clearance disk need the footprint mean of each of its cells
+    near = patches[:, p - f : p + f + 1, p - f : p + f + 1]
+    _, gx, gy = (a[:, f, f] for a in _disk_moments(near, footprint, cell_size))
+    mean = _disk_moments(patches, footprint, cell_size)[0]
+    deviation = (patches - mean)[:, p - c : p + c + 1, p - c : p + c + 1]
+    inner = deviation[:, c - f : c + f + 1, c - f : c + f + 1]
+    roughness = np.max(np.abs(inner), axis=(1, 2), where=footprint.mask, initial=0.0)
+    obstacle = np.max(deviation, axis=(1, 2), where=clearance.mask, initial=-np.inf)
+    return np.arctan(np.hypot(gx, gy)), roughness, obstacle
+
+
+def _safe_centres(terrain: Terrain, row, col, pad: int, settings: SafetySettings):
+    """Verdicts at cells (row, col), (n,) each, from a (2 pad + 1)^2 patch around each."""
+    offsets = np.arange(-pad, pad + 1)
+    ny, nx = terrain.shape
+    # Clipped indices reproduce the whole-grid filters' "nearest" edge handling.
+    rr = np.clip(row[:, None, None] + offsets[None, :, None], 0, ny - 1)
+    cc = np.clip(col[:, None, None] + offsets[None, None, :], 0, nx - 1)
+    patches = terrain.grid[rr, cc].astype(np.float64)
+    return _mask(*_evaluate_centres(patches, terrain.cell_size, settings), settings)
+
+
 def is_safe(terrain: Terrain, x, y, settings: SafetySettings | None = None):
     """Whether landing with the footprint centred at (x, y) is safe (nearest cell).
 
     ``x`` and ``y`` broadcast; scalars give a bool, arrays a bool ndarray of their shape.
-    Each point is evaluated on a small patch of the grid around it (all patches at once).
-    Points outside the terrain are unsafe (no ground truth there).
+    Each point is evaluated on a small patch of the grid around it (all patches at once), or,
+    when that is less work, all on one map of the window around them: either way with the
+    same verdict as :func:`safety_map` at that cell. Points outside the terrain are unsafe
+    (no ground truth there).
     """
     settings = settings or SafetySettings()
     x, y = np.broadcast_arrays(np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64))
@@ -155,16 +239,18 @@ def is_safe(terrain: Terrain, x, y, settings: SafetySettings | None = None):
     finite = np.isfinite(xf) & np.isfinite(yf)
     row, col = terrain.index(np.where(finite, xf, 0.0), np.where(finite, yf, 0.0))
     pad = _reach_cells(terrain.cell_size, settings)
-    offsets = np.arange(-pad, pad + 1)
-    ny, nx = terrain.shape
-    # Clipped indices reproduce the whole-grid filters' "nearest" edge handling.
-    rr = np.clip(row[:, None, None] + offsets[None, :, None], 0, ny - 1)
-    cc = np.clip(col[:, None, None] + offsets[None, None, :], 0, nx - 1)
-    patches = terrain.grid[rr, cc].astype(np.float64)
-    slope, roughness, obstacle = (
-        a[:, pad, pad] for a in _evaluate(patches, terrain.cell_size, settings)
-    )
-    safe = _mask(slope, roughness, obstacle, settings)
-    safe &= finite & np.asarray(terrain.contains(xf, yf))
+    inside = finite & np.asarray(terrain.contains(xf, yf))
+    safe = np.zeros(xf.shape, dtype=bool)
+    if inside.any():
+        # Many close points: one map over the window around them costs less than a patch
+        # each (same arithmetic, same verdicts).
+        r0, r1 = row[inside].min(), row[inside].max() + 1
+        c0, c1 = col[inside].min(), col[inside].max() + 1
+        window_cells = (r1 - r0 + 2 * pad) * (c1 - c0 + 2 * pad)
+        if window_cells < inside.sum() * (2 * pad + 1) ** 2:
+            mask = _window_map(terrain, slice(r0, r1), slice(c0, c1), settings)[0]
+            safe[inside] = mask[row[inside] - r0, col[inside] - c0]
+        else:
+            safe[inside] = _safe_centres(terrain, row[inside], col[inside], pad, settings)
     safe = safe.reshape(shape)
     return bool(safe) if safe.ndim == 0 else safe
