@@ -145,6 +145,14 @@ class PerceptionConfig(BaseModel):
         "elevation_map", description="the site source"
     )
     rate: float = Field(2.0, gt=0, le=100, description="perception updates per second, Hz")
+    low_altitude_rate: float | None = Field(
+        None, gt=0, le=100, description="perception updates per second while the range finder "
+        "reads less than low_altitude (Hz): a stereo camera close to the ground gives many frames "
+        "during the verification hover; default: rate"
+    )
+    low_altitude: float = Field(
+        15.0, gt=0, description="range-finder height (m AGL) below which low_altitude_rate applies"
+    )
     camera: DepthCameraSettings = DepthCameraSettings()
     rangefinder: RangeFinderSettings = RangeFinderSettings()
     elevation_map: ElevationMapSettings = ElevationMapSettings()
@@ -206,6 +214,12 @@ class Mission(BaseModel):
         if self.perception.rate > self.tick_rate:
             raise ValueError(
                 f"perception.rate: {self.perception.rate} Hz is faster than tick_rate "
+                f"({self.tick_rate} Hz); perception runs at most once per tick"
+            )
+        low = self.perception.low_altitude_rate
+        if low is not None and low > self.tick_rate:
+            raise ValueError(
+                f"perception.low_altitude_rate: {low} Hz is faster than tick_rate "
                 f"({self.tick_rate} Hz); perception runs at most once per tick"
             )
         return self

@@ -53,6 +53,9 @@ class Flight:
         log: the event log.
         now: the clock's now.
         perception_every: tree ticks between perception updates.
+        low_altitude_every: tree ticks between perception updates while the range finder
+            reads less than ``low_altitude`` m; default ``perception_every``.
+        low_altitude: m AGL.
         truth: a callable returning the simulator's ground truth, or None when flying live.
         lockstep: True to drain the LSM queue synchronously after each perception update.
         console: optional phase console.
@@ -62,7 +65,8 @@ class Flight:
         self, *, vehicle: Any, lsm: LandingSiteManager, source: Any,
         tree: py_trees.trees.BehaviourTree, log: EventLog, now: Callable[[], float],
         perception_every: int, truth: Callable[[], Any] | None, lockstep: bool,
-        console: PhaseConsole | None = None,
+        console: PhaseConsole | None = None, low_altitude_every: int | None = None,
+        low_altitude: float = 0.0,
     ) -> None:
         self.vehicle = vehicle
         self.lsm = lsm
@@ -71,6 +75,8 @@ class Flight:
         self.log = log
         self.now = now
         self.perception_every = max(1, int(perception_every))
+        self.low_altitude_every = max(1, int(low_altitude_every or perception_every))
+        self.low_altitude = float(low_altitude)
         self.truth = truth
         self.lockstep = lockstep
         self.console = console
@@ -121,7 +127,9 @@ class Flight:
         state = self.vehicle.state
         if state.position is not None:
             self.lsm.set_drone_position(state.position)
-        if self.ticks % self.perception_every == 0:
+        agl = state.rangefinder_agl
+        low = agl is not None and agl < self.low_altitude
+        if self.ticks % (self.low_altitude_every if low else self.perception_every) == 0:
             for obs in self.source.update(state, now):
                 self.lsm.submit(obs)
             if self.lockstep:

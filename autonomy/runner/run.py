@@ -128,7 +128,12 @@ def fly(
         tree.setup()
         flight = Flight(
             vehicle=vehicle, lsm=lsm, source=source, tree=tree, log=log, now=clock.now,
-            perception_every=max(1, round(mission.tick_rate / mission.perception.rate)),
+            perception_every=_ticks_per_update(mission.tick_rate, mission.perception.rate),
+            low_altitude_every=_ticks_per_update(
+                mission.tick_rate,
+                mission.perception.low_altitude_rate or mission.perception.rate,
+            ),
+            low_altitude=mission.perception.low_altitude,
             truth=(lambda: sitl.truth) if sitl is not None else None,
             lockstep=lockstep, console=PhaseConsole() if console else None,
         )
@@ -159,6 +164,11 @@ def fly(
             print(f"report: {out / 'report.png'} (summary.json, events.jsonl, flight.tlog "
                   f"in {out})")
     return FlightResult(summary=summary, events=log.events, data=data, out_dir=out)
+
+
+def _ticks_per_update(tick_rate: float, rate: float) -> int:
+    """Tree ticks between perception updates at ``rate`` Hz (at least one)."""
+    return max(1, round(tick_rate / rate))
 
 
 def _run_lockstep(flight: Flight, sitl: Any, clock: SimClock, mission: Mission) -> str:

@@ -195,6 +195,10 @@ def test_model_level_checks_point_at_the_field_they_name(tmp_path):
                  "  rate: 10\n")
     (message,) = problems(rate)
     assert message.startswith(f"{rate}:9: perception.rate: 10.0 Hz is faster than tick_rate")
+    low = write(tmp_path, GOOD + "tick_rate: 5\nperception:\n  detector: scripted\n"
+                "  low_altitude_rate: 10\n", "low.yaml")
+    (message,) = problems(low)
+    assert "perception.low_altitude_rate: 10.0 Hz is faster than tick_rate" in message
     rectangle = write(tmp_path, GOOD + "landing:\n  search_rectangle: [0, 3]\n")
     (message,) = problems(rectangle)
     assert message.startswith(f"{rectangle}:7: landing.search_rectangle: width and height")

@@ -37,3 +37,17 @@ def test_elevation_map_sites_are_verified_and_landed_on():
     switches = [e["source"] for e in result.events
                 if e["kind"] == "perception" and e.get("event") == "depth_source"]
     assert "sfm" in switches and "stereo" in switches
+
+
+def test_perception_runs_faster_below_the_low_altitude():
+    # Same mission, 1 Hz everywhere vs 5 Hz below 10 m AGL (the descent and the hover).
+    base = parse_mission(MISSION, "small.yaml")
+    fast = parse_mission(
+        MISSION.replace("  rate: 1.0\n", "  rate: 1.0\n  low_altitude_rate: 5.0\n"
+                        "  low_altitude: 10.0\n"), "small.yaml")
+    base_summary, fast_summary = fly(base).summary, fly(fast).summary
+    assert fast_summary["outcome"] == "landed" and fast_summary["touchdown_safe"] is True
+    base_rate = base_summary["perception"]["updates"] / base_summary["mission_time"]
+    fast_rate = fast_summary["perception"]["updates"] / fast_summary["mission_time"]
+    assert fast_rate > 1.5 * base_rate
+    assert base_rate <= 1.05  # 1 Hz when nothing says otherwise
