@@ -5,7 +5,7 @@
     Landing mission (Selector, no memory: the failsafe is checked every tick)
      ├─ Failsafe (Sequence, memory)           [latched once it fires]
      │   ├─ Failsafe? = Selector[Battery critical?, GPS lost?]
-     │   └─ Land where it is
+     │   └─ Land where it is                [OUTCOME_HINT: the failsafe's kind]
      └─ Mission (Sequence, memory)
          ├─ No failsafe?                       [a mission ended by the failsafe never restarts]
          ├─ Preflight                          [link, position, GPS fix, prearm; clock timeout]

@@ -22,9 +22,9 @@ over and landed wherever the vehicle was, on safe ground or not; aborted: the mi
 failed, hit the time limit or was interrupted before landing."""
 
 HINT_WORDS = {
-    "no_site": "no landing try left: landed in place",
-    "battery_critical": "the battery reached the critical level: landed where it was",
-    "gps_lost": "the 3D GPS fix was lost: landed where it was",
+    "no_site": "no landing try left; landed in place",
+    "battery_critical": "the battery reached the critical level; landed where it was",
+    "gps_lost": "the 3D GPS fix was lost; landed where it was",
     "battery_reserve": "waypoints skipped at the battery reserve",
 }
 """What each outcome hint (behaviors.blackboard.OUTCOME_HINT) means, for the console."""

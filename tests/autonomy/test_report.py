@@ -101,7 +101,7 @@ def test_a_failsafe_landing_is_its_own_outcome_on_safe_ground_or_not():
     assert summary["outcome"] == "failsafe" and summary["touchdown_safe"] is True
     first = format_summary(summary).splitlines()[0]
     assert first == ("outcome: failsafe (battery_critical: the battery reached the critical "
-                     "level: landed where it was)")
+                     "level; landed where it was)")
 
 
 def test_summary_figures():
