@@ -62,52 +62,77 @@ class _Disk:
         self.mask = np.abs(rows)[None, :] <= self.half_widths[:, None]
 
 
-def _row_passes(a: np.ndarray, disk: _Disk, row_filter):
-    """Yield, per distinct row half-width w of ``disk``, the row offsets k (cells) of the
-    rows that wide and ``row_filter(padded, w)``: a filter along x of ``a`` padded by h
-    repeated edge rows, so that its rows ``h + k .. h + k + ny`` line up with ``a``'s."""
-    h = disk.half
-    padded = np.pad(a, [(0, 0)] * (a.ndim - 2) + [(h, h), (0, 0)], mode="edge")
+def _pad_rows(a: np.ndarray, h: int) -> np.ndarray:
+    """``a`` with h repeated edge rows above and below: row h + k + i of the result lines up
+    with row i + k of ``a`` (edges repeat the nearest row)."""
+    return np.pad(a, [(0, 0)] * (a.ndim - 2) + [(h, h), (0, 0)], mode="edge")
+
+
+def _row_widths(disk: _Disk):
+    """(w, offsets): each distinct row half-width w of ``disk`` and the row offsets k
+    (cells, -h .. h) of its rows that wide."""
     for w in np.unique(disk.half_widths):
-        yield np.flatnonzero(disk.half_widths == w) - h, row_filter(padded, int(w))
+        yield int(w), np.flatnonzero(disk.half_widths == w) - disk.half
 
 
 def _disk_moments(z: np.ndarray, disk: _Disk, cell_size: float):
     """Mean and least-squares plane gradient (d/dx, d/dy) of ``z`` over the disk around every
     cell of its last two axes: disk sums as sums of row sums (``correlate1d`` along x)."""
     h, ny = disk.half, z.shape[-2]
-    total, moment_x, moment_y = (np.zeros_like(z) for _ in range(3))
-
-    def row_sums(padded, w):
-        ones = ndimage.correlate1d(padded, np.ones(2 * w + 1), axis=-1, mode="nearest")
-        ramp = np.arange(-w, w + 1) * cell_size
-        return ones, ndimage.correlate1d(padded, ramp, axis=-1, mode="nearest") if w else None
-
-    for offsets, (ones, ramp) in _row_passes(z, disk, row_sums):
+    padded = _pad_rows(z, h)
+    ones_sums, ramp_sums = np.empty_like(padded), np.empty_like(padded)
+    total, moment_x, moment_y, scratch = (np.zeros_like(z) for _ in range(4))
+    for w, offsets in _row_widths(disk):
+        if w:
+            ones = ndimage.correlate1d(
+                padded, np.ones(2 * w + 1), axis=-1, mode="nearest", output=ones_sums
+            )
+            ramp = np.arange(-w, w + 1) * cell_size
+            ndimage.correlate1d(padded, ramp, axis=-1, mode="nearest", output=ramp_sums)
+        else:
+            ones = padded
         for k in offsets:
-            rows = slice(h + k, h + k + ny)
-            total += ones[..., rows, :]
-            if k:
-                moment_y += (k * cell_size) * ones[..., rows, :]
-            if ramp is not None:
-                moment_x += ramp[..., rows, :]
+            total += ones[..., h + k : h + k + ny, :]
+            if w:
+                moment_x += ramp_sums[..., h + k : h + k + ny, :]
+            if k > 0:  # rows k and -k are equally wide: k * (sum_k - sum_-k)
+                np.subtract(
+                    ones[..., h + k : h + k + ny, :], ones[..., h - k : h - k + ny, :], out=scratch
+                )
+                scratch *= k * cell_size
+                moment_y += scratch
     d = np.arange(-h, h + 1) * cell_size
     sum_d2 = np.sum(np.where(disk.mask, d[None, :] ** 2, 0.0))  # same along x and y
-    return total / disk.mask.sum(), moment_x / sum_d2, moment_y / sum_d2
+    total /= disk.mask.sum()
+    moment_x /= sum_d2
+    moment_y /= sum_d2
+    return total, moment_x, moment_y
 
 
 def _disk_max(a: np.ndarray, disk: _Disk) -> np.ndarray:
-    """Maximum of ``a`` over the disk around every cell of its last two axes (exact): the
-    maximum over its rows of ``maximum_filter1d`` along x."""
-    h, ny = disk.half, a.shape[-2]
+    """Maximum of ``a`` over the disk around every cell of its last two axes (exact).
+
+    The disk is the union of its rows: the maxima over |dx| <= w along x, for w = 0 .. h,
+    each from the previous by the maximum of two shifted views, then the maximum over the
+    rows of the disk of the row-wide maxima shifted by the row offset. (Measured 3-4 times
+    faster than ``maximum_filter1d`` per row width or ``maximum_filter`` with the disk as
+    footprint, same result.)
+    """
+    h, (ny, nx) = disk.half, a.shape[-2:]
+    lead = [(0, 0)] * (a.ndim - 2)
+    padded = np.pad(a, lead + [(h, h), (h, h)], mode="edge")
+    widths = dict((w, offsets) for w, offsets in _row_widths(disk))
     out = np.full_like(a, -np.inf)
-
-    def row_max(padded, w):
-        return ndimage.maximum_filter1d(padded, 2 * w + 1, axis=-1, mode="nearest")
-
-    for offsets, row_maxima in _row_passes(a, disk, row_max):
-        for k in offsets:
-            np.maximum(out, row_maxima[..., h + k : h + k + ny, :], out=out)
+    # row_max[..., i, j]: maximum of padded[..., i, j .. j + 2w], centred on column j + w
+    row_max = padded
+    for w in range(h + 1):
+        if w == 1:
+            row_max = np.maximum(padded[..., :-2], padded[..., 1:-1])
+            np.maximum(row_max, padded[..., 2:], out=row_max)
+        elif w > 1:
+            row_max = np.maximum(row_max[..., :-2], row_max[..., 2:])
+        for k in widths.get(w, ()):
+            np.maximum(out, row_max[..., h + k : h + k + ny, h - w : h - w + nx], out=out)
     return out
 
 
@@ -124,7 +149,8 @@ def _evaluate(z: np.ndarray, cell_size: float, settings: SafetySettings):
     footprint, clearance = _disks(cell_size, settings)
     mean, gx, gy = _disk_moments(z, footprint, cell_size)
     slope = np.arctan(np.hypot(gx, gy))
-    deviation = z - mean
+    # float32 deviations: maxima are exact in any precision, and half the memory is faster
+    deviation = (z - mean).astype(np.float32)
     roughness = _disk_max(np.abs(deviation), footprint)
     obstacle = _disk_max(deviation, clearance)
     return slope, roughness, obstacle
@@ -205,7 +231,7 @@ def _evaluate_centres(patches: np.ndarray, cell_size: float, settings: SafetySet
     near = patches[:, p - f : p + f + 1, p - f : p + f + 1]
     _, gx, gy = (a[:, f, f] for a in _disk_moments(near, footprint, cell_size))
     mean = _disk_moments(patches, footprint, cell_size)[0]
-    deviation = (patches - mean)[:, p - c : p + c + 1, p - c : p + c + 1]
+    deviation = (patches - mean)[:, p - c : p + c + 1, p - c : p + c + 1].astype(np.float32)
     inner = deviation[:, c - f : c + f + 1, c - f : c + f + 1]
     roughness = np.max(np.abs(inner), axis=(1, 2), where=footprint.mask, initial=0.0)
     obstacle = np.max(deviation, axis=(1, 2), where=clearance.mask, initial=-np.inf)
