@@ -2,9 +2,11 @@
 
 Prints, per world kind, the generation time of the default 400 m x 400 m world at 0.2 m
 cells (median over seeds), the time of the ground-truth safety map of the whole world and
-its safe fraction, and the median time of one 256 x 256 depth render at several altitudes
-above ground (SfM above 15 m, stereo below). Each figure is wall time / process CPU time
-in milliseconds (CPU time sums all threads; on a loaded machine it is the steadier figure).
+its safe fraction (footprint and clearance disks of ``SafetySettings()``), the median time
+of one 256 x 256 depth render at several altitudes above ground (SfM above 15 m, stereo
+below), and the time of ``is_safe`` on 1, 300 and 10000 scattered points of the Mars world.
+Each figure is wall time / process CPU time in milliseconds (CPU time sums all threads; on a
+loaded machine it is the steadier figure).
 OpenCV and BLAS run on one thread, as in ``bench_lsd.py``.
 
     .venv/bin/python benchmarks/bench_terrain.py [--repeats N]
@@ -76,17 +78,19 @@ def main() -> None:
         )
         terrain = make_terrain({"kind": kind}, seed=0)
         masks = []
-        safety = median_ms(lambda k, t=terrain, m=masks: m.append(safety_map(t)[0]), 1)
+        safety = median_ms(lambda k, t=terrain, m=masks: m.append(safety_map(t)[0]), args.repeats)
         renders = [render_times(terrain, a, args.repeats) for a in ALTITUDES]
         cells = [kind, fmt(generate), fmt(safety), f"{100 * masks[0].mean():.1f}"]
         print("".join(f"{c:>13s}" for c in cells + [fmt(r) for r in renders]))
     terrain = make_terrain({"kind": "mars"}, seed=0)
-    points = np.random.default_rng(3).uniform(-190, 190, (2, 10_000))
-    wall, cpu = median_ms(lambda k: is_safe(terrain, points[0], points[1]), args.repeats)
-    print(
-        f"is_safe on mars, 10000 points: {wall:.0f}/{cpu:.0f} ms "
-        f"({1e3 * wall / 10_000:.0f} us/point wall)"
-    )
+    # few scattered points are judged on a patch each, many on one map of their window
+    for count in (1, 300, 10_000):
+        points = np.random.default_rng(3).uniform(-190, 190, (2, count))
+        wall, cpu = median_ms(lambda k, p=points: is_safe(terrain, p[0], p[1]), args.repeats)
+        print(
+            f"is_safe on mars, {count} points: {wall:.1f}/{cpu:.1f} ms "
+            f"({1e3 * wall / count:.0f} us/point wall)"
+        )
 
 
 if __name__ == "__main__":

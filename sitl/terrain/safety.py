@@ -14,10 +14,15 @@ cell's, i.e. offsets (dx, dy) in cells with dx^2 + dy^2 <= (R / cell_size)^2 (at
 four neighbours). The "local plane" of a cell is the plane fitted over the footprint disk
 centred on that cell. The disk is symmetric, so its gradient is sum(d * z) / sum(d^2) over the
 disk and its value at the centre is the disk mean: the deviation field is
-``z - mean_footprint(z)``, exact on planar ground. Moments are correlations with disk kernels
-(``scipy.ndimage.correlate``); maxima over a disk are exact, as the union of its rows: a
-``scipy.ndimage.maximum_filter1d`` along x per distinct row half-width, then the maximum over
-the row offsets. Edges repeat the nearest cell (``mode="nearest"``).
+``z - mean_footprint(z)``, exact on planar ground.
+
+A disk is the union of its rows (row k: |dx| <= w_k = floor(sqrt(R^2 - k^2))). Disk sums are
+sums of row sums (``scipy.ndimage.correlate1d`` along x, one per distinct w_k) shifted by the
+row offset; disk maxima (exact) are maxima of row maxima, these widened from the row below by
+the maximum of two shifted views. Every cell's figures depend only on the heights around it,
+computed in the same order wherever they are evaluated, so a window's map equals the whole
+map there and :func:`is_safe` equals :func:`safety_map` at cell centres, bit for bit. Edges
+repeat the nearest cell (like ``mode="nearest"``).
 """
 
 from __future__ import annotations
@@ -144,8 +149,8 @@ def _disks(cell_size: float, settings: SafetySettings) -> tuple[_Disk, _Disk]:
 
 
 def _evaluate(z: np.ndarray, cell_size: float, settings: SafetySettings):
-    """Slope (rad), roughness (m) and obstacle height (m) at every cell of ``z`` (float64,
-    (h, w))."""
+    """Slope (rad, float64), roughness and obstacle height (m, float32) at every cell of the
+    last two axes of ``z`` (float64 heights, m)."""
     footprint, clearance = _disks(cell_size, settings)
     mean, gx, gy = _disk_moments(z, footprint, cell_size)
     slope = np.arctan(np.hypot(gx, gy))
