@@ -228,3 +228,51 @@ def test_single_points_agree_with_the_map_up_to_the_edges():
     # a few far-apart points at once: one patch each, all in one stack
     corners = is_safe(terrain, xs[cols[:5]], ys[rows[:5]])
     np.testing.assert_array_equal(corners, mask[rows[:5], cols[:5]])
+
+
+def reference_map(terrain: Terrain, settings: SafetySettings):
+    """The definitions, written with scipy's generic disk filters (slow, obviously right)."""
+    from scipy import ndimage
+
+    def disk(radius):
+        r = radius / terrain.cell_size
+        d = np.arange(-int(r + 1e-9), int(r + 1e-9) + 1)
+        return d, (d[None, :] ** 2 + d[:, None] ** 2) <= r * r + 1e-9
+
+    z = terrain.grid.astype(np.float64)
+    d, foot = disk(settings.footprint_radius)
+    dx = np.where(foot, d[None, :] * terrain.cell_size, 0.0)
+    mean = ndimage.correlate(z, foot / foot.sum(), mode="nearest")
+    gx = ndimage.correlate(z, dx / np.sum(dx**2), mode="nearest")
+    gy = ndimage.correlate(z, dx.T / np.sum(dx**2), mode="nearest")
+    slope = np.arctan(np.hypot(gx, gy))
+    roughness = ndimage.maximum_filter(np.abs(z - mean), footprint=foot, mode="nearest")
+    _, clear = disk(settings.footprint_radius + settings.clearance_margin)
+    obstacle = ndimage.maximum_filter(z - mean, footprint=clear, mode="nearest")
+    mask = (
+        (slope <= np.radians(settings.max_slope_deg))
+        & (roughness <= settings.max_rock_height)
+        & (obstacle <= settings.max_rock_height)
+    )
+    return mask, slope, roughness
+
+
+@pytest.mark.parametrize(
+    ("cell", "settings"),
+    [
+        (0.1, SafetySettings()),
+        (0.2, SafetySettings()),  # clearance 7.5 cells
+        (0.25, SafetySettings(footprint_radius=0.8, clearance_margin=0.7, max_slope_deg=5.0)),
+    ],
+)
+def test_map_follows_the_disk_definitions(cell, settings):
+    rng = np.random.default_rng(7)
+    heights = rng.normal(0, 0.03, (57, 63)) + 0.05 * np.arange(63)[None, :] * cell
+    heights[rng.integers(0, 57, 12), rng.integers(0, 63, 12)] += rng.uniform(0, 0.4, 12)
+    terrain = Terrain(heights, cell, origin=(-5.0, -4.0))
+    expected = reference_map(terrain, settings)
+    got = safety_map(terrain, settings=settings)
+    np.testing.assert_array_equal(got[0], expected[0])
+    np.testing.assert_allclose(got[1], expected[1], atol=1e-6)
+    np.testing.assert_allclose(got[2], expected[2], atol=1e-6)
+    assert 0.05 < got[0].mean() < 0.95
