@@ -119,14 +119,16 @@ def _disk_max(a: np.ndarray, disk: _Disk) -> np.ndarray:
 
     The disk is the union of its rows: the maxima over |dx| <= w along x, for w = 0 .. h,
     each from the previous by the maximum of two shifted views, then the maximum over the
-    rows of the disk of the row-wide maxima shifted by the row offset. (Measured 3-4 times
-    faster than ``maximum_filter1d`` per row width or ``maximum_filter`` with the disk as
-    footprint, same result.)
+    rows of the disk of the row-wide maxima shifted by the row offset. Same result as
+    ``maximum_filter(footprint=disk)``; on a 2001 x 2001 grid with disks of 5 and 7.5 cells,
+    measured 5-7 times faster than it, 3 times faster than the union of rectangles of
+    ``maximum_filter1d`` passes and 1.4 times faster than one ``maximum_filter1d`` per row
+    width.
     """
     h, (ny, nx) = disk.half, a.shape[-2:]
     lead = [(0, 0)] * (a.ndim - 2)
     padded = np.pad(a, lead + [(h, h), (h, h)], mode="edge")
-    widths = dict((w, offsets) for w, offsets in _row_widths(disk))
+    widths = dict(_row_widths(disk))
     out = np.full_like(a, -np.inf)
     # row_max[..., i, j]: maximum of padded[..., i, j .. j + 2w], centred on column j + w
     row_max = padded
