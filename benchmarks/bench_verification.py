@@ -1,8 +1,10 @@
 """Verification recall and precision of the elevation-map detector at the 2.5 m hover.
 
 Over random spots of several Mars worlds the camera descends from 20 m to 2.5 m above the
-ground and hovers there for 10 frames (1 Hz), as the landing phase does, with the mission's
-camera, map and detector settings. A spot counts as verified when the detector reports a site
+ground in 12 frames and hovers there for the mission's verification duration at its
+perception rate (``perception.low_altitude_rate`` below ``perception.low_altitude``; 40 frames
+for missions/mars_science.yaml), as the landing phase does, with the mission's camera, map and
+detector settings. A spot counts as verified when the detector reports a site
 within the match radius of it from no higher than the verification altitude plus tolerance.
 Recall: verified ground-truth-safe spots over all safe spots. Precision: verifying
 observations whose own position the ground truth calls safe.
@@ -27,7 +29,7 @@ from autonomy.perception.elevation import ElevationMapSource  # noqa: E402
 from behaviors.ports import VehicleState  # noqa: E402
 from sitl.terrain import is_safe, make_terrain  # noqa: E402
 
-DESCENT = (20, 16, 13, 11, 9, 7.5, 6, 5, 4.2, 3.5, 3.0, 2.7) + (2.5,) * 10
+DESCENT = (20, 16, 13, 11, 9, 7.5, 6, 5, 4.2, 3.5, 3.0, 2.7)
 
 
 def main() -> None:
@@ -50,6 +52,12 @@ def main() -> None:
         parser.error(f"--set {'.'.join(map(str, first['loc']))}: {first['msg']}")
     changes = {key: getattr(detector, key) for key in changes}
     ceiling = mission.landing.verification_altitude + mission.lsm.verification_tolerance
+    hover_altitude = mission.landing.verification_altitude
+    low = hover_altitude < p.low_altitude and p.low_altitude_rate is not None
+    rate = p.low_altitude_rate if low else p.rate
+    hover_frames = max(1, round(mission.landing.verification_duration * rate))
+    heights = (*DESCENT, *(hover_altitude,) * hover_frames)
+    times = (*range(len(DESCENT)), *(len(DESCENT) + np.arange(hover_frames) / rate))  # s
     radius = mission.lsm.match_radius
 
     outcomes: list[tuple[bool, bool]] = []  # (spot safe, spot verified)
@@ -64,12 +72,12 @@ def main() -> None:
             )
             ground = float(terrain.height(x, y))
             verifying: list[tuple[float, float]] = []
-            for t, agl in enumerate(DESCENT):
+            for t, agl in zip(times, heights, strict=True):
                 state = VehicleState(position=(x, y, ground + agl), yaw=0.0,
                                      rangefinder_agl=agl, link_lost=False)
                 for o in source.update(state, float(t)):
                     close = np.hypot(o.x - x, o.y - y) <= radius
-                    if agl <= 2.5 and close and o.observation_altitude <= ceiling:
+                    if agl <= hover_altitude and close and o.observation_altitude <= ceiling:
                         verifying.append((o.x, o.y))
             outcomes.append((bool(safe), bool(verifying)))
             if verifying:
@@ -80,7 +88,7 @@ def main() -> None:
     unsafe_spots = [v for s, v in outcomes if not s]
     print(f"{args.mission}: {args.worlds} Mars worlds x {args.spots} spots; detector "
           f"{changes or 'as in the mission'}; verified = a site within {radius:g} m seen "
-          f"from <= {ceiling:g} m during the 2.5 m hover")
+          f"from <= {ceiling:g} m during the {hover_altitude:g} m hover ({hover_frames} frames)")
     print(f"  recall:    {sum(safe_spots)} of {len(safe_spots)} ground-truth-safe spots verified")
     print(f"  unsafe:    {sum(unsafe_spots)} of {len(unsafe_spots)} unsafe spots verified")
     share = 100 * np.mean(verifying_safe) if verifying_safe else float("nan")

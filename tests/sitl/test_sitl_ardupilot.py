@@ -175,25 +175,27 @@ def test_position_target_reached_within_speed_limit():
     assert top_speed > 0.5 * sim.settings.max_horizontal_speed
 
 
-def test_hover_in_a_steady_wind_holds_its_point():
-    # The velocity loop's integrator takes up the wind's push, as ArduPilot's does: a
-    # hover (and so a landing) holds its point instead of sitting downwind of it.
-    settings = SitlSettings(wind={"speed": 6.0, "direction": 90.0, "gust_sigma": 0.0})
+def hover_in_wind(gust_sigma: float, seconds: float):
+    """A simulator hovering at ENU (0, 20, 10) after ``seconds`` in a 6 m/s east wind."""
+    settings = SitlSettings(wind={"speed": 6.0, "direction": 90.0, "gust_sigma": gust_sigma})
     sim, gcs = connect(settings=settings, seed=3)
     airborne(sim, gcs)
     gcs.goto_ned(20.0, 0.0, -10.0)
-    run(sim, gcs, 40.0)
+    run(sim, gcs, seconds)
+    return sim, gcs
+
+
+def test_hover_in_a_steady_wind_holds_its_point():
+    # The velocity loop's integrator takes up the wind's push, as ArduPilot's does: a
+    # hover (and so a landing) holds its point instead of sitting downwind of it.
+    sim, _ = hover_in_wind(gust_sigma=0.0, seconds=40.0)
     x, y, z = sim.truth.position
     assert math.hypot(x - 0.0, y - 20.0) < 0.05
     assert abs(z - 10.0) < 0.1
 
 
 def test_gusts_move_a_hover_only_a_little():
-    settings = SitlSettings(wind={"speed": 6.0, "direction": 90.0, "gust_sigma": 1.0})
-    sim, gcs = connect(settings=settings, seed=3)
-    airborne(sim, gcs)
-    gcs.goto_ned(20.0, 0.0, -10.0)
-    run(sim, gcs, 30.0)
+    sim, gcs = hover_in_wind(gust_sigma=1.0, seconds=30.0)
     errors = []
     for _ in range(20):
         run(sim, gcs, 0.5)
