@@ -3,7 +3,7 @@
     from autonomy.config import load_mission
     from autonomy.runner import fly
     result = fly(load_mission("missions/demo.yaml"), seed=3, out_dir="out/demo")
-    result.summary["outcome"]      # "landed", "landed_unsafe", "crashed", "no_site", "failsafe", "aborted"
+    result.summary["outcome"]  # landed, landed_unsafe, crashed, no_site, failsafe, aborted
 """
 
 from autonomy.runner.flight import Flight, PhaseConsole
