@@ -48,11 +48,13 @@ class DepthCostmapSettings(BaseModel):
         "footprint_radius and the ground truth's (the paper's UAV was 0.26 m across)",
     )
     clearance_margin: float = Field(
-        1.0,
+        1.5,
         ge=0,
         description="beyond the paper: depth edges (obstacles, drops) must also be this much "
         "beyond the footprint (m); the image border need only clear the footprint itself, so "
-        "the verification look from a few metres still fits. 0: the paper's check alone",
+        "the verification look from a few metres still fits. 0: the paper's check alone. The "
+        "default matches the ground truth, which judges each cell of the 1.5 m clearance disk "
+        "against its own 1 m footprint plane, so a roof edge counts up to 2.5 m away",
     )
     edge_step: float = Field(
         0.15,
