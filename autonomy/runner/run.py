@@ -9,7 +9,10 @@ vehicle before returning.
 
 from __future__ import annotations
 
+import contextlib
 import math
+import signal
+import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -200,24 +203,46 @@ def _run_live(flight: Flight, lsm: LandingSiteManager, mission: Mission,
     def advance() -> None:
         time.sleep(0.05)
 
-    try:
-        while True:
-            flight.tick()
-            if flight.status == Status.SUCCESS:
-                return "landed"
-            if flight.status == Status.FAILURE:
-                return _bring_down(flight, "mission failed", "land", advance)
-            if time.monotonic() - start >= mission.time_limit:
-                return _bring_down(flight, "time limit", "land", advance)
-            next_tick += period
-            time.sleep(max(0.0, next_tick - time.monotonic()))
-    except KeyboardInterrupt:
-        print(f"interrupted: {'landing' if on_interrupt == 'land' else 'holding'} "
-              "(Ctrl-C again to leave at once)", flush=True)
+    with _ctrl_c_flag() as interrupted:
         try:
+            while not interrupted.is_set():
+                flight.tick()
+                if flight.status == Status.SUCCESS:
+                    return "landed"
+                if flight.status == Status.FAILURE:
+                    return _bring_down(flight, "mission failed", "land", advance)
+                if time.monotonic() - start >= mission.time_limit:
+                    return _bring_down(flight, "time limit", "land", advance)
+                next_tick += period
+                time.sleep(max(0.0, next_tick - time.monotonic()))
+            print(f"interrupted: {'landing' if on_interrupt == 'land' else 'holding'} "
+                  "(Ctrl-C again to leave at once)", flush=True)
             return _bring_down(flight, "interrupted", on_interrupt, advance)
         except KeyboardInterrupt:
             return "interrupted twice"
+
+
+@contextlib.contextmanager
+def _ctrl_c_flag():
+    """While inside: the first Ctrl-C (SIGINT) sets the yielded event, the next raises
+    KeyboardInterrupt. A flag rather than an exception at an arbitrary point of the tick, where
+    a callback could swallow it. Outside the main thread (no signal handlers) Ctrl-C keeps its
+    default KeyboardInterrupt, which the caller handles as a second one."""
+    interrupted = threading.Event()
+    if threading.current_thread() is not threading.main_thread():
+        yield interrupted
+        return
+
+    def on_sigint(signum: int, frame: Any) -> None:
+        if interrupted.is_set():
+            raise KeyboardInterrupt
+        interrupted.set()
+
+    previous = signal.signal(signal.SIGINT, on_sigint)
+    try:
+        yield interrupted
+    finally:
+        signal.signal(signal.SIGINT, previous)
 
 
 def _bring_down(flight: Flight, reason: str, action: str, advance: Any,
