@@ -211,17 +211,13 @@ class Mission(BaseModel):
 
     @model_validator(mode="after")
     def _rates(self) -> Mission:
-        if self.perception.rate > self.tick_rate:
-            raise ValueError(
-                f"perception.rate: {self.perception.rate} Hz is faster than tick_rate "
-                f"({self.tick_rate} Hz); perception runs at most once per tick"
-            )
-        low = self.perception.low_altitude_rate
-        if low is not None and low > self.tick_rate:
-            raise ValueError(
-                f"perception.low_altitude_rate: {low} Hz is faster than tick_rate "
-                f"({self.tick_rate} Hz); perception runs at most once per tick"
-            )
+        for name in ("rate", "low_altitude_rate"):
+            rate = getattr(self.perception, name)
+            if rate is not None and rate > self.tick_rate:
+                raise ValueError(
+                    f"perception.{name}: {rate} Hz is faster than tick_rate "
+                    f"({self.tick_rate} Hz); perception runs at most once per tick"
+                )
         return self
 
     def waypoints_enu(self) -> list[tuple[float, float, float]]:

@@ -17,10 +17,9 @@ import numpy as np
 
 from autonomy.campaign.spec import Variant
 from autonomy.campaign.stats import newcombe_paired_interval, wilson_interval
+from autonomy.report.summary import OUTCOMES as FLIGHT_OUTCOMES
 
-OUTCOMES: tuple[str, ...] = (
-    "landed", "landed_unsafe", "crashed", "no_site", "failsafe", "aborted", "error"
-)
+OUTCOMES: tuple[str, ...] = (*FLIGHT_OUTCOMES, "error")
 OUTCOME_TITLES: dict[str, str] = {
     "landed": "landed safe",
     "landed_unsafe": "landed unsafe",

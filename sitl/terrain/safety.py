@@ -16,13 +16,13 @@ centred on that cell. The disk is symmetric, so its gradient is sum(d * z) / sum
 disk and its value at the centre is the disk mean: the deviation field is
 ``z - mean_footprint(z)``, exact on planar ground.
 
-A disk is the union of its rows (row k: |dx| <= w_k = floor(sqrt(R^2 - k^2))). Disk sums are
-sums of row sums (``scipy.ndimage.correlate1d`` along x, one per distinct w_k) shifted by the
-row offset; disk maxima (exact) are maxima of row maxima, these widened from the row below by
-the maximum of two shifted views. Every cell's figures depend only on the heights around it,
-computed in the same order wherever they are evaluated, so a window's map equals the whole
-map there and :func:`is_safe` equals :func:`safety_map` at cell centres, bit for bit. Edges
-repeat the nearest cell (like ``mode="nearest"``).
+Disk sums are ``scipy.ndimage.correlate`` with the disk's kernels. A disk is the union of its
+rows (row k: |dx| <= w_k = floor(sqrt(R^2 - k^2))), so disk maxima (exact) are maxima of row
+maxima, these widened from the row below by the maximum of two shifted views. Every cell's
+figures depend only on the heights around it, computed in the same order wherever they are
+evaluated, so a window's map equals the whole map there and :func:`is_safe` equals
+:func:`safety_map` at cell centres, bit for bit. Edges repeat the nearest cell (like
+``mode="nearest"``).
 """
 
 from __future__ import annotations
@@ -67,12 +67,6 @@ class _Disk:
         self.mask = np.abs(rows)[None, :] <= self.half_widths[:, None]
 
 
-def _pad_rows(a: np.ndarray, h: int) -> np.ndarray:
-    """``a`` with h repeated edge rows above and below: row h + k + i of the result lines up
-    with row i + k of ``a`` (edges repeat the nearest row)."""
-    return np.pad(a, [(0, 0)] * (a.ndim - 2) + [(h, h), (0, 0)], mode="edge")
-
-
 def _row_widths(disk: _Disk):
     """(w, offsets): each distinct row half-width w of ``disk`` and the row offsets k
     (cells, -h .. h) of its rows that wide."""
@@ -82,36 +76,15 @@ def _row_widths(disk: _Disk):
 
 def _disk_moments(z: np.ndarray, disk: _Disk, cell_size: float):
     """Mean and least-squares plane gradient (d/dx, d/dy) of ``z`` over the disk around every
-    cell of its last two axes: disk sums as sums of row sums (``correlate1d`` along x)."""
-    h, ny = disk.half, z.shape[-2]
-    padded = _pad_rows(z, h)
-    ones_sums, ramp_sums = np.empty_like(padded), np.empty_like(padded)
-    total, moment_x, moment_y, scratch = (np.zeros_like(z) for _ in range(4))
-    for w, offsets in _row_widths(disk):
-        if w:
-            ones = ndimage.correlate1d(
-                padded, np.ones(2 * w + 1), axis=-1, mode="nearest", output=ones_sums
-            )
-            ramp = np.arange(-w, w + 1) * cell_size
-            ndimage.correlate1d(padded, ramp, axis=-1, mode="nearest", output=ramp_sums)
-        else:
-            ones = padded
-        for k in offsets:
-            total += ones[..., h + k : h + k + ny, :]
-            if w:
-                moment_x += ramp_sums[..., h + k : h + k + ny, :]
-            if k > 0:  # rows k and -k are equally wide: k * (sum_k - sum_-k)
-                np.subtract(
-                    ones[..., h + k : h + k + ny, :], ones[..., h - k : h - k + ny, :], out=scratch
-                )
-                scratch *= k * cell_size
-                moment_y += scratch
-    d = np.arange(-h, h + 1) * cell_size
-    sum_d2 = np.sum(np.where(disk.mask, d[None, :] ** 2, 0.0))  # same along x and y
-    total /= disk.mask.sum()
-    moment_x /= sum_d2
-    moment_y /= sum_d2
-    return total, moment_x, moment_y
+    cell of its last two axes (``scipy.ndimage.correlate`` with the disk's kernels)."""
+    d = np.arange(-disk.half, disk.half + 1) * cell_size
+    ramp_x = np.where(disk.mask, d[None, :], 0.0)
+    sum_d2 = np.sum(ramp_x**2)  # the same along y
+    lead = (1,) * (z.ndim - 2)
+    kernels = (disk.mask / disk.mask.sum(), ramp_x / sum_d2, ramp_x.T / sum_d2)
+    return tuple(
+        ndimage.correlate(z, k.reshape(lead + k.shape), mode="nearest") for k in kernels
+    )
 
 
 def _disk_max(a: np.ndarray, disk: _Disk) -> np.ndarray:
@@ -227,24 +200,6 @@ def _window_map(terrain: Terrain, rows: slice, cols: slice, settings: SafetySett
     )
 
 
-def _evaluate_centres(patches: np.ndarray, cell_size: float, settings: SafetySettings):
-    """Slope, roughness and obstacle height at the centre cell of each (n, 2p + 1, 2p + 1)
-    patch, p the reach: the same arithmetic as :func:`_evaluate` at that cell, done only
-    where the centre needs it."""
-    footprint, clearance = _disks(cell_size, settings)
-    p, f, c = patches.shape[-1] // 2, footprint.half, clearance.half
-    # the centre's plane needs only the footprint around it; the deviations over the
-    # clearance disk need the footprint mean of each of its cells
-    near = patches[:, p - f : p + f + 1, p - f : p + f + 1]
-    _, gx, gy = (a[:, f, f] for a in _disk_moments(near, footprint, cell_size))
-    mean = _disk_moments(patches, footprint, cell_size)[0]
-    deviation = (patches - mean)[:, p - c : p + c + 1, p - c : p + c + 1].astype(np.float32)
-    inner = deviation[:, c - f : c + f + 1, c - f : c + f + 1]
-    roughness = np.max(np.abs(inner), axis=(1, 2), where=footprint.mask, initial=0.0)
-    obstacle = np.max(deviation, axis=(1, 2), where=clearance.mask, initial=-np.inf)
-    return np.arctan(np.hypot(gx, gy)), roughness, obstacle
-
-
 def _safe_centres(terrain: Terrain, row, col, pad: int, settings: SafetySettings):
     """Verdicts at cells (row, col), (n,) each, from a (2 pad + 1)^2 patch around each."""
     offsets = np.arange(-pad, pad + 1)
@@ -253,7 +208,8 @@ def _safe_centres(terrain: Terrain, row, col, pad: int, settings: SafetySettings
     rr = np.clip(row[:, None, None] + offsets[None, :, None], 0, ny - 1)
     cc = np.clip(col[:, None, None] + offsets[None, None, :], 0, nx - 1)
     patches = terrain.grid[rr, cc].astype(np.float64)
-    return _mask(*_evaluate_centres(patches, terrain.cell_size, settings), settings)
+    centre = (slice(None), pad, pad)
+    return _mask(*(a[centre] for a in _evaluate(patches, terrain.cell_size, settings)), settings)
 
 
 def is_safe(terrain: Terrain, x, y, settings: SafetySettings | None = None):
