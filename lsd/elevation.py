@@ -13,7 +13,9 @@ best seen: a site redetected at 2.5 m whose surroundings were only seen from 20 
 obliquely from the edge of the view) is not reported as seen from 2.5 m, which keeps
 verification meaningful. A site that passes the step test near
 it only thanks to the noise tolerance is reported as seen from no lower than
-``doubtful_altitude``.
+``doubtful_altitude``; in the fine (low-altitude) map, near means any cell within
+``footprint_radius + look_margin`` that sticks out by more than ``max_step``, and sites are
+placed as far from such cells as their blocks allow.
 
 Normalisation of the emitted values (so they can enter the loss unaltered):
 ``roughness = roughness_m / max_roughness`` and ``uncertainty = sigma_m / max_uncertainty``,
@@ -46,6 +48,7 @@ from lsd.site_selection import (
     select_sites,
     site_size,
     step_hazards,
+    step_room,
 )
 from lsm.records import SiteObservation
 
@@ -317,7 +320,11 @@ class ElevationDetector:
             quality += f32(0.3)
             quality += np.exp(farthest_look * f32(-0.1)) * f32(0.7)
         cv2.patchNaNs(quality, 0.0)
-        i, j = select_sites(size, quality, box_origin, r, s)
+        # Low down, where sites are verified, a site also keeps as far as its block allows
+        # from every step beyond max_step, forgiven by the noise tolerance or not: small
+        # rocks read low in rendered, fused depth, so a forgiven step may be a rock.
+        room = step_room(fit, s, r) if m is self.fine_map else None
+        i, j = select_sites(size, quality, box_origin, r, s, room=room)
         if len(i) == 0:
             return []
         # The obstacle altitude from the map's own cells (the highest, not a block's mean),
@@ -340,8 +347,12 @@ class ElevationDetector:
         looked_at = _largest_within(looks, i, j, (s.footprint_radius + s.look_margin) / r)
         altitude = np.maximum(float(camera_position[2]) - z, looked_at)
         # A site that is safe only because noise forgives a step near it is no proof of a
-        # close look: it may not verify, nor overwrite a conclusive look.
-        altitude = np.where(doubtful[i, j], np.maximum(altitude, s.doubtful_altitude), altitude)
+        # close look: it may not verify, nor overwrite a conclusive look. Low down, near
+        # means anywhere in the footprint or the ring of look_margin around it.
+        doubt = doubtful[i, j]
+        if room is not None:
+            doubt |= room[i, j] < s.footprint_radius + s.look_margin
+        altitude = np.where(doubt, np.maximum(altitude, s.doubtful_altitude), altitude)
         label = f"{s.source}:{source}" if source else s.source
         observations = [
             SiteObservation(

@@ -120,7 +120,8 @@ class DetectorSettings(BaseModel):
         10.0,
         ge=0,
         description="observation altitude (m) reported, at least, for a site near a step "
-        "beyond max_step that only the noise tolerance forgives",
+        "beyond max_step that only the noise tolerance forgives (in the fine map: anywhere "
+        "within footprint_radius + look_margin)",
     )
     site_spacing: float = Field(
         4.0, gt=0, description="side of the world-aligned blocks that hold at most one site (m)"

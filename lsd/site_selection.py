@@ -56,6 +56,19 @@ def step_hazards(
     return level >= 2, level >= 1
 
 
+def step_room(fit: PlaneFit, settings: DetectorSettings, resolution: float) -> np.ndarray:
+    """(n, n) float64 distance in metres from each cell centre to the nearest cell that
+    sticks out of its footprint plane by more than ``max_step`` (whether or not the noise
+    tolerance forgives it), less half a cell; inf when no cell does (cells beyond the grid
+    do not count).
+    """
+    with np.errstate(invalid="ignore"):
+        level = fit.step > settings.max_step  # NaN (unobserved) is no step
+    if not level.any():
+        return np.full(level.shape, np.inf)
+    return site_size(~level, resolution)  # some cell is a step: no border distance
+
+
 def safe_mask(fit: PlaneFit, settings: DetectorSettings, hazard: np.ndarray) -> np.ndarray:
     """(n, n) bool: cells that are valid landing area.
 
@@ -154,6 +167,7 @@ def select_sites(
     origin_index: tuple[int, int],
     resolution: float,
     settings: DetectorSettings,
+    room: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Non-maximum suppression: at most one site per world-aligned block of the grid.
 
@@ -173,13 +187,16 @@ def select_sites(
         origin_index: world cell index of cell [0, 0].
         resolution: cell side, metres.
         settings: the detector settings.
+        room: (n, n) metres or None: a second radius that ranks cells (the smaller of it
+            and ``size`` counts) without deciding which cells may be sites, such as the
+            distance to the nearest step from :func:`step_room`.
 
     Returns:
         i, j: grid indices of the sites, each (k,) int64, best first, k <= ``max_sites``.
     """
     block = max(1, int(round(settings.site_spacing / resolution)))
     cap = settings.footprint_radius + 0.5 * block * resolution
-    capped = np.minimum(size, cap)
+    capped = np.minimum(size if room is None else np.minimum(size, room), cap)
     eligible = size >= settings.footprint_radius
     if not eligible.any():
         empty = np.zeros(0, dtype=np.int64)

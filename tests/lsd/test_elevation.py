@@ -192,6 +192,33 @@ def test_a_rock_smaller_than_a_cell_is_seen_from_very_low_too():
     assert plain and min(math.hypot(o.x - PEBBLE[0], o.y - PEBBLE[1]) for o in plain) < reach
 
 
+def test_low_down_a_forgiven_step_pushes_sites_away_or_leaves_them_doubtful():
+    # A noise tolerance so wide that the pebble's step is never a hazard, only forgiven:
+    # the 2.5 m look still places its sites clear of it by the footprint and its ring of
+    # look_margin, or reports them as seen from no lower than doubtful_altitude (so that
+    # they cannot verify).
+    settings = DetectorSettings(noise_tolerance=1000.0)
+    reach = settings.footprint_radius + settings.look_margin
+    detector = ElevationDetector(settings=settings)
+    observations = []
+    for k, height in enumerate((9.0, 7.0, 5.5, 4.5, 4.5)):
+        frame = render(pebble, (PEBBLE[0] + 0.8, PEBBLE[1], height), n=256, timestamp=k)
+        observations = detector.process(frame)
+    assert detector.low
+    close = [o for o in observations if o.observation_altitude < settings.doubtful_altitude]
+    assert close, "the flat ground beside the pebble still gives closely seen sites"
+    for o in close:
+        assert math.hypot(o.x - PEBBLE[0], o.y - PEBBLE[1]) >= reach - 0.1
+    near = [o for o in observations if math.hypot(o.x - PEBBLE[0], o.y - PEBBLE[1]) < reach]
+    assert all(o.observation_altitude >= settings.doubtful_altitude for o in near)
+    # Without the pebble the site of the same block lies nearer the camera.
+    plain = ElevationDetector(settings=settings)
+    for k, height in enumerate((9.0, 7.0, 5.5, 4.5, 4.5)):
+        frame = render(flat, (PEBBLE[0] + 0.8, PEBBLE[1], height), n=256, timestamp=k)
+        flat_sites = plain.process(frame)
+    assert min(math.hypot(o.x - PEBBLE[0], o.y - PEBBLE[1]) for o in flat_sites) < reach
+
+
 @pytest.mark.parametrize(("offset", "closely_seen"), [(0.0, True), (1.2, False)])
 def test_a_site_counts_as_seen_closely_only_if_the_ring_around_its_footprint_was(
     offset, closely_seen

@@ -1,11 +1,15 @@
-"""Site sizes from the distance transform of the safe mask: exact and reproducible."""
+"""Site sizes and step room from distance transforms: exact and reproducible."""
 
 from __future__ import annotations
+
+import dataclasses
 
 import numpy as np
 from scipy import ndimage
 
-from lsd.site_selection import site_size
+from lsd.elevation_settings import DetectorSettings
+from lsd.plane_fit import PlaneFit
+from lsd.site_selection import site_size, step_room
 
 
 def test_site_size_is_the_exact_distance_and_the_same_on_every_call():
@@ -17,3 +21,18 @@ def test_site_size_is_the_exact_distance_and_the_same_on_every_call():
     assert all(np.array_equal(sizes[0], s) for s in sizes[1:])
     exact = np.maximum(ndimage.distance_transform_edt(safe) - 0.5, 0.0) * resolution
     np.testing.assert_allclose(sizes[0], exact, atol=1e-5)
+
+
+def test_step_room_is_the_distance_to_the_nearest_step_beyond_max_step():
+    settings = DetectorSettings(max_step=0.05)
+    step = np.full((40, 30), 0.01, dtype=np.float32)
+    step[5, 5] = np.nan  # unobserved: no step
+    fit = PlaneFit(*(np.zeros_like(step) for _ in range(9)))
+    fit = dataclasses.replace(fit, step=step)
+    # No cell beyond max_step: unlimited room everywhere, the grid's border included.
+    assert np.isinf(step_room(fit, settings, 0.1)).all()
+    step[20, 10] = 0.06
+    room = step_room(fit, settings, 0.1)
+    i, j = np.indices(step.shape)
+    exact = np.maximum(np.hypot(i - 20, j - 10) - 0.5, 0.0) * 0.1
+    np.testing.assert_allclose(room, exact, atol=1e-5)
