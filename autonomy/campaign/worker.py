@@ -21,6 +21,7 @@ from autonomy.campaign.plan import RunTask
 #: Flight summary fields copied into every run record (``None`` when a flight lacks one).
 SUMMARY_FIELDS: tuple[str, ...] = (
     "outcome",
+    "outcome_hint",  # why the landing phase ended (no_site, battery_critical, gps_lost, ...)
     "touchdown_safe",
     "time_to_land",
     "distance",

@@ -38,8 +38,10 @@ def fly(mission: FakeMission, seed: int, out_dir: Any = None) -> dict[str, Any]:
     rng = np.random.default_rng(seed)
     landed = bool(rng.random() < mission.success_rate)
     touchdown = rng.normal(0.0, 20.0, size=2)
+    outcome = "landed" if landed else str(rng.choice(["crashed", "no_site"]))
     return {
-        "outcome": "landed" if landed else str(rng.choice(["crashed", "no_site"])),
+        "outcome": outcome,
+        "outcome_hint": "no_site" if outcome == "no_site" else None,
         "touchdown_safe": landed,
         "time_to_land": float(rng.uniform(60, 200)) if landed else None,
         "distance": float(rng.uniform(100, 500)),

@@ -37,6 +37,10 @@ def test_local_pool_runs_are_reproducible_and_complete(fakes, tmp_path):
     # Run i of every variant flies the same seed.
     assert [r["seed"] for r in first.records[:4]] == [r["seed"] for r in first.records[4:]]
     assert len({r["seed"] for r in first.records}) == 4
+    # Each record keeps why its landing phase ended, so outcomes can be re-derived later.
+    assert all(r["outcome_hint"] == ("no_site" if r["outcome"] == "no_site" else None)
+               for r in first.records)
+    assert any(r["outcome"] == "no_site" for r in first.records)
     summary = json.loads((tmp_path / "a" / "summary.json").read_text())
     assert [row["runs"] for row in summary["variants"]] == [4, 4]
     assert summary["variants"][0]["values"] == {"success_rate": 0.2}
