@@ -11,6 +11,7 @@ observations whose own position the ground truth calls safe.
 
     .venv/bin/python benchmarks/bench_verification.py [--worlds 6] [--spots 10]
         [--set max_step=0.07 ...]   # detector settings (perception.detection) to try
+        [--why]                     # why each safe spot that failed did not verify
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ import os
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import argparse  # noqa: E402
+from collections import Counter  # noqa: E402
 
 import numpy as np  # noqa: E402
 from pydantic import ValidationError  # noqa: E402
@@ -27,9 +29,45 @@ from pydantic import ValidationError  # noqa: E402
 from autonomy.config import load_mission  # noqa: E402
 from autonomy.perception.elevation import ElevationMapSource  # noqa: E402
 from behaviors.ports import VehicleState  # noqa: E402
+from lsd.elevation import ElevationDetector  # noqa: E402
+from lsd.site_selection import step_hazards  # noqa: E402
 from sitl.terrain import is_safe, make_terrain  # noqa: E402
 
 DESCENT = (20, 16, 13, 11, 9, 7.5, 6, 5, 4.2, 3.5, 3.0, 2.7)
+
+
+def why_not_verified(detector: ElevationDetector, x: float, y: float, hover_sites: list,
+                     ceiling: float) -> str:
+    """Why no site near (x, y) verified at the end of the hover: the last hover frame's
+    sites within the match radius (``hover_sites``) were all seen from too high, or doubtful,
+    or there was none, and then which test failed most among the cells within the footprint
+    radius of the spot."""
+    s = detector.settings
+    if hover_sites:
+        if all(o.observation_altitude >= s.doubtful_altitude for o in hover_sites):
+            return "site doubtful: a step beyond max_step forgiven by the noise tolerance nearby"
+        return f"site seen from above {ceiling:g} m: its ring not all in the close view"
+    analysis = detector.last_analysis
+    if analysis is None:
+        return "nothing observed"
+    fit, r = analysis.fit, analysis.resolution
+    xs = (analysis.origin_index[0] + np.arange(fit.height.shape[0]) + 0.5) * r
+    ys = (analysis.origin_index[1] + np.arange(fit.height.shape[1]) + 0.5) * r
+    disk = np.hypot(xs[:, None] - x, ys[None, :] - y) <= s.footprint_radius
+    hazard, _ = step_hazards(fit, s, r)
+    k = s.noise_tolerance
+    with np.errstate(invalid="ignore"):
+        failing = {
+            "step hazard: a step beyond max_step + the noise tolerance nearby": hazard,
+            "slope beyond max_slope": fit.slope - k * fit.slope_error > s.max_slope_rad,
+            "roughness beyond max_roughness":
+                fit.roughness**2 - k * fit.roughness_error > s.max_roughness**2,
+            "too few cells observed": fit.observed_fraction < s.min_observed_fraction,
+            "uncertainty beyond max_uncertainty": fit.sigma > s.max_uncertainty,
+        }
+    share = {reason: float(np.mean(mask[disk])) for reason, mask in failing.items()}
+    worst = max(share, key=share.get)
+    return worst if share[worst] > 0 else "no site: the safe area around the spot too small"
 
 
 def main() -> None:
@@ -39,6 +77,8 @@ def main() -> None:
     parser.add_argument("--spots", type=int, default=10, help="random spots per world")
     parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                         help="detector setting to override (repeatable)")
+    parser.add_argument("--why", action="store_true",
+                        help="tally why the safe spots that did not verify failed")
     args = parser.parse_args()
     mission = load_mission(args.mission)
     p = mission.perception
@@ -62,6 +102,7 @@ def main() -> None:
 
     outcomes: list[tuple[bool, bool]] = []  # (spot safe, spot verified)
     verifying_safe: list[bool] = []
+    why: Counter[str] = Counter()
     for seed in range(args.worlds):
         terrain = make_terrain(mission.world.model_copy(update={"size": (200.0, 200.0)}), seed)
         spots = np.random.default_rng(seed).uniform(-80, 80, size=(args.spots, 2))
@@ -72,14 +113,18 @@ def main() -> None:
             )
             ground = float(terrain.height(x, y))
             verifying: list[tuple[float, float]] = []
+            hover_sites: list = []  # the last hover frame's sites near the spot
             for t, agl in zip(times, heights, strict=True):
                 state = VehicleState(position=(x, y, ground + agl), yaw=0.0,
                                      rangefinder_agl=agl, link_lost=False)
-                for o in source.update(state, float(t)):
-                    close = np.hypot(o.x - x, o.y - y) <= radius
-                    if agl <= hover_altitude and close and o.observation_altitude <= ceiling:
-                        verifying.append((o.x, o.y))
+                observations = source.update(state, float(t))
+                if agl > hover_altitude:
+                    continue
+                hover_sites = [o for o in observations if np.hypot(o.x - x, o.y - y) <= radius]
+                verifying += [(o.x, o.y) for o in hover_sites if o.observation_altitude <= ceiling]
             outcomes.append((bool(safe), bool(verifying)))
+            if args.why and safe and not verifying:
+                why[why_not_verified(source.detector, x, y, hover_sites, ceiling)] += 1
             if verifying:
                 xy = np.array(verifying)
                 verifying_safe += list(is_safe(terrain, xy[:, 0], xy[:, 1]))
@@ -94,6 +139,10 @@ def main() -> None:
     share = 100 * np.mean(verifying_safe) if verifying_safe else float("nan")
     print(f"  precision: {sum(verifying_safe)} of {len(verifying_safe)} verifying "
           f"observations on safe ground ({share:.1f}%)")
+    if args.why:
+        print("  safe spots not verified, by reason (the last hover frame):")
+        for reason, count in why.most_common():
+            print(f"    {count:3d}  {reason}")
 
 
 if __name__ == "__main__":
