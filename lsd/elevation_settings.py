@@ -114,7 +114,8 @@ class DetectorSettings(BaseModel):
         description="ring beyond the footprint (m) whose cells count, with the footprint's, "
         "in a site's observation altitude: a site is only as closely seen as the ground under "
         "and around its footprint where a rock would make it unsafe (the ground truth's rotor "
-        "clearance)",
+        "clearance); in the fine map a step beyond max_step in this ring also makes the site "
+        "doubtful",
     )
     doubtful_altitude: float = Field(
         10.0,
