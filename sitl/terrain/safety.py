@@ -67,13 +67,6 @@ class _Disk:
         self.mask = np.abs(rows)[None, :] <= self.half_widths[:, None]
 
 
-def _row_widths(disk: _Disk):
-    """(w, offsets): each distinct row half-width w of ``disk`` and the row offsets k
-    (cells, -h .. h) of its rows that wide."""
-    for w in np.unique(disk.half_widths):
-        yield int(w), np.flatnonzero(disk.half_widths == w) - disk.half
-
-
 def _disk_moments(z: np.ndarray, disk: _Disk, cell_size: float):
     """Mean and least-squares plane gradient (d/dx, d/dy) of ``z`` over the disk around every
     cell of its last two axes (``scipy.ndimage.correlate`` with the disk's kernels)."""
@@ -93,15 +86,16 @@ def _disk_max(a: np.ndarray, disk: _Disk) -> np.ndarray:
     The disk is the union of its rows: the maxima over |dx| <= w along x, for w = 0 .. h,
     each from the previous by the maximum of two shifted views, then the maximum over the
     rows of the disk of the row-wide maxima shifted by the row offset. Same result as
-    ``maximum_filter(footprint=disk)``; on a 2001 x 2001 grid with disks of 5 and 7.5 cells,
-    measured 5-7 times faster than it, 3 times faster than the union of rectangles of
-    ``maximum_filter1d`` passes and 1.4 times faster than one ``maximum_filter1d`` per row
-    width.
+    ``maximum_filter(footprint=disk)`` (tested against it), and faster: every pass is a
+    whole-array ``np.maximum`` of two views.
     """
     h, (ny, nx) = disk.half, a.shape[-2:]
     lead = [(0, 0)] * (a.ndim - 2)
     padded = np.pad(a, lead + [(h, h), (h, h)], mode="edge")
-    widths = dict(_row_widths(disk))
+    # the row offsets k (cells, -h .. h) of the disk's rows of each half width w
+    rows_of_width: dict[int, list[int]] = {}
+    for k, w in zip(range(-h, h + 1), disk.half_widths.tolist(), strict=True):
+        rows_of_width.setdefault(w, []).append(k)
     out = np.full_like(a, -np.inf)
     # row_max[..., i, j]: maximum of padded[..., i, j .. j + 2w], centred on column j + w
     row_max = padded
@@ -111,7 +105,7 @@ def _disk_max(a: np.ndarray, disk: _Disk) -> np.ndarray:
             np.maximum(row_max, padded[..., 2:], out=row_max)
         elif w > 1:
             row_max = np.maximum(row_max[..., :-2], row_max[..., 2:])
-        for k in widths.get(w, ()):
+        for k in rows_of_width.get(w, ()):
             np.maximum(out, row_max[..., h + k : h + k + ny, h - w : h - w + nx], out=out)
     return out
 

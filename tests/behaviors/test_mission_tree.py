@@ -429,10 +429,18 @@ def test_a_mission_started_in_flight_climbs_without_a_takeoff_command():
     assert "takeoff" not in [name for name, _ in m.vehicle.commands]
 
 
-def false_positives_near_the_last_waypoint() -> list[ScriptedSite]:
-    """Eight scripted sites around (115, 5) that all fail verification."""
-    return [ScriptedSite(100.0 + 10.0 * (i % 4), 10.0 * (i // 4), fails_verification=True)
-            for i in range(8)]
+def fly_past_false_positives(battery: float, **landing):
+    """Fly to (110, 0) past eight scripted sites around (115, 5) that all fail verification,
+    from ``battery`` %, each landing try costing 6 %: the mission and its finished flight."""
+    sites = [ScriptedSite(100.0 + 10.0 * (i % 4), 10.0 * (i // 4), fails_verification=True)
+             for i in range(8)]
+    m = make_mission([(0, 0, 100), (110, 0, 100)], sites, landing=landing,
+                     vehicle={"battery": battery})
+
+    def drain(_tick):
+        m.vehicle.battery = battery - 6.0 * m.read(keys.VERIFICATION_ATTEMPTS)
+
+    return m, m.fly(on_tick=drain)
 
 
 def test_landing_tries_stop_while_the_battery_still_allows_a_landing_in_place():
@@ -440,15 +448,7 @@ def test_landing_tries_stop_while_the_battery_still_allows_a_landing_in_place():
     # costs 6 % of the battery. From 50 %: tries at 50, 44, 38, 32, 26; at 20 % another
     # 6 % try could end under the critical 15 %, so the phase stops and lands in place on
     # purpose, before the failsafe has anything to do.
-    sites = false_positives_near_the_last_waypoint()
-    m = make_mission([(0, 0, 100), (110, 0, 100)], sites,
-                     landing={"landing_retries": 12, "landing_try_battery": 5.0},
-                     vehicle={"battery": 50.0})
-
-    def drain(_tick):
-        m.vehicle.battery = 50.0 - 6.0 * m.read(keys.VERIFICATION_ATTEMPTS)
-
-    flight = m.fly(on_tick=drain)
+    m, flight = fly_past_false_positives(50.0, landing_retries=12, landing_try_battery=5.0)
 
     assert flight.status == Status.SUCCESS
     assert m.read(keys.VERIFICATION_ATTEMPTS) == 5
@@ -463,14 +463,7 @@ def test_landing_tries_stop_while_the_battery_still_allows_a_landing_in_place():
 
 def test_with_room_for_every_try_the_landing_phase_uses_them_all():
     # The same flight on a full battery: the try count ends the phase, not the battery.
-    sites = false_positives_near_the_last_waypoint()
-    m = make_mission([(0, 0, 100), (110, 0, 100)], sites,
-                     landing={"landing_retries": 4})
-
-    def drain(_tick):
-        m.vehicle.battery = 100.0 - 6.0 * m.read(keys.VERIFICATION_ATTEMPTS)
-
-    flight = m.fly(on_tick=drain)
+    m, flight = fly_past_false_positives(100.0, landing_retries=4)
 
     assert flight.status == Status.SUCCESS
     assert m.read(keys.VERIFICATION_ATTEMPTS) == 4
