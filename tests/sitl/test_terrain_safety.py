@@ -52,13 +52,15 @@ def test_obstacle_in_the_clearance_margin_is_unsafe_but_farther_away_it_is_not()
     assert is_safe(terrain, -1.5, 0.0)
 
 
-def test_30_degree_ramp_is_unsafe_and_10_degree_ramp_is_safe():
-    steep, gentle = ramp(30.0), ramp(10.0)
+@pytest.mark.parametrize("steep_deg", [30.0, 20.0])
+def test_a_steep_ramp_is_unsafe_and_a_10_degree_ramp_is_safe(steep_deg):
+    steep, gentle = ramp(steep_deg), ramp(10.0)
     assert not is_safe(steep, 0.0, 0.0)
     assert is_safe(gentle, 0.0, 0.0)
-    _, slope, roughness = safety_map(gentle, region=(-1, 1, -1, 1))
-    np.testing.assert_allclose(np.degrees(slope), 10.0, atol=0.01)
-    assert roughness.max() < 1e-3
+    for terrain, angle in ((steep, steep_deg), (gentle, 10.0)):
+        _, slope, roughness = safety_map(terrain, region=(-1, 1, -1, 1))
+        np.testing.assert_allclose(np.degrees(slope), angle, atol=0.01)
+        assert roughness.max() < 1e-3
 
 
 def test_slope_limit_is_a_setting():
@@ -162,15 +164,6 @@ def test_clearance_disk_includes_cells_on_its_rim():
     assert not is_safe(rock(1.25, 0.75), 0.0, 0.0)  # 1.46 m
     assert is_safe(rock(1.25, 1.0), 0.0, 0.0)  # 1.60 m
     assert is_safe(rock(1.75, 0.0), 0.0, 0.0)
-
-
-def test_20_degree_plane_is_unsafe_and_10_degree_plane_is_safe():
-    steep, gentle = ramp(20.0), ramp(10.0)
-    assert not is_safe(steep, 0.0, 0.0)
-    assert is_safe(gentle, 0.0, 0.0)
-    _, slope, roughness = safety_map(steep, region=(-1, 1, -1, 1))
-    np.testing.assert_allclose(np.degrees(slope), 20.0, atol=0.01)
-    assert roughness.max() < 1e-3
 
 
 def rocky(seed: int, shape=(61, 67)) -> Terrain:
