@@ -35,7 +35,10 @@ import argparse
 import gc
 import math
 import os
+import shutil
+import subprocess
 import sys
+import tempfile
 import time
 import tracemalloc
 from pathlib import Path
@@ -116,7 +119,7 @@ def peak_mb(fn, *args, **kwargs) -> float:
 
 
 RATIOS: dict[str, list[float]] = {"pca": [], "down": [], "down+pca": [], "lidar memory": [],
-                                   "depth time": [], "depth memory": []}
+                                   "depth time": [], "depth memory": [], "down vs PCL here": []}
 REPEATS = 5
 
 
@@ -376,6 +379,86 @@ def bench_field(clouds_field):
         note(why_not_10x(pd, pp, r7, clouds_field, s7))
 
 
+PCL_TIMER = Path(__file__).with_name("pcl_voxel_grid.cpp")
+
+
+def build_pcl_timer(workdir: Path) -> tuple[Path | None, str]:
+    """Compile pcl_voxel_grid.cpp against the installed PCL: ``(binary, PCL version)``, or
+    ``(None, why not)`` when PCL's headers or a C++ compiler are missing."""
+    cxx = shutil.which("g++") or shutil.which("c++")
+    if cxx is None or shutil.which("pkg-config") is None:
+        return None, "needs g++ and pkg-config"
+    version, flags = (
+        subprocess.run(["pkg-config", *query, "pcl_filters"], capture_output=True, text=True)
+        for query in (["--modversion"], ["--cflags", "--libs"])
+    )
+    if version.returncode != 0 or flags.returncode != 0:
+        return None, "PCL's headers are not installed (Debian: apt-get install libpcl-dev)"
+    version, flags = version.stdout.strip(), flags.stdout.split()
+    binary = workdir / "pcl_voxel_grid"
+    build = subprocess.run([cxx, "-O2", "-std=c++17", str(PCL_TIMER), "-o", str(binary), *flags],
+                           capture_output=True, text=True)
+    if build.returncode != 0:
+        return None, f"building {PCL_TIMER.name} failed: {build.stderr.strip().splitlines()[-1:]}"
+    return binary, version
+
+
+def pcl_down_ms(binary: Path, workdir: Path, clouds, voxels) -> dict[float, float | None]:
+    """Per voxel size, PCL's VoxelGrid ms (per cloud the least of REPEATS runs, mean over
+    clouds), or None where PCL refuses the voxel size (its int32 indices would overflow)."""
+    times: dict[float, list[float | None]] = {v: [] for v in voxels}
+    for i, cloud in enumerate(clouds):
+        path = workdir / f"cloud{i}.f64"
+        np.ascontiguousarray(cloud, dtype="<f8").tofile(path)
+        out = subprocess.run([str(binary), str(path), str(REPEATS), *map(str, voxels)],
+                             capture_output=True, text=True, check=True).stdout.splitlines()
+        for voxel, line in zip(voxels, out, strict=True):
+            fields = line.split()
+            times[voxel].append(None if fields[1] == "refused" else float(fields[2]))
+    return {v: None if None in t else float(np.mean(t)) for v, t in times.items()}
+
+
+def our_down_ms(clouds, voxel_size) -> float:
+    """Our voxel grid's ms, timed like :func:`run_lidar_config` (least of REPEATS, mean)."""
+    return float(np.mean([min(timed(voxel_grid, c, voxel_size)[1] for _ in range(REPEATS))
+                          for c in clouds]))
+
+
+def bench_pcl(clouds_env2, clouds_field):
+    """The paper's own voxel grid (PCL's pcl::VoxelGrid) on this machine and the same clouds:
+    how fast this machine runs it against the paper's figure, and ours against it."""
+    print("\n== the paper's voxel grid on this machine: PCL pcl::VoxelGrid on the same clouds ==")
+    with tempfile.TemporaryDirectory() as tmp:
+        workdir = Path(tmp)
+        binary, version = build_pcl_timer(workdir)
+        if binary is None:
+            print(f"   skipped: {version}")
+            return
+        print(f"   PCL {version} as packaged, called from benchmarks/{PCL_TIMER.name} "
+              f"(g++ -O2); PCL takes float32 points")
+        w = (7, 6, 11, 10, 9, 15, 14)
+        print(row(("scene", "voxel", "paper down", "PCL here", "our down", "paper/PCL here",
+                   "PCL here/ours"), w))
+        scenes = (("env II", clouds_env2, ((0.05, 15.507), (0.10, 15.7388), (0.5, 12.390),
+                                            (1.0, 11.733))),
+                  ("field", clouds_field, ((0.05, 5.333), (0.10, 4.493), (0.5, 3.695),
+                                           (1.0, 3.261))))
+        for name, clouds, paper in scenes:
+            pcl = pcl_down_ms(binary, workdir, clouds, [v for v, _ in paper])
+            for voxel, paper_ms in paper:
+                ours = our_down_ms(clouds, voxel)
+                here = pcl[voxel]
+                if here is None:
+                    print(row((name, voxel, f"{paper_ms:.2f}", "refused", f"{ours:.2f}",
+                               "-", "-"), w))
+                    continue
+                RATIOS["down vs PCL here"].append(here / ours)
+                print(row((name, voxel, f"{paper_ms:.2f}", f"{here:.2f}", f"{ours:.2f}",
+                           f"{paper_ms / here:.2f}x", f"{here / ours:.2f}x"), w))
+    print("   refused: PCL declines a voxel size whose int32 voxel indices would overflow "
+          "(the cloud's bounding box / voxel^3 > 2^31) and returns the cloud unfiltered")
+
+
 def depth_frames(n_frames: int):
     terrain = make_terrain({"kind": "rubble", "size": (120.0, 120.0)}, seed=3)
     cam = DepthCamera(
@@ -459,10 +542,13 @@ def main(argv=None) -> int:
     bench_table3(env1, note)
     bench_table4_5(env2, terrain2)
     bench_field(field)
+    bench_pcl(env2, field)
     bench_recall(terrain2)
     bench_table_i(depth_frames(8 if args.quick else 20))
     print("\n== summary: paper figure / ours (target >= 10x) ==")
     for name, ratios in RATIOS.items():
+        if name == "down vs PCL here":
+            continue
         print(f"   {name:<14} min {min(ratios):6.1f}x   median {np.median(ratios):6.1f}x   "
               f"({len(ratios)} figures)")
     for kind, floor in (("down", "one np.sort of the cloud's int64 keys + one sparse centroid "
@@ -472,6 +558,10 @@ def main(argv=None) -> int:
         print(f"   {kind} figures under 10x: {above + under}; measured floor ({floor}) already "
               f"above paper/10 for {above} of them, under it for {under} (printed under each "
               f"row)")
+    vs_pcl = RATIOS["down vs PCL here"]
+    if vs_pcl:
+        print(f"   down against PCL's VoxelGrid on this machine (PCL here / ours): min "
+              f"{min(vs_pcl):.1f}x, median {np.median(vs_pcl):.1f}x ({len(vs_pcl)} figures)")
     print(f"   total run {time.perf_counter() - t0:.0f} s; load average now "
           f"{os.getloadavg()[0]:.1f}")
     return 0
