@@ -90,10 +90,13 @@ class GetClearAltitude(MissionBehaviour):
 class GetLandingSite(MissionBehaviour):
     """Choose the best site (lowest loss at the drone position) and its clear altitude.
 
+    With ``verified_only``, only verified sites (``lsm.is_verified``: re-detected from the
+    verification altitude) are candidates: the last resort once the landing tries are spent.
+
     Writes LANDING_SITE and CLEAR_ALTITUDE (:func:`clear_altitude`).
 
     * SUCCESS: a site was chosen
-    * FAILURE: the LSM holds no site, or the vehicle position is unknown
+    * FAILURE: the LSM holds no (verified) site, or the vehicle position is unknown
     """
 
     def __init__(
@@ -104,12 +107,14 @@ class GetLandingSite(MissionBehaviour):
         *,
         buffer: float,
         failsafe_altitude: float,
+        verified_only: bool = False,
     ) -> None:
         super().__init__(name, phase="landing_phase")
         self.vehicle = vehicle
         self.lsm = lsm
         self.buffer = float(buffer)
         self.failsafe_altitude = float(failsafe_altitude)
+        self.verified_only = verified_only
         self.blackboard.register_key(key=keys.LANDING_SITE, access=Access.WRITE)
         self.blackboard.register_key(key=keys.CLEAR_ALTITUDE, access=Access.WRITE)
 
@@ -117,9 +122,14 @@ class GetLandingSite(MissionBehaviour):
         position = self.vehicle.state.position
         if position is None:
             return self.fail("vehicle position unknown")
-        site = self.lsm.best(position)
-        if site is None:
-            return self.fail("no landing site known")
+        if self.verified_only:
+            site = self.lsm.best_verified(position)
+            if site is None:
+                return self.fail("no verified landing site known")
+        else:
+            site = self.lsm.best(position)
+            if site is None:
+                return self.fail("no landing site known")
         z_clear = clear_altitude(site, position, self.buffer, self.failsafe_altitude)
         self.blackboard.set(keys.LANDING_SITE, site)
         self.blackboard.set(keys.CLEAR_ALTITUDE, z_clear)

@@ -26,12 +26,22 @@
              │   ├─ LandingSiteVerification    [bans the site on failure; landing.verify]
              │   ├─ Centre over verified site  [ChangeAltitudeLS to the verified record]
              │   └─ Land
+             ├─ Last resort: a verified site (Sequence, memory)  [OUTCOME_HINT "verified_site"]
+             │   [the tries are spent, but a site was verified meanwhile, e.g. beside
+             │    the last one tried: land there without another hover]
+             │   ├─ GetLandingSite (verified sites only)
+             │   ├─ NavigateToSite
+             │   ├─ Descend over the verified site [centring radius]
+             │   └─ Land
              └─ Land in place                  [OUTCOME_HINT "no_site"]
 
 The landing phase learns what a try costs (the largest battery drop of a finished try, at
 least ``landing_try_battery``) and stops trying while there is still room to land in place
 above the critical level: a flight that runs out of tries or of battery lands on purpose
-(outcome hint "no_site") rather than being caught mid-try by the failsafe, whose landing
+rather than being caught mid-try by the failsafe: on the best verified site if the LSM holds
+one (outcome hint "verified_site"; no hover, the site was already seen safe from the
+verification altitude, and such a site is usually the one the last hover found beside the
+failed one), else in place (outcome hint "no_site"). The failsafe, whose landing
 wherever the vehicle is is reported as its own outcome (OUTCOME_HINT "battery_critical" or
 "gps_lost"). The pattern retries keep py_trees' plain ``Retry``: every search behaviour
 already stops at the battery reserve, a stricter bound than the critical level, and a
@@ -272,6 +282,56 @@ def build_mission_tree(
             _within(Land("Land", vehicle, clock, command_timeout=cmd), clock, nav),
         ],
     )
+    # After the last try: a site verified along the way (seen safe from the verification
+    # altitude, not banned) beats landing blind over the site that just failed.
+    last_resort = Sequence(
+        "Last resort: a verified site",
+        memory=True,
+        children=[
+            GetLandingSite(
+                "Get a verified site",
+                vehicle,
+                lsm,
+                buffer=s.clear_altitude_buffer,
+                failsafe_altitude=s.failsafe_altitude,
+                verified_only=True,
+            ),
+            _within(
+                NavigateToSite(
+                    "Fly to the verified site",
+                    vehicle,
+                    clock,
+                    acceptance_radius=radius,
+                    command_timeout=cmd,
+                ),
+                clock,
+                nav,
+            ),
+            _within(
+                ChangeAltitudeLS(
+                    "Descend over the verified site",
+                    vehicle,
+                    clock,
+                    s.verification_altitude,
+                    acceptance_radius=s.centring_radius,
+                    command_timeout=cmd,
+                ),
+                clock,
+                nav,
+            ),
+            _within(
+                Land(
+                    "Land on the verified site",
+                    vehicle,
+                    clock,
+                    outcome_hint="verified_site",
+                    command_timeout=cmd,
+                ),
+                clock,
+                nav,
+            ),
+        ],
+    )
     landing = Selector(
         "Landing",
         memory=True,
@@ -284,6 +344,7 @@ def build_mission_tree(
                 critical=s.battery_critical,
                 attempt_cost=s.landing_try_battery,
             ),
+            last_resort,
             _within(
                 Land(
                     "Land in place",

@@ -71,7 +71,8 @@ class RankedSites(Sequence[LandingSite]):
     """Retained sites in ascending loss: a sorted copy taken under the manager's lock.
 
     Indexing builds :class:`LandingSite` records on demand, so ranking 10,000 sites costs
-    array work only. ``ids`` and ``losses`` are the sorted arrays.
+    array work only. ``ids``, ``losses`` and ``verification_altitudes`` are the sorted
+    arrays.
     """
 
     def __init__(self, columns: dict[str, np.ndarray], sources: list[str]) -> None:
@@ -79,6 +80,7 @@ class RankedSites(Sequence[LandingSite]):
         self._sources = sources
         self.ids: np.ndarray = columns["id"]
         self.losses: np.ndarray = columns["loss"]
+        self.verification_altitudes: np.ndarray = columns["verification_altitude"]
 
     def __len__(self) -> int:
         return len(self.ids)
@@ -304,6 +306,15 @@ class LandingSiteManager:
         """The lowest-loss site, or None when no site is retained."""
         ranking = self.ranked(drone_position)
         return ranking[0] if len(ranking) else None
+
+    def best_verified(self, drone_position: Sequence[float] | None = None) -> LandingSite | None:
+        """The lowest-loss verified site (:meth:`is_verified`), or None when no retained
+        site has been (re-)detected from the verification altitude."""
+        ranking = self.ranked(drone_position)
+        s = self.settings
+        limit = s.verification_altitude + s.verification_tolerance
+        verified = np.flatnonzero(ranking.verification_altitudes <= limit)
+        return ranking[int(verified[0])] if len(verified) else None
 
     def get(self, site_id: int) -> LandingSite | None:
         """The retained site with this id (its loss at the current drone position), or None."""

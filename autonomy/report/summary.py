@@ -15,14 +15,17 @@ from behaviors.blackboard import FAILSAFE_KINDS
 
 OUTCOMES = ("landed", "landed_unsafe", "crashed", "no_site", "failsafe", "aborted")
 """landed: touched down and disarmed on ground-truth-safe ground (or unjudged ground when
-there is no simulated truth); landed_unsafe: touched down on unsafe ground; crashed: the
-simulator flagged a crash; no_site: no landing try was left (by count or by battery) and the
-vehicle landed in place on purpose; failsafe: a failsafe (critical battery, GPS loss) took
-over and landed wherever the vehicle was, on safe ground or not; aborted: the mission
-failed, hit the time limit or was interrupted before landing."""
+there is no simulated truth), on a verified site or, once the landing tries are spent, on
+the best site verified earlier (outcome hint "verified_site"); landed_unsafe: touched down on
+unsafe ground; crashed: the simulator flagged a crash; no_site: no landing try was left (by
+count or by battery) and no verified site either: the vehicle landed in place on purpose;
+failsafe: a failsafe (critical battery, GPS loss) took over and landed wherever the vehicle
+was, on safe ground or not; aborted: the mission failed, hit the time limit or was
+interrupted before landing."""
 
 HINT_WORDS = {
     "no_site": "no landing try left; landed in place",
+    "verified_site": "no landing try left; landed on the best site verified earlier",
     "battery_critical": "the battery reached the critical level; landed where it was",
     "gps_lost": "the 3D GPS fix was lost; landed where it was",
     "battery_reserve": "waypoints skipped at the battery reserve",

@@ -249,6 +249,40 @@ def test_every_landing_retry_exhausted_lands_in_place_with_no_site_hint():
     assert xy_distance(m.vehicle.position, m.vehicle.gotos()[-1]) <= 1.0
 
 
+def test_with_the_tries_spent_it_lands_on_a_site_verified_beside_the_last_one():
+    # One landing try. The hover over the chosen false positive also sees, from low
+    # altitude, a rougher site 4 m away (a wide footprint): it is verified but never tried.
+    # With the try spent, landing in place would come down on the ground that just failed
+    # verification; it lands on the verified site instead.
+    false_positive = ScriptedSite(120.0, 10.0, roughness=0.05, fails_verification=True)
+    beside = ScriptedSite(124.0, 10.0, roughness=0.5)
+    m = make_mission([(0, 0, 100), (150, 0, 100)], [false_positive, beside],
+                     landing={"landing_retries": 1}, footprint=2.0)
+
+    flight = m.fly()
+
+    assert_landed_at(m, flight, beside)
+    assert m.read(keys.OUTCOME_HINT) == "verified_site"
+    assert m.read(keys.VERIFICATION_ATTEMPTS) == 1  # no second hover
+    assert m.read(keys.BANNED_SITES) == 1
+    assert m.read(keys.LANDING_SITE).x == beside.x
+    assert xy_distance(m.vehicle.position, (beside.x, beside.y)) <= m.plan.landing.centring_radius
+
+
+def test_with_the_tries_spent_and_no_verified_site_it_lands_in_place():
+    # The same flight without the site beside: nothing verified, so it lands where it is.
+    false_positive = ScriptedSite(120.0, 10.0, roughness=0.05, fails_verification=True)
+    m = make_mission([(0, 0, 100), (150, 0, 100)], [false_positive],
+                     landing={"landing_retries": 1}, footprint=2.0)
+
+    flight = m.fly()
+
+    assert flight.status == Status.SUCCESS
+    assert m.read(keys.OUTCOME_HINT) == "no_site"
+    assert m.vehicle.commands[-1][0] == "land"
+    assert xy_distance(m.vehicle.position, (false_positive.x, false_positive.y)) <= 1.0
+
+
 def test_denied_takeoff_fails_the_mission_with_the_autopilot_reason():
     reason = "PreArm: Battery below minimum arming voltage"
     m = make_mission([(0, 0, 100)], [ScriptedSite(10, 0)], vehicle={"deny": {"takeoff": reason}})

@@ -169,6 +169,19 @@ def test_verified_means_verification_altitude_within_tolerance():
     assert not m.is_verified(by_x[10])
 
 
+def test_best_verified_is_the_lowest_loss_site_seen_from_the_verification_altitude():
+    m = manager(verification_altitude=2.5, verification_tolerance=0.5)
+    feed(m, obs(0, 0, rough=0.0, alt=40.0), obs(10, 0, rough=0.6, alt=2.6),
+         obs(20, 0, rough=0.3, alt=2.9), obs(30, 0, rough=0.1, alt=3.1))
+    assert m.best((0, 0, 10)).x == 0  # the best site overall is not verified
+    assert m.best_verified((0, 0, 10)).x == 20  # of the verified two, the lower loss
+    m.ban(m.best_verified().id)
+    assert m.best_verified().x == 10
+    m.ban(m.best_verified().id)
+    assert m.best_verified() is None  # 3.1 m is beyond 2.5 + 0.5
+    assert len(m.ranked()) == 2
+
+
 def test_snapshot_is_a_copy():
     m = manager()
     feed(m, obs(0, 0))
