@@ -50,7 +50,8 @@ class LandingSettings(BaseModel):
         3, ge=1, description="Retry(M): attempts of GetNextPatternCenterWP + LandingSiteSearch"
     )
     landing_retries: int = Field(
-        5, ge=1, description="Retry(N): attempts of the landing phase (sites tried)"
+        10, ge=1, description="Retry(N): attempts of the landing phase (sites tried); each "
+        "new try also needs the battery to allow it (landing_try_battery)"
     )
     landing_try_battery: float = Field(
         5.0, ge=0, le=100, description="% of battery a landing try is expected to cost at "
