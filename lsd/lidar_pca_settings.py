@@ -56,7 +56,13 @@ class LidarPcaSettings(BaseModel):
         None, gt=0, description="grid seeding cell (m); default r_max"
     )
     n_min: int = Field(10, ge=3, description="fewest neighbourhood points for a PCA fit")
-    r_min: float = Field(1.0, gt=0, description="first neighbourhood radius (m)")
+    r_min: float = Field(
+        1.5,
+        gt=0,
+        description="first neighbourhood radius (m), the smallest spot accepted: by default "
+        "our vehicle's footprint (1 m) and clearance margin (0.5 m), as the ground truth's "
+        "clearance disk (the paper's tables use 0.5)",
+    )
     r_max: float = Field(3.0, gt=0, description="largest neighbourhood radius (m)")
     r_step: float = Field(0.5, gt=0, description="radius increment (m)")
     theta_max_deg: float = Field(15.0, gt=0, lt=90, description="steepest plane accepted (deg)")

@@ -356,7 +356,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     lidar.add_argument("--voxel", type=float, help="voxel size (m), default 0.05")
     lidar.add_argument("--seeding", choices=("random", "grid"), help="search points")
     lidar.add_argument("--n-points", type=int, help="random search points, default 20")
-    lidar.add_argument("--r-min", type=float, help="first radius (m), default 1")
+    lidar.add_argument("--r-min", type=float, help="smallest spot radius (m), default 1.5")
     lidar.add_argument("--r-max", type=float, help="largest radius (m), default 3")
     lidar.add_argument("--r-step", type=float, help="radius step (m), default 0.5")
     lidar.add_argument("--sigma-max", type=float, help="largest z std (m), default 0.2")

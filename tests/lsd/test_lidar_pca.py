@@ -87,6 +87,31 @@ def test_flat_square_with_box_spots_only_on_flat_ground_clear_of_the_box():
     assert all(o.obstacle_altitude == pytest.approx(1.5, abs=0.06) for o in np.array(obs)[reach])
 
 
+def roof_scene(side):
+    """A flat square roof ``side`` m across at z = 10 m, its walls, and flat ground around."""
+    half = side / 2.0
+    g = grid(-8.0, 8.0, -8.0, 8.0)
+    on_roof = (np.abs(g[:, 0]) <= half) & (np.abs(g[:, 1]) <= half)
+    t = np.arange(-half, half + 1e-9, STEP)
+    tt, zz = (a.ravel() for a in np.meshgrid(t, np.arange(0.0, 10.0, STEP)))
+    walls = [np.c_[np.full_like(tt, sx * half), tt, zz] for sx in (-1, 1)]
+    walls += [np.c_[tt, np.full_like(tt, sy * half), zz] for sy in (-1, 1)]
+    return np.concatenate([np.c_[g[on_roof], np.full(on_roof.sum(), 10.0)],
+                           np.c_[g[~on_roof], np.zeros((~on_roof).sum())], *walls])
+
+
+@pytest.mark.parametrize("side, landable", [(2.6, False), (4.0, True)])
+def test_by_default_no_spot_is_smaller_than_the_footprint_and_its_margin(side, landable):
+    # Our vehicle needs 1 m of footprint and 0.5 m of clearance (the ground truth's disks):
+    # a roof 2.6 m across leaves 1.3 m around its centre, so the default detector reports
+    # no spot on it; on a roof 4 m across it does, at least 1.5 m in radius.
+    det = LidarPcaDetector(LidarPcaSettings(voxel_size=0.1, seeding="grid", grid_spacing=1.0))
+    det.process(roof_scene(side))
+    on_roof = [o for o in det.observations() if o.z > 9.0]
+    assert bool(on_roof) is landable
+    assert all(o.size >= 1.5 - 1e-9 for o in det.observations())
+
+
 def test_thirty_degree_ramp_is_rejected_as_too_steep():
     g = grid(-8, 8, -8, 8)
     ramp = np.c_[g, g[:, 0] * math.tan(math.radians(30.0))]
