@@ -3,6 +3,8 @@ keeps a mission ended by a failsafe from restarting."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import py_trees
 from py_trees.common import Access, Status
 
@@ -40,6 +42,38 @@ class BatteryReserve(MissionBehaviour):
         if self.blackboard.get(keys.OUTCOME_HINT) is None:
             self.blackboard.set(keys.OUTCOME_HINT, "battery_reserve")
         self.feedback_message = f"battery at or below the reserve {self.level:g} %"
+        return Status.SUCCESS
+
+
+class BatteryAllows(MissionBehaviour):
+    """Condition: the battery leaves room for a flight expected to cost ``cost()`` percentage
+    points without reaching the ``critical`` level (``battery - cost() >= critical``).
+
+    * SUCCESS: the battery allows it, or its level is unknown (then nothing guards)
+    * FAILURE: the flight could end below the critical level
+    """
+
+    def __init__(
+        self, name: str, vehicle: VehiclePort, critical: float, cost: Callable[[], float]
+    ) -> None:
+        super().__init__(name)
+        self.vehicle = vehicle
+        self.critical = float(critical)
+        self.cost = cost
+
+    def update(self) -> Status:
+        battery = self.vehicle.state.battery_percent
+        if battery is None:
+            self.feedback_message = "battery level unknown"
+            return Status.SUCCESS
+        cost = self.cost()
+        if battery - cost < self.critical:
+            self.feedback_message = (
+                f"battery {battery:.1f} % leaves no room for a flight of up to {cost:.1f} % "
+                f"above the critical {self.critical:g} %"
+            )
+            return Status.FAILURE
+        self.feedback_message = f"battery {battery:.1f} %, a flight costs up to {cost:.1f} %"
         return Status.SUCCESS
 
 

@@ -29,6 +29,7 @@
              ├─ Last resort: a verified site (Sequence, memory)  [OUTCOME_HINT "verified_site"]
              │   [the tries are spent, but a site was verified meanwhile, e.g. beside
              │    the last one tried: land there without another hover]
+             │   ├─ Battery allows the flight?  [what a try has cost, above the critical level]
              │   ├─ GetLandingSite (verified sites only)
              │   ├─ NavigateToSite
              │   ├─ Descend over the verified site [centring radius]
@@ -37,15 +38,15 @@
 
 The landing phase learns what a try costs (the largest battery drop of a finished try, at
 least ``landing_try_battery``) and stops trying while there is still room to land in place
-above the critical level: a flight that runs out of tries or of battery lands on purpose
-rather than being caught mid-try by the failsafe: on the best verified site if the LSM holds
-one (outcome hint "verified_site"; no hover, the site was already seen safe from the
-verification altitude, and such a site is usually the one the last hover found beside the
-failed one), else in place (outcome hint "no_site"). The failsafe, whose landing
-wherever the vehicle is is reported as its own outcome (OUTCOME_HINT "battery_critical" or
-"gps_lost"). The pattern retries keep py_trees' plain ``Retry``: every search behaviour
-already stops at the battery reserve, a stricter bound than the critical level, and a
-search cut short only ends the search.
+above the critical level. A flight that runs out of tries or of battery then lands on
+purpose rather than being caught mid-try by the failsafe: on the best verified site the LSM
+holds, if any and if the battery allows what a try has cost (outcome hint "verified_site";
+no new hover, the site was already seen safe from the verification altitude, e.g. by the
+last hover beside the site that failed), else in place (outcome hint "no_site"). The
+failsafe's own landing, wherever the vehicle is, is reported as its own outcome
+(OUTCOME_HINT "battery_critical" or "gps_lost"). The pattern retries keep py_trees' plain
+``Retry``: every search behaviour already stops at the battery reserve, a stricter bound
+than the critical level, and a search cut short only ends the search.
 
 Every action that flies or waits runs under a :class:`~behaviors.decorators.ClockTimeout`
 (``navigation_timeout``; ``preflight_timeout`` for Preflight); a denied or unanswered
@@ -67,7 +68,13 @@ from py_trees.decorators import Retry
 
 from behaviors import blackboard
 from behaviors.decorators import ClockTimeout, RetryWhileBattery
-from behaviors.failsafe import BatteryCritical, BatteryReserve, GpsLost, NoFailsafe
+from behaviors.failsafe import (
+    BatteryAllows,
+    BatteryCritical,
+    BatteryReserve,
+    GpsLost,
+    NoFailsafe,
+)
 from behaviors.flight import (
     ChangeAltitudeLS,
     Land,
@@ -282,12 +289,27 @@ def build_mission_tree(
             _within(Land("Land", vehicle, clock, command_timeout=cmd), clock, nav),
         ],
     )
+    landing_phase = RetryWhileBattery(
+        "Landing phase",
+        attempt,
+        vehicle,
+        s.landing_retries,
+        critical=s.battery_critical,
+        attempt_cost=s.landing_try_battery,
+    )
     # After the last try: a site verified along the way (seen safe from the verification
-    # altitude, not banned) beats landing blind over the site that just failed.
+    # altitude, not banned) beats landing blind over the site that just failed, if the
+    # battery allows the flight (bounded by what a whole try has cost, hover included).
     last_resort = Sequence(
         "Last resort: a verified site",
         memory=True,
         children=[
+            BatteryAllows(
+                "Battery allows the flight?",
+                vehicle,
+                critical=s.battery_critical,
+                cost=lambda: landing_phase.expected_cost,
+            ),
             GetLandingSite(
                 "Get a verified site",
                 vehicle,
@@ -336,14 +358,7 @@ def build_mission_tree(
         "Landing",
         memory=True,
         children=[
-            RetryWhileBattery(
-                "Landing phase",
-                attempt,
-                vehicle,
-                s.landing_retries,
-                critical=s.battery_critical,
-                attempt_cost=s.landing_try_battery,
-            ),
+            landing_phase,
             last_resort,
             _within(
                 Land(

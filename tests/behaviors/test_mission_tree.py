@@ -269,6 +269,31 @@ def test_with_the_tries_spent_it_lands_on_a_site_verified_beside_the_last_one():
     assert xy_distance(m.vehicle.position, (beside.x, beside.y)) <= m.plan.landing.centring_radius
 
 
+def test_a_verified_site_is_not_flown_to_when_the_battery_leaves_no_room():
+    # The flight of the test above from 26.5 %, each try costing 6 %: after the one try the
+    # battery is at 20.5 %, and another 6 % could end under the critical 15 %, so it lands in
+    # place although a verified site is 4 m away.
+    false_positive = ScriptedSite(120.0, 10.0, roughness=0.05, fails_verification=True)
+    beside = ScriptedSite(124.0, 10.0, roughness=0.5)
+    m = make_mission([(0, 0, 100), (150, 0, 100)], [false_positive, beside],
+                     landing={"landing_retries": 1, "landing_try_battery": 6.0,
+                              "battery_reserve": 20.0},
+                     vehicle={"battery": 26.5}, footprint=2.0)
+
+    def drain(_tick):
+        m.vehicle.battery = 26.5 - 6.0 * m.read(keys.VERIFICATION_ATTEMPTS)
+
+    flight = m.fly(on_tick=drain)
+
+    assert flight.status == Status.SUCCESS
+    assert m.lsm.best_verified() is not None
+    assert m.read(keys.OUTCOME_HINT) == "no_site"
+    assert m.read(keys.FAILSAFE) is None
+    assert xy_distance(m.vehicle.position, (false_positive.x, false_positive.y)) <= 1.0
+    guard = next(n for n in m.tree.root.iterate() if n.name == "Battery allows the flight?")
+    assert "battery 20.5 % leaves no room" in guard.feedback_message
+
+
 def test_with_the_tries_spent_and_no_verified_site_it_lands_in_place():
     # The same flight without the site beside: nothing verified, so it lands where it is.
     false_positive = ScriptedSite(120.0, 10.0, roughness=0.05, fails_verification=True)

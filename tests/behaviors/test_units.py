@@ -17,7 +17,7 @@ from behaviors import blackboard as keys
 from behaviors import render_ascii, write_dot
 from behaviors.decorators import ClockTimeout, RetryWhileBattery
 from behaviors.display import dot_text
-from behaviors.failsafe import BatteryCritical, GpsLost
+from behaviors.failsafe import BatteryAllows, BatteryCritical, GpsLost
 from behaviors.landing import GetClearAltitude, clear_altitude
 from behaviors.search import random_point_in_disc, rectangle_pattern
 from behaviors.settings import LandingSettings, MissionPlan
@@ -246,6 +246,18 @@ def test_the_landing_phase_is_bounded_by_the_critical_level_and_the_try_cost_set
     )
     phase, = (n for n in tree.root.iterate() if isinstance(n, RetryWhileBattery))
     assert (phase.name, phase.critical, phase.attempt_cost) == ("Landing phase", 12, 7.5)
+
+
+@pytest.mark.parametrize(
+    "battery, cost, status",
+    [(30.0, 10.0, Status.SUCCESS), (24.0, 10.0, Status.FAILURE), (None, 90.0, Status.SUCCESS)],
+)
+def test_battery_allows_a_flight_only_above_the_critical_level(battery, cost, status):
+    # Critical 15 %: 30 - 10 stays above it, 24 - 10 would not; an unknown level does not guard.
+    vehicle = FakeVehicle(SimClock(), battery=battery)
+    guard = BatteryAllows("guard", vehicle, critical=15.0, cost=lambda: cost)
+    guard.tick_once()
+    assert guard.status == status
 
 
 def test_every_failsafe_writes_a_kind_the_reports_know():
