@@ -7,6 +7,7 @@ import py_trees
 from py_trees.common import Access, Status
 
 from behaviors import blackboard as keys
+from behaviors.failsafe import battery_leaves_room
 from behaviors.ports import Clock, VehiclePort
 
 
@@ -136,7 +137,7 @@ class RetryWhileBattery(py_trees.decorators.Retry):
         if status != Status.RUNNING:
             return status
         # The child failed and Retry would try again.
-        if battery is not None and battery - self.expected_cost < self.critical:
+        if not battery_leaves_room(battery, self.expected_cost, self.critical):
             reason = (
                 f"battery {battery:.1f} % leaves no room for another try: a try has cost up "
                 f"to {self.largest_drop:.1f} % (at least {self.attempt_cost:g} % assumed), "

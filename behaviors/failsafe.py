@@ -45,6 +45,12 @@ class BatteryReserve(MissionBehaviour):
         return Status.SUCCESS
 
 
+def battery_leaves_room(battery: float | None, cost: float, critical: float) -> bool:
+    """True when a flight costing ``cost`` percentage points from ``battery`` % stays at or
+    above the ``critical`` level; an unknown level (None) does not guard."""
+    return battery is None or battery - cost >= critical
+
+
 class BatteryAllows(MissionBehaviour):
     """Condition: the battery leaves room for a flight expected to cost ``cost()`` percentage
     points without reaching the ``critical`` level (``battery - cost() >= critical``).
@@ -67,7 +73,7 @@ class BatteryAllows(MissionBehaviour):
             self.feedback_message = "battery level unknown"
             return Status.SUCCESS
         cost = self.cost()
-        if battery - cost < self.critical:
+        if not battery_leaves_room(battery, cost, self.critical):
             self.feedback_message = (
                 f"battery {battery:.1f} % leaves no room for a flight of up to {cost:.1f} % "
                 f"above the critical {self.critical:g} %"

@@ -122,14 +122,10 @@ class GetLandingSite(MissionBehaviour):
         position = self.vehicle.state.position
         if position is None:
             return self.fail("vehicle position unknown")
-        if self.verified_only:
-            site = self.lsm.best_verified(position)
-            if site is None:
-                return self.fail("no verified landing site known")
-        else:
-            site = self.lsm.best(position)
-            if site is None:
-                return self.fail("no landing site known")
+        best = self.lsm.best_verified if self.verified_only else self.lsm.best
+        site = best(position)
+        if site is None:
+            return self.fail(f"no {'verified ' if self.verified_only else ''}landing site known")
         z_clear = clear_altitude(site, position, self.buffer, self.failsafe_altitude)
         self.blackboard.set(keys.LANDING_SITE, site)
         self.blackboard.set(keys.CLEAR_ALTITUDE, z_clear)

@@ -311,9 +311,7 @@ class LandingSiteManager:
         """The lowest-loss verified site (:meth:`is_verified`), or None when no retained
         site has been (re-)detected from the verification altitude."""
         ranking = self.ranked(drone_position)
-        s = self.settings
-        limit = s.verification_altitude + s.verification_tolerance
-        verified = np.flatnonzero(ranking.verification_altitudes <= limit)
+        verified = np.flatnonzero(ranking.verification_altitudes <= self._verified_below)
         return ranking[int(verified[0])] if len(verified) else None
 
     def get(self, site_id: int) -> LandingSite | None:
@@ -329,8 +327,12 @@ class LandingSiteManager:
     def is_verified(self, site: LandingSite) -> bool:
         """True when the site was (re-)detected at or below the verification altitude
         (plus the tolerance)."""
-        s = self.settings
-        return site.verification_altitude <= s.verification_altitude + s.verification_tolerance
+        return site.verification_altitude <= self._verified_below
+
+    @property
+    def _verified_below(self) -> float:
+        """The highest verification altitude (m) that counts as verified."""
+        return self.settings.verification_altitude + self.settings.verification_tolerance
 
     def counters(self) -> dict[str, int]:
         """Counts of what happened to observations and sites.
