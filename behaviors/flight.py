@@ -12,7 +12,9 @@ GPS_FIX_3D = 3
 
 
 class Preflight(MissionBehaviour):
-    """Wait until the vehicle is ready to fly: link up, position known, 3D GPS fix, prearm ok.
+    """Wait until the vehicle is ready to fly: link up, position known, 3D GPS fix, the
+    autopilot's own position estimate (ArduPilot judges its prearm bit for the current mode,
+    e.g. STABILIZE, and still refuses to arm in GUIDED without one), prearm ok.
 
     Sends no command. Wrap it in :class:`behaviors.decorators.ClockTimeout` to bound the wait.
 
@@ -46,6 +48,8 @@ class Preflight(MissionBehaviour):
             missing.append("position")
         if state.gps_fix < GPS_FIX_3D:
             missing.append(f"3D GPS fix (fix type {state.gps_fix})")
+        if not (state.position_estimate or state.armed):
+            missing.append("the autopilot's position estimate")
         if not (state.prearm_ok or state.armed):  # armed already: the checks were passed
             text = f" ({state.last_status_text})" if state.last_status_text else ""
             missing.append(f"prearm checks{text}")

@@ -74,6 +74,7 @@ class VehicleState:
     heartbeat_age: float = float("inf")  # s since the last autopilot HEARTBEAT
     link_lost: bool = True
     prearm_ok: bool = False
+    position_estimate: bool = False  # the autopilot knows where it is (GUIDED needs it to arm)
     autopilot: str = "unknown"  # "ardupilot", "px4" or "unknown"
     last_status_text: str = ""
 

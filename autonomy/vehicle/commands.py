@@ -5,7 +5,9 @@ A :class:`Handle` is what every driver command returns (it satisfies
 followed until its COMMAND_ACK: matched by command id (one command of a given id in flight at a
 time, later ones wait in a queue), re-sent with ``confirmation`` incremented when no ACK comes,
 optionally confirmed by what the autopilot reports afterwards (a mode change is only done when
-HEARTBEAT.custom_mode shows it), and ended on a timeout in the injected clock's time.
+HEARTBEAT.custom_mode shows it), and ended on a timeout in the injected clock's time. A refusing
+ACK is final only after a short grace for the STATUSTEXT that explains it, which ArduPilot
+sends just after the ACK ("Arm: Need Position Estimate").
 A :class:`Procedure` chains steps (set mode, arm, take off) as a generator that yields the
 sub-handle it waits for.
 """
@@ -92,7 +94,8 @@ class CommandStep(Handle):
             the new mode in HEARTBEAT); with it, an accepting ACK only moves the handle to
             IN_PROGRESS, and the effect alone (even without an ACK) makes it ACCEPTED.
         unconfirmed_reason: says what the autopilot shows instead, for the denial message.
-        denied_reason: gives extra words for a denial (e.g. the latest PreArm text).
+        denied_reason: gives extra words for a denial (e.g. the latest PreArm text), used
+            when no STATUSTEXT arrives within the grace after the refusing ACK.
     """
 
     __slots__ = (
@@ -105,6 +108,8 @@ class CommandStep(Handle):
         "last_sent",
         "acked",
         "in_progress_since",
+        "refusal",
+        "refused_at",
     )
 
     def __init__(
@@ -128,6 +133,8 @@ class CommandStep(Handle):
         self.last_sent: float | None = None
         self.acked = False  # an accepting ACK arrived, now waiting for confirmation
         self.in_progress_since: float | None = None
+        self.refusal = ""  # "MAV_CMD_...: MAV_RESULT_..." of a refusing ACK awaiting its text
+        self.refused_at: float | None = None
 
 
 @dataclass
@@ -138,6 +145,7 @@ class TrackerSettings:
     attempts: int = 4  # COMMAND_LONGs sent at most (the first + re-sends)
     in_progress_timeout: float = 30.0  # after MAV_RESULT_IN_PROGRESS, wait this long
     confirm_timeout: float = 3.0  # after an accepting ACK, wait this long for the effect
+    refusal_text_grace: float = 0.5  # after a refusing ACK, wait this long for its STATUSTEXT
 
 
 class CommandTracker:
@@ -202,17 +210,36 @@ class CommandTracker:
         elif result == mavlink.MAV_RESULT_IN_PROGRESS:
             step.in_progress_since = now
             step._set(CommandStatus.IN_PROGRESS)
-        else:
-            words = f"{mav_cmd_name(command)}: {mav_result_name(result)}"
-            extra = step.denied_reason() if step.denied_reason else ""
-            step._set(CommandStatus.DENIED, f"{extra} ({words})" if extra else words, now)
+        elif step.refused_at is None:
+            step.refusal = f"{mav_cmd_name(command)}: {mav_result_name(result)}"
+            step.refused_at = now
+            if self.settings.refusal_text_grace <= 0:
+                self._refuse(step, None, now)
         self._retire(now)
+
+    def on_text(self, text: str, now: float) -> None:
+        """A STATUSTEXT worth reporting arrived: it explains the refusals awaiting one."""
+        for step in self._in_flight.values():
+            if step.refused_at is not None and not step.done:
+                self._refuse(step, text, now)
+        self._retire(now)
+
+    @staticmethod
+    def _refuse(step: CommandStep, text: str | None, now: float) -> None:
+        if text is None and step.denied_reason is not None:
+            text = step.denied_reason()
+        reason = f"{text} ({step.refusal})" if text else step.refusal
+        step._set(CommandStatus.DENIED, reason, now)
 
     def update(self, now: float) -> None:
         """Confirm, re-send and time out the commands in flight; start queued ones."""
         s = self.settings
         for step in list(self._in_flight.values()):
             if step.done:
+                continue
+            if step.refused_at is not None:
+                if now - step.refused_at >= s.refusal_text_grace - 1e-6:  # float tick sums
+                    self._refuse(step, None, now)
                 continue
             if step.confirm is not None and step.confirm():
                 step._set(CommandStatus.ACCEPTED, now=now)

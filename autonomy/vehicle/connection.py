@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import Any
 from urllib.parse import parse_qs, urlsplit
 
+from autonomy.clock import VehicleClock
 from autonomy.errors import UserError
 from autonomy.vehicle.driver import MavlinkVehicle
 from autonomy.vehicle.settings import VehicleLinkSettings
@@ -218,7 +219,8 @@ def connect(
     Args:
         url: see the module docstring. ``sim://`` uses ``sitl`` if given, else creates an
             embedded simulator owned (and closed) by the vehicle; either is ``vehicle.sitl``.
-        clock: injected time source (a SimClock for sim://, a WallClock for live links).
+        clock: injected time source (a SimClock for sim://, a VehicleClock for live links,
+            which the vehicle then feeds with the autopilot's time stamps).
         signing_key: 32-byte MAVLink 2 signing key; default: ``$LANDER_SIGNING_KEY`` (64 hex
             digits, or a passphrase hashed with sha256), else no signing.
         link_timeout: seconds of autopilot silence after which ``state.link_lost`` is set.
@@ -259,6 +261,7 @@ def connect(
             tlog_epoch=epoch,
             sitl=sitl,
             owns_sitl=owns,
+            on_vehicle_time=clock.observe if isinstance(clock, VehicleClock) else None,
         )
     except BaseException:
         transport.close()

@@ -42,6 +42,11 @@ _CHUNK = 4096
 _PREARM_TEXT_FRESH = 30.0  # s a PreArm STATUSTEXT stays the reason for a denied arm
 _COMPACT_AT = 1 << 16  # bytes consumed in pymavlink's parse buffer before it is compacted
 _PREARM_BIT = mavlink.MAV_SYS_STATUS_PREARM_CHECK
+# EKF_STATUS_REPORT flags behind ArduPilot's "Need Position Estimate" (Copter's
+# ekf_has_absolute_position: disarmed, a predicted position will do; armed, it must be real).
+_EKF_POS_ABS = mavlink.EKF_POS_HORIZ_ABS
+_EKF_PRED_POS_ABS = mavlink.EKF_PRED_POS_HORIZ_ABS
+_EKF_CONST_POS = mavlink.EKF_CONST_POS_MODE
 _ARMED_FLAG = mavlink.MAV_MODE_FLAG_SAFETY_ARMED
 _POSITION_ONLY = 0x0DF8  # ignore velocity, acceleration, yaw, yaw rate
 _VELOCITY_ONLY = 0x0DC7  # ignore position, acceleration, yaw, yaw rate
@@ -86,6 +91,10 @@ class LinkStats:
     write_errors: int = 0
     commands_sent: int = 0
     links_lost: int = 0
+    heartbeats: int = 0  # autopilot HEARTBEATs of our vehicle
+    first_heartbeat: float | None = None  # clock s when the autopilot was first heard
+    longest_heartbeat_gap: float = 0.0  # clock s between two autopilot HEARTBEATs
+    time_lost: float = 0.0  # clock s with the link lost after first contact (ended losses)
 
 
 class _Outgoing:
@@ -131,6 +140,9 @@ class MavlinkVehicle:
         tlog_epoch: Unix time of clock time 0 in the log (default: wall time now - clock).
         sitl: the embedded simulator behind a ``sim://`` link, exposed as ``vehicle.sitl``.
         owns_sitl: close ``sitl`` with the vehicle.
+        on_vehicle_time: called after each poll that decoded a time stamp of the autopilot,
+            with the newest one (seconds since it booted: ``time_boot_ms`` / 1000); feeds
+            :class:`autonomy.clock.VehicleClock`.
     """
 
     def __init__(
@@ -146,6 +158,7 @@ class MavlinkVehicle:
         tlog_epoch: float | None = None,
         sitl: Any = None,
         owns_sitl: bool = False,
+        on_vehicle_time: Callable[[float], None] | None = None,
     ) -> None:
         settings = settings or VehicleLinkSettings()
         if link_timeout is not None:
@@ -155,6 +168,7 @@ class MavlinkVehicle:
         self.sitl = sitl
         self._owns_sitl = owns_sitl
         self._transport = transport
+        self._on_vehicle_time = on_vehicle_time
         self.stats = LinkStats()
         self.mode_changes: list[ModeChange] = []
         now = clock.now()
@@ -183,6 +197,7 @@ class MavlinkVehicle:
                 attempts=settings.command_attempts,
                 in_progress_timeout=settings.in_progress_timeout,
                 confirm_timeout=settings.confirm_timeout,
+                refusal_text_grace=settings.refusal_text_grace,
             ),
         )
         self._procedures: list[Procedure] = []
@@ -200,6 +215,8 @@ class MavlinkVehicle:
         self._battery: float | None = None
         self._gps_fix = 0
         self._position_ned: tuple[float, float, float] | None = None
+        self._global_position = False  # a GLOBAL_POSITION_INT with a position arrived
+        self._ekf_flags: int | None = None  # EKF_STATUS_REPORT.flags, where the autopilot sends it
         self._velocity_ned = (0.0, 0.0, 0.0)
         self._yaw_ned = math.pi / 2.0
         self._rangefinder: float | None = None
@@ -211,6 +228,7 @@ class MavlinkVehicle:
         self._prearm_text = ""
         self._prearm_text_time = -math.inf
         self._link_lost = True
+        self._lost_since: float | None = None  # clock s the current loss was declared
         self._requested_modes: dict[str, float] = {}
 
         self._setpoint: _Setpoint | None = None
@@ -229,6 +247,8 @@ class MavlinkVehicle:
             "DISTANCE_SENSOR": self._on_distance_sensor,
             "RANGEFINDER": self._on_rangefinder,
             "HOME_POSITION": self._on_home_position,
+            "GLOBAL_POSITION_INT": self._on_global_position_int,
+            "EKF_STATUS_REPORT": self._on_ekf_status_report,
             "STATUSTEXT": self._on_statustext,
             "COMMAND_ACK": self._on_command_ack,
         }
@@ -246,6 +266,19 @@ class MavlinkVehicle:
     def autopilot(self) -> str:
         return self._autopilot
 
+    def time_lost(self) -> float:
+        """Clock seconds the link has been lost after first contact, the current loss
+        included."""
+        ongoing = 0.0 if self._lost_since is None else self.clock.now() - self._lost_since
+        return self.stats.time_lost + ongoing
+
+    def longest_heartbeat_gap(self) -> float:
+        """Longest clock time between two autopilot HEARTBEATs, the current silence
+        included (0 before the first)."""
+        if self._last_heartbeat is None:
+            return 0.0
+        return max(self.stats.longest_heartbeat_gap, self.clock.now() - self._last_heartbeat)
+
     @property
     def target_system(self) -> int | None:
         """System id of the autopilot we talk to (None until it has been heard)."""
@@ -262,9 +295,13 @@ class MavlinkVehicle:
         self._link_lost = age > self.settings.link_timeout
         if self._link_lost and not was_lost:
             self.stats.links_lost += 1
+            self._lost_since = now
             self._on_link_lost(now, age)
         elif was_lost and not self._link_lost:
             # First contact, or the link is back (the autopilot may have rebooted).
+            if self._lost_since is not None:
+                self.stats.time_lost += now - self._lost_since
+                self._lost_since = None
             self._request_streams(now)
         self._tracker.update(now)
         self._advance_procedures(now)
@@ -434,6 +471,7 @@ class MavlinkVehicle:
     def _decode(self, now: float) -> None:
         mav = self._mav
         budget = self.settings.max_messages_per_poll
+        newest_ms = -1  # newest time_boot_ms of our autopilot in this batch
         handlers = self._handlers
         stats = self.stats
         backlog = self._backlog
@@ -472,6 +510,11 @@ class MavlinkVehicle:
             handler = handlers.get(mtype)
             if handler is not None:
                 handler(msg, now)
+            boot_ms = getattr(msg, "time_boot_ms", None)
+            if boot_ms is not None and msg.get_srcComponent() == self._target_component:
+                newest_ms = max(newest_ms, boot_ms)
+        if newest_ms >= 0 and self._on_vehicle_time is not None:
+            self._on_vehicle_time(newest_ms / 1000.0)
         if self._backlog_pos >= len(backlog):
             backlog.clear()
             self._backlog_pos = 0
@@ -499,6 +542,14 @@ class MavlinkVehicle:
         if not modes.is_autopilot_heartbeat(hb.autopilot, hb.type):
             return
         first = self._last_heartbeat is None
+        stats = self.stats
+        stats.heartbeats += 1
+        if first:
+            stats.first_heartbeat = now
+        else:
+            stats.longest_heartbeat_gap = max(
+                stats.longest_heartbeat_gap, now - self._last_heartbeat
+            )
         self._last_heartbeat = now
         self._autopilot = modes.autopilot_name(hb.autopilot)
         self._armed = bool(hb.base_mode & _ARMED_FLAG)
@@ -573,6 +624,13 @@ class MavlinkVehicle:
         self._home = (msg.latitude * 1e-7, msg.longitude * 1e-7, msg.altitude * 1e-3)
         self._home_ned = (msg.x, msg.y, msg.z)
 
+    def _on_global_position_int(self, msg: Any, now: float) -> None:
+        # ArduPilot sends 0, 0 until it knows where it is.
+        self._global_position = self._global_position or msg.lat != 0 or msg.lon != 0
+
+    def _on_ekf_status_report(self, msg: Any, now: float) -> None:
+        self._ekf_flags = int(msg.flags)
+
     def _on_statustext(self, msg: Any, now: float) -> None:
         text = msg.text
         if isinstance(text, (bytes, bytearray)):
@@ -580,9 +638,13 @@ class MavlinkVehicle:
         text = text.rstrip("\x00").strip()
         self._status_text = text
         lowered = text.lower()
-        if lowered.startswith(("prearm", "preflight", "arm:")) or "arming denied" in lowered:
+        prearm = lowered.startswith(("prearm", "preflight", "arm:")) or "arming denied" in lowered
+        if prearm:
             self._prearm_text = text
             self._prearm_text_time = now
+        if prearm or msg.severity <= mavlink.MAV_SEVERITY_WARNING:
+            # ArduPilot often says why it refused just after the COMMAND_ACK.
+            self._tracker.on_text(text, now)
 
     def _on_command_ack(self, msg: Any, now: float) -> None:
         if msg.target_system not in (0, self.settings.source_system):
@@ -590,6 +652,18 @@ class MavlinkVehicle:
         self._tracker.on_ack(msg.command, msg.result, now)
 
     # ------------------------------------------------------------------ state snapshot
+    def _position_estimate(self) -> bool:
+        """Whether the autopilot knows where it is (what GUIDED/OFFBOARD need to arm)."""
+        flags = self._ekf_flags
+        if flags is not None:
+            if self._armed:
+                return bool(flags & _EKF_POS_ABS) and not flags & _EKF_CONST_POS
+            return bool(flags & (_EKF_POS_ABS | _EKF_PRED_POS_ABS))
+        # Autopilots without EKF_STATUS_REPORT (PX4): a home and a position to fly from.
+        return self._home is not None and (
+            self._position_ned is not None or self._global_position
+        )
+
     def _snapshot(self, now: float, age: float) -> VehicleState:
         position = None
         if self._position_ned is not None:
@@ -613,6 +687,7 @@ class MavlinkVehicle:
             heartbeat_age=age,
             link_lost=self._link_lost,
             prearm_ok=prearm_ok and not self._link_lost,
+            position_estimate=self._position_estimate() and not self._link_lost,
             autopilot=self._autopilot,
             last_status_text=self._status_text,
         )

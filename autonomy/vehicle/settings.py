@@ -14,6 +14,7 @@ DEFAULT_STREAMS: dict[str, float] = {
     "EXTENDED_SYS_STATE": 2.0,
     "GPS_RAW_INT": 2.0,
     "HOME_POSITION": 0.5,
+    "EKF_STATUS_REPORT": 1.0,  # ArduPilot: whether it has a position estimate
 }
 
 
@@ -23,6 +24,15 @@ class VehicleLinkSettings(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
 
     link_timeout: float = Field(3.0, gt=0, description="silence after which the link is lost")
+    connect_timeout: float = Field(
+        30.0, gt=0, description="live flights: wait this long for the autopilot's first "
+        "HEARTBEAT before giving up (outcome link_lost)"
+    )
+    loss_wait: float = Field(
+        30.0, ge=0, description="live flights: once the link is lost, hold the mission this "
+        "long for it to come back before giving up (outcome link_lost); the autopilot keeps "
+        "its own target or failsafe meanwhile"
+    )
     heartbeat_period: float = Field(1.0, gt=0, description="our own HEARTBEAT period")
     ack_timeout: float = Field(1.0, gt=0, description="wait for a COMMAND_ACK before re-sending")
     command_attempts: int = Field(4, ge=1, le=20, description="COMMAND_LONGs sent at most")
@@ -30,6 +40,10 @@ class VehicleLinkSettings(BaseModel):
         3.0, gt=0, description="after an accepting ACK, wait this long to see the effect"
     )
     in_progress_timeout: float = Field(30.0, gt=0)
+    refusal_text_grace: float = Field(
+        0.5, ge=0, description="after a refusing COMMAND_ACK, wait this long for the "
+        "STATUSTEXT saying why (ArduPilot sends it just after the ACK)"
+    )
     setpoint_rate_ardupilot: float = Field(
         4.0, gt=0, description="Hz; GUIDED targets are re-sent because they time out"
     )

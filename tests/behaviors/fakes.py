@@ -29,8 +29,8 @@ class FakeVehicle:
     Horizontal speed and climb rate are limited; LAND descends to the ground height and
     disarms on touchdown. ``deny`` maps a command name ("takeoff", "goto", "land", ...) to
     the reason the fake autopilot gives when refusing it; ``silent`` names commands that
-    are never answered (PENDING forever). ``battery`` and ``gps_fix`` can be set by the test at
-any time.
+    are never answered (PENDING forever). ``battery``, ``gps_fix`` and
+    ``position_estimate`` can be set by the test at any time.
     """
 
     def __init__(
@@ -61,6 +61,7 @@ any time.
         self.commands: list[tuple[str, tuple]] = []
         self.status_text = ""
         self.gps_fix = 3
+        self.position_estimate = True
 
     # ------------------------------------------------------------------ VehiclePort
     @property
@@ -84,6 +85,7 @@ any time.
             heartbeat_age=0.0,
             link_lost=False,
             prearm_ok=self.prearm_ok,
+            position_estimate=self.position_estimate,
             autopilot="ardupilot",
             last_status_text=self.status_text,
         )

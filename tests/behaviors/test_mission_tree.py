@@ -353,6 +353,24 @@ def test_preflight_waits_for_prearm_then_times_out_in_clock_time():
     assert m.vehicle.commands == []
 
 
+def test_preflight_waits_for_the_autopilots_position_estimate():
+    # ArduPilot's prearm bit is judged for STABILIZE; GUIDED still needs a position estimate.
+    site = ScriptedSite(20.0, 0.0)
+    m = make_mission([(20, 0, 20)], [site])
+    m.vehicle.position_estimate = False
+    commands_before = []
+
+    def estimate_after_30_s(_tick):
+        if m.clock.now() >= 30.0 and not m.vehicle.position_estimate:
+            commands_before.extend(m.vehicle.commands)
+            m.vehicle.position_estimate = True
+
+    flight = m.fly(on_tick=estimate_after_30_s)
+
+    assert commands_before == []
+    assert_landed_at(m, flight, site)
+
+
 def test_battery_reserve_skips_the_remaining_waypoints():
     site = ScriptedSite(60.0, 20.0)
     waypoints = [(0, 0, 100), (100, 0, 100), (200, 0, 100), (300, 0, 100)]

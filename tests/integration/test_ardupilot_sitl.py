@@ -43,7 +43,13 @@ def test_guided_flight_on_arducopter(start_sitl, live_flight):
 
     s = flight.until(lambda s: not s.link_lost, 30, "heartbeat")
     assert s.autopilot == "ardupilot"
-    flight.until(lambda s: s.prearm_ok and s.gps_fix >= 3, 240, "prearm checks")
+    # ArduPilot judges its prearm bit for the current mode (STABILIZE); GUIDED also needs a
+    # position estimate, or arming fails with "Arm: Need Position Estimate".
+    flight.until(
+        lambda s: s.prearm_ok and s.gps_fix >= 3 and s.position_estimate and s.home,
+        240,
+        "prearm checks, GPS fix, position estimate and home",
+    )
 
     takeoff = flight.done(v.takeoff(10.0), timeout=30)
     assert takeoff.status is CommandStatus.ACCEPTED, takeoff.reason

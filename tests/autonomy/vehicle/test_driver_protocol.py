@@ -143,8 +143,54 @@ def test_arm_denied_carries_prearm_text(rig):
     rig.peer.text("PreArm: Need Position Estimate")
     rig.peer.ack(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, mavlink.MAV_RESULT_FAILED)
     rig.tick()
+    assert handle.status is CommandStatus.PENDING, "a text may still follow the ACK"
+    rig.run(0.5)
     assert handle.status is CommandStatus.DENIED
-    assert "PreArm: Need Position Estimate" in handle.reason
+    assert handle.reason == (
+        "PreArm: Need Position Estimate (MAV_CMD_COMPONENT_ARM_DISARM: MAV_RESULT_FAILED)"
+    )
+
+
+def test_a_refusal_carries_the_text_sent_just_after_the_ack(rig):
+    # ArduPilot: COMMAND_ACK FAILED, then "Arm: Need Position Estimate" in the same instant.
+    rig.peer.heartbeat(custom_mode=GUIDED)
+    rig.peer.text("PreArm: Throttle below failsafe")  # an older check, not the reason now
+    rig.tick()
+    handle = rig.vehicle.arm()
+    rig.tick()
+    rig.peer.ack(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, mavlink.MAV_RESULT_FAILED)
+    rig.tick()
+    rig.peer.text("Arm: Need Position Estimate")
+    rig.tick()
+    assert handle.status is CommandStatus.DENIED
+    assert handle.reason == (
+        "Arm: Need Position Estimate (MAV_CMD_COMPONENT_ARM_DISARM: MAV_RESULT_FAILED)"
+    )
+
+
+def test_a_mode_refusal_waits_briefly_for_its_text_then_ends_without_one(rig):
+    rig.peer.heartbeat(custom_mode=STABILIZE)
+    rig.tick()
+    explained = rig.vehicle.set_mode("LOITER")
+    rig.tick()
+    rig.peer.ack(mavlink.MAV_CMD_DO_SET_MODE, mavlink.MAV_RESULT_DENIED)
+    rig.peer.send(
+        rig.peer.mav.statustext_encode(mavlink.MAV_SEVERITY_INFO, b"EKF3 IMU0 is using GPS")
+    )
+    rig.peer.send(
+        rig.peer.mav.statustext_encode(mavlink.MAV_SEVERITY_WARNING, b"Mode change failed")
+    )
+    rig.tick()
+    assert explained.status is CommandStatus.DENIED
+    assert explained.reason == "Mode change failed (MAV_CMD_DO_SET_MODE: MAV_RESULT_DENIED)"
+    bare = rig.vehicle.set_mode("RTL")
+    rig.tick()
+    rig.peer.ack(mavlink.MAV_CMD_DO_SET_MODE, mavlink.MAV_RESULT_DENIED)
+    rig.tick()
+    assert bare.status is CommandStatus.PENDING
+    rig.run(0.5)
+    assert bare.status is CommandStatus.DENIED
+    assert bare.reason == "MAV_CMD_DO_SET_MODE: MAV_RESULT_DENIED"
 
 
 def test_command_is_resent_with_confirmation_then_times_out(make_rig):
@@ -310,6 +356,62 @@ def test_a_stale_prearm_text_is_not_the_reason(make_rig):
     r.run(40.0, heartbeat=dict(custom_mode=STABILIZE))
     handle = r.vehicle.arm()
     r.peer.ack(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, mavlink.MAV_RESULT_DENIED)
-    r.tick()
+    r.run(0.6)
     assert handle.status is CommandStatus.DENIED
     assert handle.reason == "MAV_CMD_COMPONENT_ARM_DISARM: MAV_RESULT_DENIED"
+
+
+def test_position_estimate_follows_the_ekf_where_the_autopilot_reports_it(rig):
+    peer = rig.peer
+    peer.heartbeat(custom_mode=STABILIZE)
+    peer.send(peer.mav.local_position_ned_encode(0, 0, 0, 0, 0, 0, 0))
+    peer.send(
+        peer.mav.home_position_encode(473977420, 85455940, 488000, 0, 0, 0, [1, 0, 0, 0], 0, 0, 0)
+    )
+    peer.send(peer.mav.ekf_status_report_encode(mavlink.EKF_ATTITUDE, 0, 0, 0, 0, 0))
+    assert not rig.tick().position_estimate, "the EKF says no, whatever else is known"
+    peer.send(peer.mav.ekf_status_report_encode(mavlink.EKF_PRED_POS_HORIZ_ABS, 0, 0, 0, 0, 0))
+    assert rig.tick().position_estimate, "disarmed, a predicted position is enough"
+    peer.heartbeat(custom_mode=GUIDED, armed=True)
+    assert not rig.tick().position_estimate, "armed, it must be a real one"
+    peer.send(peer.mav.ekf_status_report_encode(mavlink.EKF_POS_HORIZ_ABS, 0, 0, 0, 0, 0))
+    assert rig.tick().position_estimate
+
+
+def test_without_ekf_reports_a_home_and_a_position_make_the_estimate(rig):
+    peer = rig.peer
+    peer.heartbeat(custom_mode=PX4_LOITER, autopilot=PX4)
+    peer.send(peer.mav.local_position_ned_encode(0, 0, 0, 0, 0, 0, 0))
+    assert not rig.tick().position_estimate, "no home yet"
+    peer.send(
+        peer.mav.home_position_encode(473977420, 85455940, 488000, 0, 0, 0, [1, 0, 0, 0], 0, 0, 0)
+    )
+    assert rig.tick().position_estimate
+
+
+def test_link_statistics_count_gaps_and_time_lost(make_rig):
+    r = make_rig(link_timeout=2.0)
+    r.run(3.0, heartbeat=dict(custom_mode=GUIDED))  # heartbeats at 0.05, 1.05, 2.05 s
+    r.run(5.0)  # silent: lost once 2 s have passed (at 4.1 s)
+    r.run(2.0, heartbeat=dict(custom_mode=GUIDED))  # back at 8.05 s
+    stats = r.vehicle.stats
+    assert stats.first_heartbeat == pytest.approx(0.05)
+    assert stats.links_lost == 1
+    assert r.vehicle.time_lost() == pytest.approx(3.95)
+    assert r.vehicle.longest_heartbeat_gap() == pytest.approx(6.0)
+    assert stats.heartbeats == 5
+
+
+def test_the_autopilots_time_stamps_feed_the_clock(make_rig):
+    seen = []
+    r = make_rig(on_vehicle_time=seen.append)
+    r.peer.heartbeat(custom_mode=GUIDED)
+    r.tick()
+    for ms in (1000, 1100, 1050):  # one batch: the newest counts
+        r.peer.send(r.peer.mav.attitude_encode(ms, 0, 0, 0, 0, 0, 0), flush=False)
+    r.peer.flush()
+    r.tick()
+    other = type(r.peer)(r.link.vehicle, system=1, component=154)  # a gimbal of the vehicle
+    other.send(other.mav.attitude_encode(99000, 0, 0, 0, 0, 0, 0))
+    r.tick()
+    assert seen == [1.1]
