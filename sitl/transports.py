@@ -32,10 +32,14 @@ class UdpEndpoint:
 
     It answers whoever sent the last datagram, as ArduPilot does on a UDP server port, so a
     client (``mavutil.mavlink_connection("udpout:HOST:PORT")``, MAVProxy ``--master``,
-    QGroundControl with a target host) must speak first.
+    QGroundControl with a target host) must speak first. Given a ``peer``, it sends there from
+    the start, unasked, as PX4 SITL sends to 14550 (ground stations) and 14540 (SDKs), until
+    someone else speaks to it.
     """
 
-    def __init__(self, host: str = "127.0.0.1", port: int = 0) -> None:
+    def __init__(
+        self, host: str = "127.0.0.1", port: int = 0, peer: tuple[str, int] | None = None
+    ) -> None:
         self._sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         try:
             self._sock.bind((host, port))
@@ -43,7 +47,8 @@ class UdpEndpoint:
             self._sock.close()
             raise
         self._sock.setblocking(False)
-        self.peer: tuple[str, int] | None = None
+        self.peer: tuple[str, int] | None = peer
+        self.greets = peer is not None  # the server talks on it at once
         self.closed = False
         self.dropped_datagrams = 0
 
@@ -80,7 +85,10 @@ class UdpEndpoint:
 
 
 class TcpEndpoint:
-    """One accepted TCP client. ``closed`` turns True when the client hangs up."""
+    """One accepted TCP client. ``closed`` turns True when the client hangs up. The server
+    greets it at once (HEARTBEAT), as ArduPilot SITL greets a new TCP client."""
+
+    greets = True
 
     def __init__(self, sock: socket.socket) -> None:
         self._sock = sock

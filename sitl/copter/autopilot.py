@@ -14,8 +14,12 @@ from dataclasses import dataclass
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
+from .auto import AutoFlier
 from .battery import Battery
+from .geo import GeoFrame
 from .kinematics import Contact, Multicopter, Setpoint
+from .mission import MissionStore
+from .params import ParameterTable
 from .settings import SitlSettings
 
 ACCEPTED = mavlink.MAV_RESULT_ACCEPTED
@@ -75,6 +79,13 @@ class Autopilot:
     #: modes in which the vehicle descends to land
     land_modes: frozenset[str] = frozenset()
     rtl_modes: frozenset[str] = frozenset()
+    #: the mode that flies the stored mission
+    auto_mode = ""
+    #: ArduPilot keeps home as item 0 of the mission
+    home_at_zero = False
+    #: parameter rows (sitl.copter.params) and their float encoding
+    param_table: tuple = ()
+    param_bytewise = False
 
     def __init__(
         self,
@@ -83,12 +94,29 @@ class Autopilot:
         battery: Battery,
         slope: Slope,
         ground_z: float = 0.0,
+        geo: GeoFrame | None = None,
     ) -> None:
         self.settings = settings
         self.model = model
         self.battery = battery
         self.slope = slope
         self.home_z = ground_z
+        home = settings.home
+        self.geo = geo or GeoFrame(home.lat, home.lon, home.alt, ground_z, lambda x, y: ground_z)
+        self.mission = MissionStore(
+            home_at_zero=self.home_at_zero, capacity=settings.mission_capacity
+        )
+        self.auto = AutoFlier(self)
+        self.params = ParameterTable(
+            self.param_table, bytewise=self.param_bytewise,
+            settings=lambda: self.settings, apply=self.apply_settings,
+        )
+        # Set by DO_CHANGE_SPEED (m/s): the speeds guided and mission flight use, None for
+        # the airframe's limits.
+        self.speed_limit: float | None = None
+        self.hold_yaw: float | None = None  # heading (rad) a reposition asked for
+        self.climb_limit: float | None = None
+        self.descent_limit: float | None = None
         self.time = 0.0
         self.armed = False
         self.mode = self.initial_mode
@@ -127,7 +155,14 @@ class Autopilot:
             return LANDING
         if self.mode in self.rtl_modes and self.rtl_phase == "land":
             return LANDING
+        if self.mode == self.auto_mode and self.auto.landing:
+            return LANDING
         return IN_AIR
+
+    @property
+    def waypoint_radius(self) -> float:
+        """Distance (m) at which a mission waypoint counts as reached."""
+        return self.settings.waypoint_radius
 
     def mode_name(self, custom_mode: int) -> str | None:
         for name, value in self.modes.items():
@@ -166,8 +201,74 @@ class Autopilot:
         raise NotImplementedError
 
     def position_target(self, setpoint: Setpoint) -> None:
-        """A SET_POSITION_TARGET_LOCAL_NED arrived (already converted to ENU)."""
+        """A SET_POSITION_TARGET_* arrived (already converted to ENU)."""
         raise NotImplementedError
+
+    def reposition(
+        self,
+        target: tuple[float, float, float],
+        *,
+        change_mode: bool,
+        speed: float | None,
+        yaw: float | None,
+    ) -> int:
+        """MAV_CMD_DO_REPOSITION to the ENU ``target``; returns the MAV_RESULT."""
+        raise NotImplementedError
+
+    def guided_goto(self, target: tuple[float, float, float]) -> bool:
+        """A guided-mode MISSION_ITEM (current = 2): fly to ``target``; False when the
+        vehicle is not in the mode that takes it."""
+        return False
+
+    def change_speed(self, kind: int, speed: float) -> int:
+        """MAV_CMD_DO_CHANGE_SPEED: ``kind`` 0/1 horizontal, 2 climb, 3 descent; m/s."""
+        m = self.model
+        if kind in (0, 1):
+            self.speed_limit = min(speed, m.max_horizontal_speed)
+        elif kind == 2:
+            self.climb_limit = min(speed, m.max_climb_speed)
+        else:
+            self.descent_limit = min(speed, m.max_descent_speed)
+        return ACCEPTED
+
+    def point_yaw(self, heading: float, relative: bool, direction: float) -> int:
+        """MAV_CMD_CONDITION_YAW in guided flight: turn to ``heading`` (rad clockwise from
+        north), or by it when ``relative``."""
+        return UNSUPPORTED
+
+    def mission_start(self, first: int | None) -> int:
+        """MAV_CMD_MISSION_START: fly the stored mission (from item ``first``)."""
+        if first is not None and not self.mission.set_current(first):
+            return DENIED
+        result = self.set_mode(self.auto_mode)
+        if result == ACCEPTED and self.armed:
+            self.auto.start()
+        return result
+
+    def on_mission_complete(self) -> Setpoint:
+        """The last mission item is done: what the vehicle does next (hold, or disarm when
+        on the ground)."""
+        m = self.model
+        if self.armed and m.on_ground:
+            self._disarm("Mission complete: disarming")
+        return Setpoint(position=self.hold, hold_ground=not self.flying)
+
+    def implicit_takeoff_altitude(self) -> float | None:
+        """Height (m above home) a mission started on the ground climbs to before its first
+        item when that item is not a take-off (PX4), or None (ArduPilot needs a take-off)."""
+        return None
+
+    # ------------------------------------------------------------ settings
+    def apply_settings(self, settings: SitlSettings) -> None:
+        """Fly on validated new settings from now on (a parameter was set)."""
+        self.settings = settings
+        m = self.model
+        m.max_horizontal_speed = settings.max_horizontal_speed
+        m.max_climb_speed = settings.max_climb_speed
+        m.max_descent_speed = settings.max_descent_speed
+        m.max_horizontal_acceleration = settings.max_horizontal_acceleration
+        m.max_vertical_acceleration = settings.max_vertical_acceleration
+        self.battery.settings = settings.battery
 
     # ------------------------------------------------------------ mode helpers
     def _arm(self) -> None:
@@ -189,13 +290,40 @@ class Autopilot:
 
     def _enter(self, name: str) -> None:
         """Switch mode: capture the position to hold and reset phase state."""
+        old = self.mode
         self.mode = name
         self.hold = self.model.position
+        self.hold_yaw = None
         self.takeoff_target = None
         self.guided = Setpoint(position=self.model.position, hold_ground=not self.flying)
         if name in self.rtl_modes:
-            self.rtl_phase = "climb"
-            self.rtl_altitude = max(self.model.z, self.home_z + self.settings.rtl_altitude)
+            self.begin_return()
+        if old == self.auto_mode and name != old:
+            self.auto.pause()
+        if name == self.auto_mode and name != old and self.armed:
+            self.auto.start()
+
+    @property
+    def land_final_speed(self) -> float:
+        """Descent speed (m/s) below land_alt_low when landing."""
+        return self.settings.land_speed
+
+    def land_setpoint(self, x: float, y: float, agl: float) -> Setpoint:
+        """Descend to land at (x, y)."""
+        return self._land_setpoint(x, y, agl, self.land_final_speed)
+
+    def lift_off(self) -> None:
+        """A mission take-off starts: leave the ground."""
+        self.flying = True
+
+    def begin_return(self) -> None:
+        """Start a return to launch from here (climb, return, land)."""
+        self.hold = self.model.position
+        self.rtl_phase = "climb"
+        self.rtl_altitude = max(self.model.z, self.home_z + self.settings.rtl_altitude)
+
+    def return_setpoint(self, agl: float) -> Setpoint:
+        return self._rtl_setpoint(agl, self.land_final_speed)
 
     def _land_setpoint(self, x: float, y: float, agl: float, final_speed: float) -> Setpoint:
         s = self.settings
@@ -239,6 +367,8 @@ class Autopilot:
         self.flying = False
         self.takeoff_target = None
         self.ground_since = self.time
+        if self.mode == self.auto_mode:
+            self.auto.on_landed()
         reason = ""
         sideways = math.hypot(contact.vx, contact.vy)
         if descent > s.crash_speed:

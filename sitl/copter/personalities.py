@@ -14,12 +14,14 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from .autopilot import (
     ACCEPTED,
+    DENIED,
     FAILED,
     TAKEOFF_REACHED,
     TEMPORARILY_REJECTED,
     Autopilot,
 )
 from .kinematics import Setpoint
+from .params import ARDUPILOT, PX4
 
 _CRITICAL = mavlink.MAV_SEVERITY_CRITICAL
 _INFO = mavlink.MAV_SEVERITY_INFO
@@ -53,8 +55,11 @@ class ArduCopter(Autopilot):
     hold_modes = frozenset({"STABILIZE", "ALT_HOLD", "LOITER", "POSHOLD", "BRAKE"})
     land_modes = frozenset({"LAND"})
     rtl_modes = frozenset({"RTL", "SMART_RTL"})
-    # Modes this simulator cannot fly (no mission, no pilot sticks): changing to them fails.
-    _unflyable = frozenset({"ACRO", "AUTO", "CIRCLE"})
+    auto_mode = "AUTO"
+    home_at_zero = True
+    param_table = ARDUPILOT
+    # Modes this simulator cannot fly (no pilot sticks): changing to them fails.
+    _unflyable = frozenset({"ACRO", "CIRCLE"})
     _not_armable = frozenset({"LAND", "RTL", "SMART_RTL", "AUTO", "CIRCLE"})
     _needs_position = frozenset({"GUIDED", "LOITER", "RTL", "SMART_RTL", "POSHOLD", "BRAKE"})
 
@@ -77,7 +82,7 @@ class ArduCopter(Autopilot):
         if self.crashed:
             self.text(_CRITICAL, "PreArm: Crashed, reboot the vehicle")
             return FAILED
-        if self.mode in self._not_armable:
+        if self.mode in self._not_armable and not self._arming_in_auto_allowed():
             self.text(_CRITICAL, "Arm: Mode not armable")
             return FAILED
         if not force:
@@ -97,9 +102,29 @@ class ArduCopter(Autopilot):
         if name in self._needs_position and not self.settled:
             self.text(_WARNING, f"Flight mode change failed: {name} requires position")
             return FAILED
+        if name == "AUTO" and name != self.mode and not self._auto_can_start():
+            return FAILED
         if name != self.mode:
             self._enter(name)
         return ACCEPTED
+
+    def _arming_in_auto_allowed(self) -> bool:
+        # AUTO_OPTIONS bit 0: "allow arming" in AUTO.
+        return self.mode == "AUTO" and int(self.params.stored("AUTO_OPTIONS")) & 1 == 1
+
+    def _auto_can_start(self) -> bool:
+        """ModeAuto::init: a mission to fly, and a take-off first when armed on the ground."""
+        if not self.settled:
+            self.text(_WARNING, "Flight mode change failed: AUTO requires position")
+            return False
+        if not self.mission.has_mission():
+            self.text(_WARNING, "Flight mode change failed: no mission")
+            return False
+        first = self.mission.items[self.mission.current]
+        if self.armed and self.model.on_ground and first.command != mavlink.MAV_CMD_NAV_TAKEOFF:
+            self.text(_CRITICAL, "Auto: Missing Takeoff Cmd")
+            return False
+        return True
 
     def takeoff(self, altitude: float) -> int:
         # ArduPilot's do_user_takeoff: armed, in GUIDED, still on the ground, target above.
@@ -133,11 +158,42 @@ class ArduCopter(Autopilot):
         if setpoint.position is None and setpoint.velocity is not None:
             self.guided_velocity_time = self.time
 
+    def reposition(self, target, *, change_mode, speed, yaw) -> int:
+        # GCS_MAVLINK_Copter::handle_command_int_do_reposition
+        if self.mode != "GUIDED":
+            if not change_mode:
+                return DENIED
+            if self.set_mode("GUIDED") != ACCEPTED:
+                return FAILED
+        if speed is not None:
+            self.change_speed(1, speed)
+        self.position_target(Setpoint(position=target, yaw=yaw))
+        return ACCEPTED
+
+    def guided_goto(self, target) -> bool:
+        if self.mode != "GUIDED":
+            return False
+        self.position_target(Setpoint(position=target))
+        return True
+
+    def point_yaw(self, heading: float, relative: bool, direction: float) -> int:
+        if self.mode not in ("GUIDED", "AUTO") or not self.flying:
+            return FAILED
+        if relative:
+            heading = self.model.heading + direction * heading
+        self.guided.yaw = (heading + math.pi) % (2.0 * math.pi) - math.pi
+        return ACCEPTED
+
     def control(self, agl: float) -> Setpoint:
         m = self.model
         mode = self.mode
+        if mode == "AUTO":
+            return self.auto.setpoint(agl)
         if mode == "GUIDED":
             sp = self.guided
+            sp.max_speed = self.speed_limit
+            sp.max_climb = self.climb_limit
+            sp.max_descent = self.descent_limit
             if self.takeoff_target is not None and m.z >= self.takeoff_target - TAKEOFF_REACHED:
                 self.takeoff_target = None
             if (
@@ -192,7 +248,10 @@ class Px4Copter(Autopilot):
     )
     land_modes = frozenset({"AUTO.LAND"})
     rtl_modes = frozenset({"AUTO.RTL"})
-    _unflyable = frozenset({"ACRO", "AUTO.MISSION"})
+    auto_mode = "AUTO.MISSION"
+    param_table = PX4
+    param_bytewise = True
+    _unflyable = frozenset({"ACRO"})
     _needs_position = frozenset(
         {"POSCTL", "AUTO.LOITER", "AUTO.TAKEOFF", "AUTO.RTL", "OFFBOARD"}
     )
@@ -232,6 +291,8 @@ class Px4Copter(Autopilot):
                 return TEMPORARILY_REJECTED
         self._arm()
         self.text(_INFO, "Armed by external command")
+        if self.mode == self.auto_mode:
+            self.auto.start()  # armed in mission mode: the mission takes off
         return ACCEPTED
 
     def refuse_disarm_in_air(self) -> int:
@@ -260,9 +321,14 @@ class Px4Copter(Autopilot):
             if not self._stream_alive():
                 self.text(_CRITICAL, "Switching to Offboard is currently not possible")
                 return ACCEPTED
+            if self.mode == self.auto_mode:
+                self.auto.pause()
             self.mode = "OFFBOARD"
             self.takeoff_target = None
             return ACCEPTED
+        if name == self.auto_mode and not self.mission.has_mission():
+            self.text(_CRITICAL, "Mission rejected: no mission uploaded")
+            return TEMPORARILY_REJECTED
         if name == "AUTO.TAKEOFF":
             return self.takeoff(math.nan)
         if name != self.mode:
@@ -304,10 +370,39 @@ class Px4Copter(Autopilot):
         setpoint.hold_ground = False
         self.offboard = setpoint
 
+    def reposition(self, target, *, change_mode, speed, yaw) -> int:
+        # Commander switches to Hold (AUTO.LOITER) when asked; the navigator flies the Hold
+        # point to the target.
+        if change_mode and self.mode != "AUTO.LOITER":
+            result = self.set_mode("AUTO.LOITER")
+            if result != ACCEPTED:
+                return result
+        if self.mode == "AUTO.LOITER":
+            if speed is not None:
+                self.change_speed(1, speed)
+            self.hold = target
+            self.hold_yaw = yaw
+        return ACCEPTED
+
+    def on_mission_complete(self) -> Setpoint:
+        if self.flying:
+            self.text(_INFO, "Mission finished, loitering")
+            self._enter("AUTO.LOITER")
+        return Setpoint(position=self.hold, hold_ground=not self.flying)
+
+    def implicit_takeoff_altitude(self) -> float | None:
+        return self.settings.px4_takeoff_altitude
+
+    @property
+    def land_final_speed(self) -> float:
+        return self.settings.px4_land_speed
+
     def control(self, agl: float) -> Setpoint:
         m = self.model
         s = self.settings
         mode = self.mode
+        if mode == self.auto_mode:
+            return self.auto.setpoint(agl)
         if mode == "OFFBOARD":
             times = self.setpoint_times
             if times and self.time - times[-1] <= s.offboard_loss_timeout:
@@ -324,7 +419,8 @@ class Px4Copter(Autopilot):
             return self._land_setpoint(self.hold[0], self.hold[1], agl, s.px4_land_speed)
         if mode in self.rtl_modes:
             return self._rtl_setpoint(agl, s.px4_land_speed)
-        return Setpoint(position=self.hold, hold_ground=not self.flying)
+        return Setpoint(position=self.hold, yaw=self.hold_yaw, max_speed=self.speed_limit,
+                        hold_ground=not self.flying)
 
     def disarm_delay(self) -> float:
         # COM_DISARM_LAND after a landing, COM_DISARM_PRFLT if it never took off.

@@ -5,6 +5,10 @@ A :class:`MavlinkServer` serves any number of links (anything with ``read() -> b
 intervals, as ArduPilot keeps them per channel. Incoming bytes are parsed with pymavlink's
 robust parser (corrupt bytes are skipped and counted); outgoing messages are packed by
 pymavlink into one buffer per link and written once per step.
+
+No message may stop the simulator: each handler reads its fields defensively, and should one
+still raise, the message is dropped and counted (``handler_errors``) instead of the exception
+escaping, so a ground station's odd message costs that message and nothing else.
 """
 
 from __future__ import annotations
@@ -14,25 +18,12 @@ from collections.abc import Callable
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
-from .autopilot import ACCEPTED, FAILED, UNSUPPORTED, Autopilot
-from .geo import LocalToGlobal, ned_to_enu
+from .autopilot import UNSUPPORTED, Autopilot
+from .commands import CommandRequest, Commands
 from .kinematics import Setpoint
-from .personalities import FORCE_ARM, FORCE_DISARM
-
-# Telemetry the server can build, with the MessageRates field giving its default rate.
-STREAMS: dict[int, str] = {
-    mavlink.MAVLINK_MSG_ID_HEARTBEAT: "heartbeat",
-    mavlink.MAVLINK_MSG_ID_ATTITUDE: "attitude",
-    mavlink.MAVLINK_MSG_ID_GLOBAL_POSITION_INT: "global_position_int",
-    mavlink.MAVLINK_MSG_ID_LOCAL_POSITION_NED: "local_position_ned",
-    mavlink.MAVLINK_MSG_ID_DISTANCE_SENSOR: "distance_sensor",
-    mavlink.MAVLINK_MSG_ID_SYS_STATUS: "sys_status",
-    mavlink.MAVLINK_MSG_ID_EXTENDED_SYS_STATE: "extended_sys_state",
-    mavlink.MAVLINK_MSG_ID_BATTERY_STATUS: "battery_status",
-    mavlink.MAVLINK_MSG_ID_HOME_POSITION: "home_position",
-    mavlink.MAVLINK_MSG_ID_GPS_RAW_INT: "gps_raw_int",
-    mavlink.MAVLINK_MSG_ID_SYSTEM_TIME: "system_time",
-}
+from .mission_protocol import MissionProtocol, Upload
+from .param_protocol import ParamProtocol
+from .telemetry import STREAMS, Telemetry
 
 # Legacy REQUEST_DATA_STREAM groups (MAVProxy and older GCSs still use them).
 _DATA_STREAMS: dict[int, tuple[int, ...]] = {
@@ -40,6 +31,7 @@ _DATA_STREAMS: dict[int, tuple[int, ...]] = {
         mavlink.MAVLINK_MSG_ID_SYS_STATUS,
         mavlink.MAVLINK_MSG_ID_GPS_RAW_INT,
         mavlink.MAVLINK_MSG_ID_EXTENDED_SYS_STATE,
+        mavlink.MAVLINK_MSG_ID_MISSION_CURRENT,
     ),
     mavlink.MAV_DATA_STREAM_POSITION: (
         mavlink.MAVLINK_MSG_ID_GLOBAL_POSITION_INT,
@@ -68,31 +60,16 @@ _IGNORE_VELOCITY = (
 )
 _IGNORE_YAW = mavlink.POSITION_TARGET_TYPEMASK_YAW_IGNORE
 _IGNORE_YAW_RATE = mavlink.POSITION_TARGET_TYPEMASK_YAW_RATE_IGNORE
-
-_SENSORS = (
-    mavlink.MAV_SYS_STATUS_SENSOR_3D_GYRO
-    | mavlink.MAV_SYS_STATUS_SENSOR_3D_ACCEL
-    | mavlink.MAV_SYS_STATUS_SENSOR_3D_MAG
-    | mavlink.MAV_SYS_STATUS_SENSOR_ABSOLUTE_PRESSURE
-    | mavlink.MAV_SYS_STATUS_SENSOR_GPS
-    | mavlink.MAV_SYS_STATUS_SENSOR_LASER_POSITION
-    | mavlink.MAV_SYS_STATUS_SENSOR_MOTOR_OUTPUTS
-    | mavlink.MAV_SYS_STATUS_AHRS
-    | mavlink.MAV_SYS_STATUS_SENSOR_BATTERY
-    | mavlink.MAV_SYS_STATUS_PREARM_CHECK
-)
-_NEEDS_SETTLING = (
-    mavlink.MAV_SYS_STATUS_SENSOR_GPS
-    | mavlink.MAV_SYS_STATUS_AHRS
-    | mavlink.MAV_SYS_STATUS_PREARM_CHECK
-)
-_CAPABILITIES = (
-    mavlink.MAV_PROTOCOL_CAPABILITY_MAVLINK2
-    | mavlink.MAV_PROTOCOL_CAPABILITY_COMMAND_INT
-    | mavlink.MAV_PROTOCOL_CAPABILITY_SET_POSITION_TARGET_LOCAL_NED
-)
-_UINT16_MAX = 65535
-_INT16_MAX = 32767
+# SET_POSITION_TARGET_LOCAL_NED frames: positions relative to the vehicle, axes turned with
+# its heading (ArduPilot's handling of the body and offset frames).
+_OFFSET_FRAMES = frozenset({
+    mavlink.MAV_FRAME_LOCAL_OFFSET_NED, mavlink.MAV_FRAME_BODY_NED,
+    mavlink.MAV_FRAME_BODY_OFFSET_NED,
+})
+_BODY_FRAMES = frozenset({mavlink.MAV_FRAME_BODY_NED, mavlink.MAV_FRAME_BODY_OFFSET_NED})
+_LOCAL_FRAMES = _OFFSET_FRAMES | {mavlink.MAV_FRAME_LOCAL_NED}
+_RADIO_STATUS = mavlink.MAVLINK_MSG_ID_RADIO_STATUS
+_MAVLINK_EPOCH = 1420070400.0  # 2015-01-01, origin of MAVLink signing timestamps
 
 
 class _Outbox:
@@ -108,18 +85,21 @@ class _Outbox:
 
 
 class Link:
-    """One MAVLink peer: its endpoint, parser, sequence counter and stream intervals."""
+    """One MAVLink peer: its endpoint, parser, sequence counter, stream intervals and the
+    parameter list or mission upload in progress on it."""
 
     def __init__(self, endpoint, system_id: int, component_id: int) -> None:
         self.endpoint = endpoint
         self.outbox = _Outbox()
         self.mav = mavlink.MAVLink(self.outbox, srcSystem=system_id, srcComponent=component_id)
         self.mav.robust_parsing = True
-        self.open = False  # a packet has arrived (ArduPilot talks only then)
+        self.open = False  # we talk on it (a packet arrived, or it greets, e.g. TCP)
         self.intervals: dict[int, float] = {}  # msgid -> seconds
         self.next_due: dict[int, float] = {}
         self.once: list[int] = []
         self.home_sent = False
+        self.param_queue: list[int] = []
+        self.upload: Upload | None = None
         self.packets_received = 0
         self.corrupt_packets = 0
         self.corrupt_bytes = 0
@@ -127,6 +107,11 @@ class Link:
     @property
     def closed(self) -> bool:
         return bool(getattr(self.endpoint, "closed", False))
+
+    @property
+    def refused_unsigned(self) -> int:
+        """Packets refused for a missing or bad signature (while signing is on)."""
+        return self.mav.signing.reject_count
 
     def set_interval(self, msgid: int, interval: float, now: float) -> None:
         """Stream ``msgid`` every ``interval`` s (<= 0 or inf: stop)."""
@@ -153,53 +138,68 @@ class MavlinkServer:
             rangefinder.
         streams_by_default: stream ``rates`` on a link as soon as it is attached (PX4) rather
             than only HEARTBEAT after the first packet arrives (ArduPilot).
+        signing_key: a 32-byte MAVLink 2 signing key in force from boot (None: unsigned until
+            a SETUP_SIGNING message sets one).
     """
 
     def __init__(
-        self, autopilot: Autopilot, agl: Callable[[], float], *, streams_by_default: bool
+        self,
+        autopilot: Autopilot,
+        agl: Callable[[], float],
+        *,
+        streams_by_default: bool,
+        signing_key: bytes | None = None,
     ) -> None:
         self.autopilot = autopilot
-        self.settings = s = autopilot.settings
         self.agl = agl
         self.streams_by_default = streams_by_default
         self.links: list[Link] = []
         self.time = 0.0
-        self.to_global = LocalToGlobal(s.home.lat, s.home.lon)
+        rates = autopilot.settings.rates
         self.default_intervals = {
-            msgid: 1.0 / getattr(s.rates, name)
+            msgid: 1.0 / getattr(rates, name)
             for msgid, name in STREAMS.items()
-            if getattr(s.rates, name) > 0
+            if getattr(rates, name) > 0
         }
         self.ignored_setpoints = 0
-        self._builders: dict[int, Callable[[], object]] = {
-            mavlink.MAVLINK_MSG_ID_HEARTBEAT: self._heartbeat,
-            mavlink.MAVLINK_MSG_ID_ATTITUDE: self._attitude,
-            mavlink.MAVLINK_MSG_ID_GLOBAL_POSITION_INT: self._global_position_int,
-            mavlink.MAVLINK_MSG_ID_LOCAL_POSITION_NED: self._local_position_ned,
-            mavlink.MAVLINK_MSG_ID_DISTANCE_SENSOR: self._distance_sensor,
-            mavlink.MAVLINK_MSG_ID_SYS_STATUS: self._sys_status,
-            mavlink.MAVLINK_MSG_ID_EXTENDED_SYS_STATE: self._extended_sys_state,
-            mavlink.MAVLINK_MSG_ID_BATTERY_STATUS: self._battery_status,
-            mavlink.MAVLINK_MSG_ID_HOME_POSITION: self._home_position,
-            mavlink.MAVLINK_MSG_ID_GPS_RAW_INT: self._gps_raw_int,
-            mavlink.MAVLINK_MSG_ID_SYSTEM_TIME: self._system_time,
-            mavlink.MAVLINK_MSG_ID_AUTOPILOT_VERSION: self._autopilot_version,
-        }
+        self.handler_errors = 0  # messages whose handler raised (a bug; see the docstring)
+        self.foreign_messages = 0  # addressed to another system or component
+        self.signing_key: bytes | None = None
+        self.telemetry = Telemetry(self)
+        self.commands = Commands(self)
+        self.params = ParamProtocol(self)
+        self.missions = MissionProtocol(self)
         self._handlers: dict[str, Callable[[Link, object], None]] = {
             "COMMAND_LONG": self._on_command_long,
             "COMMAND_INT": self._on_command_int,
             "SET_MODE": self._on_set_mode,
-            "SET_POSITION_TARGET_LOCAL_NED": self._on_position_target,
+            "SET_POSITION_TARGET_LOCAL_NED": self._on_position_target_local,
+            "SET_POSITION_TARGET_GLOBAL_INT": self._on_position_target_global,
             "REQUEST_DATA_STREAM": self._on_request_data_stream,
+            "SETUP_SIGNING": self._on_setup_signing,
+            "TIMESYNC": self._on_timesync,
+            **self.params.handlers,
+            **self.missions.handlers,
         }
-        self._prebuilt = self._prebuild()
         self._cache: dict[int, object] = {}
+        self._mission_seq = autopilot.mission.current
+        if signing_key is not None:
+            self._sign_with(signing_key, 0)
+
+    @property
+    def settings(self):
+        return self.autopilot.settings
 
     # ------------------------------------------------------------------ links
     def attach(self, endpoint) -> Link:
-        link = Link(endpoint, self.settings.system_id, self.settings.component_id)
+        """Serve ``endpoint``. One that ``greets`` (a TCP client, a UDP port with a fixed
+        peer) is talked to at once, as the real autopilots greet such links."""
+        s = self.settings
+        link = Link(endpoint, s.system_id, s.component_id)
+        if self.signing_key is not None:
+            self._sign_link(link, self._signing_timestamp())
         self.links.append(link)
-        if self.streams_by_default:
+        if self.streams_by_default or getattr(endpoint, "greets", False):
             self._open(link)
         return link
 
@@ -217,6 +217,12 @@ class MavlinkServer:
     @property
     def corrupt_bytes(self) -> int:
         return sum(link.corrupt_bytes for link in self.links)
+
+    def can_stream(self, msgid: int) -> bool:
+        return msgid in STREAMS
+
+    def can_build(self, msgid: int) -> bool:
+        return msgid in self.telemetry.builders
 
     # ---------------------------------------------------------------- receive
     def receive(self) -> None:
@@ -239,17 +245,21 @@ class MavlinkServer:
                 if not link.open:
                     self._open(link)
                 handler = self._handlers.get(name)
-                if handler is not None and self._for_me(msg):
+                if handler is None:
+                    continue
+                if not self._for_me(msg):
+                    self.foreign_messages += 1
+                    continue
+                try:
                     handler(link, msg)
+                except Exception:  # noqa: BLE001 - see the module docstring
+                    self.handler_errors += 1
 
     def _for_me(self, msg) -> bool:
         s = self.settings
         system = getattr(msg, "target_system", 0)
         component = getattr(msg, "target_component", 0)
         return system in (0, s.system_id) and component in (0, s.component_id)
-
-    def _send(self, link: Link, msg) -> None:
-        link.mav.send(msg)
 
     def _send_texts(self) -> None:
         texts = self.autopilot.texts
@@ -262,122 +272,100 @@ class MavlinkServer:
                     link.mav.send(msg)
         texts.clear()
 
-    def _ack(self, link: Link, command: int, result: int, msg=None) -> None:
-        self._send_texts()  # the reason (PreArm: ...) goes out before the ACK, as on ArduPilot
-        ack = mavlink.MAVLink_command_ack_message(
-            command,
-            result,
-            0,
-            0,
-            msg.get_srcSystem() if msg is not None else 0,
-            msg.get_srcComponent() if msg is not None else 0,
-        )
-        link.mav.send(ack)
+    def _ack(self, link: Link, command: int, result: int, msg) -> None:
+        # The ACK goes out first and the STATUSTEXT saying why in the same step after it, the
+        # order ArduPilot sends them in (its texts wait in a queue of their own).
+        link.mav.send(mavlink.MAVLink_command_ack_message(
+            command, result, 0, 0, msg.get_srcSystem(), msg.get_srcComponent()
+        ))
+        self._send_texts()
 
     def _on_command_long(self, link: Link, msg) -> None:
         params = (
             msg.param1, msg.param2, msg.param3, msg.param4, msg.param5, msg.param6, msg.param7
         )
-        self._ack(link, msg.command, self._command(link, msg.command, params), msg)
+        request = CommandRequest(msg.command, params)
+        self._ack(link, msg.command, self.commands.handle(link, request), msg)
 
     def _on_command_int(self, link: Link, msg) -> None:
         params = (msg.param1, msg.param2, msg.param3, msg.param4, msg.x, msg.y, msg.z)
-        self._ack(link, msg.command, self._command(link, msg.command, params), msg)
+        request = CommandRequest(msg.command, params, frame=msg.frame)
+        self._ack(link, msg.command, self.commands.handle(link, request), msg)
 
-    def _command(self, link: Link, command: int, p: tuple[float, ...]) -> int:
-        ap = self.autopilot
-        if command == mavlink.MAV_CMD_SET_MESSAGE_INTERVAL:
-            msgid = int(p[0])
-            if p[1] == 0:
-                interval = self.default_intervals.get(msgid, 0.0)
-            elif p[1] < 0:
-                interval = 0.0
-            else:
-                interval = p[1] * 1e-6
-            if msgid in STREAMS:
-                link.set_interval(msgid, interval, self.time)
-            return ACCEPTED  # ArduPilot ACKs every interval request
-        if command == mavlink.MAV_CMD_GET_MESSAGE_INTERVAL:
-            msgid = int(p[0])
-            interval = link.intervals.get(msgid)
-            us = int(interval * 1e6) if interval else (-1 if msgid in STREAMS else 0)
-            link.mav.send(mavlink.MAVLink_message_interval_message(msgid, us))
-            return ACCEPTED
-        if command == mavlink.MAV_CMD_REQUEST_MESSAGE:
-            msgid = int(p[0])
-            if msgid not in self._builders:
-                return UNSUPPORTED
-            link.once.append(msgid)
-            return ACCEPTED
-        if command == mavlink.MAV_CMD_GET_HOME_POSITION:
-            link.once.append(mavlink.MAVLINK_MSG_ID_HOME_POSITION)
-            return ACCEPTED
-        if command == mavlink.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES:
-            link.once.append(mavlink.MAVLINK_MSG_ID_AUTOPILOT_VERSION)
-            return ACCEPTED
-        if command == mavlink.MAV_CMD_COMPONENT_ARM_DISARM:
-            if p[0] == 1:
-                return ap.arm(force=int(p[1]) == FORCE_ARM)
-            if p[0] == 0:
-                return ap.disarm(force=int(p[1]) == FORCE_DISARM)
-            return FAILED
-        if command == mavlink.MAV_CMD_NAV_TAKEOFF:
-            return ap.takeoff(p[6])
-        if command == mavlink.MAV_CMD_NAV_LAND:
-            return ap.land()
-        if command == mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH:
-            return ap.return_to_launch()
-        if command == mavlink.MAV_CMD_DO_SET_MODE:
-            return self._set_mode(int(p[0]), p[1], p[2])
-        return UNSUPPORTED
-
-    def _set_mode(self, base_mode: int, param2: float, param3: float) -> int:
-        """DO_SET_MODE: ArduPilot's custom mode is param2; PX4's main/sub modes are param2/3."""
-        ap = self.autopilot
-        if not base_mode & mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED:
-            return UNSUPPORTED
-        if ap.name == "px4":
-            custom = (int(param2) << 16) | (int(param3) << 24)
-        else:
-            custom = int(param2)
-        return self._mode_by_number(custom)
-
-    def _mode_by_number(self, custom_mode: int) -> int:
+    def set_mode_number(self, custom_mode: int) -> int:
+        """Switch to the personality's mode numbered ``custom_mode``; the MAV_RESULT."""
         ap = self.autopilot
         name = ap.mode_name(custom_mode)
-        if name is None:
-            return ap.set_mode(f"mode {custom_mode}")
-        return ap.set_mode(name)
+        return ap.set_mode(name if name is not None else f"mode {custom_mode}")
 
     def _on_set_mode(self, link: Link, msg) -> None:
         if not msg.base_mode & mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED:
             result = UNSUPPORTED
         else:
-            result = self._mode_by_number(msg.custom_mode)
+            result = self.set_mode_number(msg.custom_mode)
         # ArduPilot ACKs SET_MODE with the message id (11) as the command.
         self._ack(link, mavlink.MAVLINK_MSG_ID_SET_MODE, result, msg)
 
-    def _on_position_target(self, link: Link, msg) -> None:
+    # ---------------------------------------------------------------- targets
+    def global_to_enu(
+        self, lat: float | None, lon: float | None, alt: float | None, frame: int
+    ) -> tuple[float, float, float] | None:
+        """A global point (None keeps the vehicle's own coordinate) in ENU metres, or None."""
         ap = self.autopilot
-        m = ap.model
-        mask = msg.type_mask
+        return ap.geo.to_enu(lat, lon, alt, frame, ap.model.position)
+
+    def _on_position_target_local(self, link: Link, msg) -> None:
+        m = self.autopilot.model
         frame = msg.coordinate_frame
-        if frame not in (mavlink.MAV_FRAME_LOCAL_NED, mavlink.MAV_FRAME_LOCAL_OFFSET_NED):
+        if frame not in _LOCAL_FRAMES:
             self.ignored_setpoints += 1
             return
         position = velocity = None
+        mask = msg.type_mask
+        if frame in _BODY_FRAMES:
+            # Body axes: x forward, y right, turned by the heading (clockwise from north).
+            c, s = math.cos(m.heading), math.sin(m.heading)
+
+            def turn(x: float, y: float) -> tuple[float, float]:
+                return x * c - y * s, x * s + y * c
+        else:
+
+            def turn(x: float, y: float) -> tuple[float, float]:
+                return x, y
+
         if not mask & _IGNORE_POSITION:
-            e, n, u = ned_to_enu(msg.x, msg.y, msg.z)
-            if frame == mavlink.MAV_FRAME_LOCAL_NED:
-                position = (e, n, u + ap.home_z)
+            north, east = turn(msg.x, msg.y)
+            if frame in _OFFSET_FRAMES:
+                position = (m.x + east, m.y + north, m.z - msg.z)
             else:
-                position = (m.x + e, m.y + n, m.z + u)
+                position = (east, north, self.autopilot.home_z - msg.z)
         if not mask & _IGNORE_VELOCITY:
-            velocity = ned_to_enu(msg.vx, msg.vy, msg.vz)
+            vn, ve = turn(msg.vx, msg.vy)
+            velocity = (ve, vn, -msg.vz)
+        self._target(msg, position, velocity)
+
+    def _on_position_target_global(self, link: Link, msg) -> None:
+        position = velocity = None
+        mask = msg.type_mask
+        if not mask & _IGNORE_POSITION:
+            position = self.global_to_enu(
+                msg.lat_int * 1e-7, msg.lon_int * 1e-7, msg.alt, msg.coordinate_frame
+            )
+            if position is None:
+                self.ignored_setpoints += 1
+                return
+        if not mask & _IGNORE_VELOCITY:
+            velocity = (msg.vy, msg.vx, -msg.vz)
+        self._target(msg, position, velocity)
+
+    def _target(self, msg, position, velocity) -> None:
+        """Hand a decoded position target (ENU) to the autopilot, if it is usable."""
+        ap = self.autopilot
         values = (*(position or ()), *(velocity or ()))
         if not all(math.isfinite(v) for v in values):
             self.ignored_setpoints += 1
             return
+        mask = msg.type_mask
         yaw = None if mask & _IGNORE_YAW or not math.isfinite(msg.yaw) else msg.yaw
         yaw_rate = None
         if not mask & _IGNORE_YAW_RATE and math.isfinite(msg.yaw_rate):
@@ -386,7 +374,7 @@ class MavlinkServer:
             if yaw is None and yaw_rate is None:
                 self.ignored_setpoints += 1
                 return
-            position = m.position  # a yaw-only target holds position
+            position = ap.model.position  # a yaw-only target holds position
         ap.position_target(
             Setpoint(position=position, velocity=velocity, yaw=yaw, yaw_rate=yaw_rate)
         )
@@ -397,15 +385,79 @@ class MavlinkServer:
         for msgid in group:
             link.set_interval(msgid, 1.0 / rate if rate > 0 else 0.0, self.time)
 
+    # ---------------------------------------------------------------- signing, time
+    def _signing_timestamp(self) -> int:
+        """Now in MAVLink signing units (10 us since 2015-01-01), from the SITL's clock."""
+        unix = self.settings.unix_time_at_boot + self.time
+        return max(0, int((unix - _MAVLINK_EPOCH) * 1e5))
+
+    def _sign_link(self, link: Link, timestamp: int) -> None:
+        signing = link.mav.signing
+        signing.secret_key = self.signing_key
+        signing.sign_outgoing = True
+        signing.link_id = 0
+        signing.timestamp = max(signing.timestamp, timestamp)
+        # ArduPilot takes RADIO_STATUS unsigned (radios cannot sign); nothing else.
+        signing.allow_unsigned_callback = lambda mav, msg_id: msg_id == _RADIO_STATUS
+
+    def _sign_with(self, key: bytes, initial_timestamp: int) -> None:
+        self.signing_key = key
+        timestamp = max(initial_timestamp, self._signing_timestamp())
+        for link in self.links:
+            self._sign_link(link, timestamp)
+
+    def _on_setup_signing(self, link: Link, msg) -> None:
+        """SETUP_SIGNING: a key of zeros turns signing off, any other turns it on for every
+        link (unsigned packets are then refused and counted), as ArduPilot does."""
+        key = bytes(msg.secret_key)
+        if len(key) != 32:
+            return
+        if not any(key):
+            self.signing_key = None
+            for each in self.links:
+                signing = each.mav.signing
+                signing.secret_key = None
+                signing.sign_outgoing = False
+                signing.allow_unsigned_callback = None
+            return
+        self._sign_with(key, int(msg.initial_timestamp))
+
+    def _on_timesync(self, link: Link, msg) -> None:
+        """TIMESYNC with tc1 = 0 is a request: answer with our time in tc1, theirs in ts1."""
+        if msg.tc1 == 0:
+            link.mav.send(mavlink.MAVLink_timesync_message(int(self.time * 1e9), msg.ts1))
+
     # ------------------------------------------------------------------- emit
+    def send_mission_current(self) -> None:
+        """MISSION_CURRENT to every open link (the current item changed)."""
+        msg = self.telemetry.mission_current()
+        for link in self.links:
+            if link.open:
+                link.mav.send(msg)
+
+    def _mission_events(self) -> None:
+        ap = self.autopilot
+        reached = ap.auto.reached
+        for seq in reached:
+            msg = mavlink.MAVLink_mission_item_reached_message(seq)
+            for link in self.links:
+                if link.open:
+                    link.mav.send(msg)
+        reached.clear()
+        if ap.mission.current != self._mission_seq:
+            self._mission_seq = ap.mission.current
+            self.send_mission_current()
+
     def emit(self, now: float) -> None:
         """Send the STATUSTEXTs and every telemetry message due at ``now``; flush links."""
         self.time = now
         ap = self.autopilot
         self._send_texts()
+        self._mission_events()
         cache = self._cache
         cache.clear()
         home_msg = mavlink.MAVLINK_MSG_ID_HOME_POSITION
+        build = self.telemetry.builders
         for link in self.links:
             if not link.open:
                 continue
@@ -414,197 +466,24 @@ class MavlinkServer:
             once = link.once
             for msgid in once:
                 if msgid == home_msg:
+                    if not ap.settled:
+                        continue  # no home until the EKF has a position
                     link.home_sent = True
-                link.mav.send(self._build(msgid))
+                link.mav.send(build[msgid]())
             once.clear()
             due = link.next_due
             for msgid, when in due.items():
                 if now + 1e-9 >= when:
                     if msgid == home_msg and not ap.settled:
-                        continue  # no home until the EKF has a position
+                        continue
                     msg = cache.get(msgid)
                     if msg is None:
-                        msg = cache[msgid] = self._build(msgid)
+                        msg = cache[msgid] = build[msgid]()
                     link.mav.send(msg)
                     nxt = when + link.intervals[msgid]
                     due[msgid] = nxt if nxt > now else now + link.intervals[msgid]
+            self.params.emit(link)
+            self.missions.emit(link)
             link.flush()
         if ap.settled:
             ap.home_changed = False
-
-    def _build(self, msgid: int):
-        return self._builders[msgid]()
-
-    # --------------------------------------------------------------- messages
-    def _prebuild(self) -> dict[str, object]:
-        """One message object per type, refilled in place each time (cheaper than new ones)."""
-        s = self.settings
-        lat, lon = int(s.home.lat * 1e7), int(s.home.lon * 1e7)
-        alt = int(s.home.alt * 1000)
-        return {
-            "heartbeat": mavlink.MAVLink_heartbeat_message(
-                mavlink.MAV_TYPE_QUADROTOR, self.autopilot.mav_autopilot, 0, 0, 0, 3
-            ),
-            "attitude": mavlink.MAVLink_attitude_message(0, 0, 0, 0, 0, 0, 0),
-            "gpi": mavlink.MAVLink_global_position_int_message(0, lat, lon, alt, 0, 0, 0, 0, 0),
-            "lpn": mavlink.MAVLink_local_position_ned_message(0, 0, 0, 0, 0, 0, 0),
-            "distance": mavlink.MAVLink_distance_sensor_message(
-                0,
-                int(s.rangefinder_min * 100),
-                int(s.rangefinder_max * 100),
-                0,
-                mavlink.MAV_DISTANCE_SENSOR_LASER,
-                0,
-                mavlink.MAV_SENSOR_ROTATION_PITCH_270,
-                0,
-            ),
-            "sys_status": mavlink.MAVLink_sys_status_message(
-                _SENSORS, _SENSORS, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0
-            ),
-            "ess": mavlink.MAVLink_extended_sys_state_message(
-                mavlink.MAV_VTOL_STATE_UNDEFINED, mavlink.MAV_LANDED_STATE_ON_GROUND
-            ),
-            "battery": mavlink.MAVLink_battery_status_message(
-                0,
-                mavlink.MAV_BATTERY_FUNCTION_ALL,
-                mavlink.MAV_BATTERY_TYPE_LIPO,
-                _INT16_MAX,
-                [_UINT16_MAX] * 10,
-                0,
-                0,
-                0,
-                100,
-            ),
-            "home": mavlink.MAVLink_home_position_message(
-                lat, lon, alt, 0.0, 0.0, 0.0, [1.0, 0.0, 0.0, 0.0], 0.0, 0.0, 0.0, 0
-            ),
-            "gps": mavlink.MAVLink_gps_raw_int_message(
-                0, 0, lat, lon, alt, 121, 200, 0, 0, 0
-            ),
-            "system_time": mavlink.MAVLink_system_time_message(0, 0),
-        }
-
-    def _heartbeat(self):
-        ap = self.autopilot
-        msg = self._prebuilt["heartbeat"]
-        msg.base_mode = ap.base_mode
-        msg.custom_mode = ap.custom_mode
-        if ap.crashed:
-            msg.system_status = mavlink.MAV_STATE_EMERGENCY
-        elif ap.armed:
-            msg.system_status = mavlink.MAV_STATE_ACTIVE
-        else:
-            msg.system_status = mavlink.MAV_STATE_STANDBY
-        return msg
-
-    def _time_ms(self) -> int:
-        return int(self.time * 1000.0) & 0xFFFFFFFF
-
-    def _attitude(self):
-        m = self.autopilot.model
-        msg = self._prebuilt["attitude"]
-        msg.time_boot_ms = self._time_ms()
-        msg.roll, msg.pitch = m.attitude()
-        msg.yaw = m.heading
-        msg.yawspeed = m.yaw_speed
-        return msg
-
-    def _global_position_int(self):
-        ap = self.autopilot
-        m = ap.model
-        msg = self._prebuilt["gpi"]
-        lat, lon = self.to_global(m.x, m.y)
-        rel = m.z - ap.home_z
-        msg.time_boot_ms = self._time_ms()
-        msg.lat = int(round(lat * 1e7))
-        msg.lon = int(round(lon * 1e7))
-        msg.alt = int(round((self.settings.home.alt + rel) * 1000.0))
-        msg.relative_alt = int(round(rel * 1000.0))
-        msg.vx = int(round(m.vy * 100.0))
-        msg.vy = int(round(m.vx * 100.0))
-        msg.vz = int(round(-m.vz * 100.0))
-        msg.hdg = int(round(math.degrees(m.heading) * 100.0)) % 36000
-        return msg
-
-    def _local_position_ned(self):
-        ap = self.autopilot
-        m = ap.model
-        msg = self._prebuilt["lpn"]
-        msg.time_boot_ms = self._time_ms()
-        msg.x, msg.y, msg.z = m.y, m.x, -(m.z - ap.home_z)
-        msg.vx, msg.vy, msg.vz = m.vy, m.vx, -m.vz
-        return msg
-
-    def _distance_sensor(self):
-        m = self.autopilot.model
-        s = self.settings
-        msg = self._prebuilt["distance"]
-        roll, pitch = m.attitude()
-        tilt = max(math.cos(roll) * math.cos(pitch), 0.1)
-        distance = self.agl() / tilt
-        # Beyond the sensor's range it reports max + 1 cm, as ArduPilot does for "out of range".
-        cm = min(max(distance, s.rangefinder_min), s.rangefinder_max + 0.01) * 100.0
-        msg.time_boot_ms = self._time_ms()
-        msg.current_distance = int(round(cm))
-        return msg
-
-    def _sys_status(self):
-        ap = self.autopilot
-        b = ap.battery
-        msg = self._prebuilt["sys_status"]
-        health = _SENSORS if ap.settled else _SENSORS & ~_NEEDS_SETTLING
-        msg.onboard_control_sensors_health = health
-        msg.load = 200
-        msg.voltage_battery = int(b.voltage * 1000.0)
-        msg.current_battery = int(b.current * 100.0)
-        msg.battery_remaining = int(b.percent)
-        return msg
-
-    def _extended_sys_state(self):
-        msg = self._prebuilt["ess"]
-        msg.landed_state = self.autopilot.landed_state
-        return msg
-
-    def _battery_status(self):
-        b = self.autopilot.battery
-        msg = self._prebuilt["battery"]
-        mv = int(b.voltage * 1000.0)
-        msg.voltages = [min(mv, _UINT16_MAX - 1)] + [_UINT16_MAX] * 9
-        msg.current_battery = int(b.current * 100.0)
-        msg.current_consumed = int(b.consumed_mah)
-        msg.energy_consumed = int(b.energy_j / 100.0)
-        msg.battery_remaining = int(b.percent)
-        return msg
-
-    def _home_position(self):
-        msg = self._prebuilt["home"]
-        msg.time_usec = int(self.time * 1e6)
-        return msg
-
-    def _gps_raw_int(self):
-        ap = self.autopilot
-        m = ap.model
-        msg = self._prebuilt["gps"]
-        lat, lon = self.to_global(m.x, m.y)
-        msg.time_usec = int(self.time * 1e6)
-        msg.fix_type = mavlink.GPS_FIX_TYPE_3D_FIX if ap.settled else mavlink.GPS_FIX_TYPE_NO_FIX
-        msg.satellites_visible = 12 if ap.settled else 3
-        msg.lat = int(round(lat * 1e7))
-        msg.lon = int(round(lon * 1e7))
-        msg.alt = int(round((self.settings.home.alt + m.z - ap.home_z) * 1000.0))
-        speed = math.hypot(m.vx, m.vy)
-        msg.vel = int(speed * 100.0)
-        course = math.degrees(math.atan2(m.vx, m.vy)) % 360.0 if speed > 0.1 else 0.0
-        msg.cog = int(course * 100.0) % 36000
-        return msg
-
-    def _system_time(self):
-        msg = self._prebuilt["system_time"]
-        msg.time_unix_usec = int((self.settings.unix_time_at_boot + self.time) * 1e6)
-        msg.time_boot_ms = self._time_ms()
-        return msg
-
-    def _autopilot_version(self):
-        return mavlink.MAVLink_autopilot_version_message(
-            _CAPABILITIES, 0x040500FF, 0, 0, 0, [0] * 8, [0] * 8, [0] * 8, 0, 0, 0
-        )

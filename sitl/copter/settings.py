@@ -68,6 +68,7 @@ class MessageRates(BaseModel):
     home_position: float = Field(0.5, ge=0)
     gps_raw_int: float = Field(2.0, ge=0)
     system_time: float = Field(1.0, ge=0)
+    mission_current: float = Field(1.0, ge=0)
 
 
 class SitlSettings(BaseModel):
@@ -99,6 +100,13 @@ class SitlSettings(BaseModel):
     land_alt_low: float = Field(10.0, ge=0, description="AGL below which LAND slows down, m")
     px4_land_speed: float = Field(0.7, gt=0, description="PX4 final descent speed, m/s")
     rtl_altitude: float = Field(15.0, ge=0, description="RTL climbs to this above home, m")
+    waypoint_radius: float = Field(
+        2.0, gt=0, le=1000, description="a mission waypoint counts as reached this close, m "
+        "(ArduPilot WPNAV_RADIUS, PX4 NAV_ACC_RAD)"
+    )
+    mission_capacity: int = Field(
+        1000, ge=2, le=65535, description="the most items a mission, fence or rally plan holds"
+    )
     px4_takeoff_altitude: float = Field(2.5, gt=0, description="PX4 default takeoff height, m")
 
     # Safety and refusals.

@@ -9,7 +9,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .battery import Battery
-from .geo import heading_to_enu_yaw
+from .geo import GeoFrame, heading_to_enu_yaw
 from .kinematics import Multicopter
 from .personalities import PERSONALITIES
 from .server import MavlinkServer
@@ -62,6 +62,8 @@ class Sitl:
             None = flat ground at z = 0.
         autopilot: personality, ``"ardupilot"`` or ``"px4"``.
         seed: seeds the wind gusts.
+        signing_key: 32-byte MAVLink 2 signing key in force from boot: packets are signed and
+            unsigned ones refused (None: unsigned until a SETUP_SIGNING sets a key).
 
     Time is simulated: :meth:`step` reads what arrived on the attached links, handles it,
     integrates the model for ``dt`` seconds and sends the telemetry that fell due.
@@ -74,13 +76,16 @@ class Sitl:
         terrain=None,
         autopilot: str = "ardupilot",
         seed: int = 0,
+        signing_key: bytes | None = None,
     ) -> None:
         if autopilot not in PERSONALITIES:
             known = ", ".join(sorted(PERSONALITIES))
             raise ValueError(f"autopilot: unknown personality {autopilot!r} (known: {known})")
         if terrain is not None and not callable(getattr(terrain, "height", None)):
             raise TypeError("terrain: needs a height(x, y) method (or None for flat ground)")
-        self.settings = s = settings if settings is not None else SitlSettings()
+        if signing_key is not None and len(signing_key) != 32:
+            raise ValueError("signing_key: a MAVLink signing key is 32 bytes")
+        s = settings if settings is not None else SitlSettings()
         self.terrain = terrain
         self._time = 0.0
         self._closed = False
@@ -97,8 +102,9 @@ class Sitl:
         )
         self.battery = Battery(s.battery)
         self.wind = Wind(s.wind, np.random.default_rng(seed))
+        geo = GeoFrame(s.home.lat, s.home.lon, s.home.alt, home_z, self._height)
         self.autopilot = PERSONALITIES[autopilot](
-            s, self.model, self.battery, self.slope, ground_z=home_z
+            s, self.model, self.battery, self.slope, ground_z=home_z, geo=geo
         )
         self._ground = self._ground_now = home_z
         self._ground_xy = (0.0, 0.0)
@@ -106,7 +112,13 @@ class Sitl:
             self.autopilot,
             self._agl,
             streams_by_default=autopilot == "px4",
+            signing_key=signing_key,
         )
+
+    @property
+    def settings(self) -> SitlSettings:
+        """The settings in force (a parameter set over MAVLink changes them)."""
+        return self.autopilot.settings
 
     # ------------------------------------------------------------------ terrain
     def _height(self, x: float, y: float) -> float:

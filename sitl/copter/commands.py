@@ -1,0 +1,239 @@
+"""COMMAND_LONG and COMMAND_INT: what the simulated autopilot does with each MAV_CMD.
+
+Ground stations and SDKs fill the parameters they do not use with NaN (MAVLink allows it, and
+for many commands NaN means "keep the current value"), and anything may arrive in a field, so
+every parameter is read through :class:`CommandRequest`, which turns NaN, infinities and
+out-of-range numbers into None instead of raising. Each handler returns the MAV_RESULT the
+real autopilot would give; a command nobody handles gets MAV_RESULT_UNSUPPORTED.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+from pymavlink.dialects.v20 import ardupilotmega as mavlink
+
+from .autopilot import ACCEPTED, DENIED, FAILED, UNSUPPORTED
+from .personalities import FORCE_ARM, FORCE_DISARM
+
+if TYPE_CHECKING:
+    from .server import Link, MavlinkServer
+
+_INT32_MAX = 2**31 - 1
+# COMMAND_LONG carries positions in MAV_FRAME_GLOBAL (altitude above mean sea level).
+_LONG_FRAME = mavlink.MAV_FRAME_GLOBAL
+_REPOSITION_CHANGE_MODE = mavlink.MAV_DO_REPOSITION_FLAGS_CHANGE_MODE
+
+
+@dataclass(frozen=True, slots=True)
+class CommandRequest:
+    """One COMMAND_LONG or COMMAND_INT, its seven parameters as sent.
+
+    For COMMAND_INT, ``params[4]`` and ``params[5]`` are the integer ``x`` and ``y``
+    (degrees * 1e7 in a global frame) and ``frame`` is the message's frame; for COMMAND_LONG
+    ``frame`` is None.
+    """
+
+    command: int
+    params: tuple[float, float, float, float, float, float, float]
+    frame: int | None = None
+
+    def value(self, index: int) -> float | None:
+        """Parameter ``index`` (1..7) as a finite float, or None (NaN, inf: "not given")."""
+        v = self.params[index - 1]
+        return float(v) if math.isfinite(v) else None
+
+    def integer(self, index: int, default: int | None = None) -> int | None:
+        """Parameter ``index`` (1..7) as an int when it is a finite whole number in int32
+        range, else ``default``."""
+        v = self.value(index)
+        if v is None or abs(v) > _INT32_MAX or v != int(v):
+            return default
+        return int(v)
+
+    def location(self) -> tuple[float | None, float | None, float | None, int]:
+        """(lat deg, lon deg, alt m, frame) of params 5-7; None where not given. COMMAND_INT
+        marks "not given" with INT32_MAX in x and y; COMMAND_LONG with NaN."""
+        if self.frame is None:
+            lat, lon = self.value(5), self.value(6)
+            frame = _LONG_FRAME
+        else:
+            x, y = self.params[4], self.params[5]
+            lat = None if x == _INT32_MAX else x * 1e-7
+            lon = None if y == _INT32_MAX else y * 1e-7
+            frame = self.frame
+        if lat is not None and not -90.0 <= lat <= 90.0:
+            lat = None
+        if lon is not None and not -180.0 <= lon <= 180.0:
+            lon = None
+        return lat, lon, self.value(7), frame
+
+
+Handler = Callable[["Link", CommandRequest], int]
+
+
+class Commands:
+    """The MAV_CMD handlers of one :class:`~sitl.copter.server.MavlinkServer`."""
+
+    def __init__(self, server: MavlinkServer) -> None:
+        self.server = server
+        self.autopilot = server.autopilot
+        c = mavlink
+        self.handlers: dict[int, Handler] = {
+            c.MAV_CMD_SET_MESSAGE_INTERVAL: self._set_message_interval,
+            c.MAV_CMD_GET_MESSAGE_INTERVAL: self._get_message_interval,
+            c.MAV_CMD_REQUEST_MESSAGE: self._request_message,
+            c.MAV_CMD_GET_HOME_POSITION: self._get_home_position,
+            c.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES: self._request_capabilities,
+            c.MAV_CMD_COMPONENT_ARM_DISARM: self._arm_disarm,
+            c.MAV_CMD_NAV_TAKEOFF: self._takeoff,
+            c.MAV_CMD_NAV_LAND: self._land,
+            c.MAV_CMD_NAV_RETURN_TO_LAUNCH: self._return_to_launch,
+            c.MAV_CMD_DO_SET_MODE: self._do_set_mode,
+            c.MAV_CMD_DO_REPOSITION: self._do_reposition,
+            c.MAV_CMD_DO_CHANGE_SPEED: self._do_change_speed,
+            c.MAV_CMD_MISSION_START: self._mission_start,
+            c.MAV_CMD_DO_SET_MISSION_CURRENT: self._set_mission_current,
+            c.MAV_CMD_CONDITION_YAW: self._condition_yaw,
+        }
+
+    def handle(self, link: Link, request: CommandRequest) -> int:
+        handler = self.handlers.get(request.command)
+        if handler is None:
+            return UNSUPPORTED
+        return handler(link, request)
+
+    # ------------------------------------------------------------------ telemetry
+    def _set_message_interval(self, link: Link, r: CommandRequest) -> int:
+        msgid = r.integer(1)
+        us = r.value(2)
+        if msgid is None or us is None:
+            return DENIED
+        server = self.server
+        if us == 0:
+            interval = server.default_intervals.get(msgid, 0.0)
+        elif us < 0:
+            interval = 0.0
+        else:
+            interval = us * 1e-6
+        if server.can_stream(msgid):
+            link.set_interval(msgid, interval, server.time)
+        return ACCEPTED  # ArduPilot ACKs every interval request
+
+    def _get_message_interval(self, link: Link, r: CommandRequest) -> int:
+        msgid = r.integer(1)
+        if msgid is None or not 0 <= msgid <= 0xFFFF:
+            return DENIED
+        interval = link.intervals.get(msgid)
+        if interval:
+            us = min(int(interval * 1e6), _INT32_MAX)
+        else:
+            us = -1 if self.server.can_stream(msgid) else 0
+        link.mav.send(mavlink.MAVLink_message_interval_message(msgid, us))
+        return ACCEPTED
+
+    def _request_message(self, link: Link, r: CommandRequest) -> int:
+        msgid = r.integer(1)
+        if msgid is None or not self.server.can_build(msgid):
+            return UNSUPPORTED
+        link.once.append(msgid)
+        return ACCEPTED
+
+    def _get_home_position(self, link: Link, r: CommandRequest) -> int:
+        if not self.autopilot.settled:
+            return FAILED  # no home before the position estimate, as on ArduPilot
+        link.once.append(mavlink.MAVLINK_MSG_ID_HOME_POSITION)
+        return ACCEPTED
+
+    def _request_capabilities(self, link: Link, r: CommandRequest) -> int:
+        link.once.append(mavlink.MAVLINK_MSG_ID_AUTOPILOT_VERSION)
+        return ACCEPTED
+
+    # ------------------------------------------------------------------ flight
+    def _arm_disarm(self, link: Link, r: CommandRequest) -> int:
+        ap = self.autopilot
+        arm = r.value(1)
+        magic = r.integer(2, 0)
+        if arm == 1.0:
+            return ap.arm(force=magic == FORCE_ARM)
+        if arm == 0.0:
+            return ap.disarm(force=magic == FORCE_DISARM)
+        return DENIED
+
+    def _takeoff(self, link: Link, r: CommandRequest) -> int:
+        return self.autopilot.takeoff(r.params[6] if r.value(7) is not None else math.nan)
+
+    def _land(self, link: Link, r: CommandRequest) -> int:
+        return self.autopilot.land()
+
+    def _return_to_launch(self, link: Link, r: CommandRequest) -> int:
+        return self.autopilot.return_to_launch()
+
+    def _do_set_mode(self, link: Link, r: CommandRequest) -> int:
+        """ArduPilot's custom mode is param2; PX4's main and sub modes are param2 and 3."""
+        base_mode = r.integer(1)
+        main = r.integer(2)
+        if base_mode is None or main is None or main < 0:
+            return DENIED
+        if not base_mode & mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED:
+            return UNSUPPORTED
+        if self.autopilot.name == "px4":
+            sub = r.integer(3, 0)
+            if not 0 <= main <= 0xFF or sub is None or not 0 <= sub <= 0xFF:
+                return DENIED
+            custom = (main << 16) | (sub << 24)
+        else:
+            custom = main
+        return self.server.set_mode_number(custom)
+
+    def _do_reposition(self, link: Link, r: CommandRequest) -> int:
+        """Fly to a global point: param1 ground speed (m/s, < 0 or NaN: unchanged), param2
+        MAV_DO_REPOSITION_FLAGS, param4 yaw (rad, NaN: unchanged), params 5-7 the point."""
+        lat, lon, alt, frame = r.location()
+        target = self.server.global_to_enu(lat, lon, alt, frame)
+        if target is None:
+            return DENIED
+        flags = r.integer(2, 0)
+        speed = r.value(1)
+        yaw = r.value(4)
+        return self.autopilot.reposition(
+            target,
+            change_mode=bool(flags & _REPOSITION_CHANGE_MODE),
+            speed=speed if speed is not None and speed > 0 else None,
+            yaw=yaw,
+        )
+
+    def _do_change_speed(self, link: Link, r: CommandRequest) -> int:
+        """param1 speed type (0 air, 1 ground, 2 climb, 3 descent), param2 m/s (-1: unchanged)."""
+        kind = r.integer(1, 1)
+        speed = r.value(2)
+        if speed is None or speed == -1.0:
+            return ACCEPTED
+        if speed <= 0.0 or kind not in (0, 1, 2, 3):
+            return DENIED
+        return self.autopilot.change_speed(kind, speed)
+
+    def _mission_start(self, link: Link, r: CommandRequest) -> int:
+        first = r.integer(1, 0)
+        return self.autopilot.mission_start(first or None)
+
+    def _set_mission_current(self, link: Link, r: CommandRequest) -> int:
+        seq = r.integer(1)
+        if seq is None or not self.autopilot.mission.set_current(seq):
+            return DENIED
+        return ACCEPTED
+
+    def _condition_yaw(self, link: Link, r: CommandRequest) -> int:
+        """param1 heading or change (deg), param3 direction (-1 ccw, 1 cw), param4 relative."""
+        angle = r.value(1)
+        if angle is None:
+            return DENIED
+        relative = r.integer(4, 0) == 1
+        direction = -1.0 if r.value(3) == -1.0 else 1.0
+        return self.autopilot.point_yaw(math.radians(angle), relative, direction)
+
+
+__all__ = ["CommandRequest", "Commands"]

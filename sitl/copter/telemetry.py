@@ -1,0 +1,266 @@
+"""The telemetry messages the SITL sends, built from the autopilot's state.
+
+One message object per type is kept and refilled in place on each build (cheaper than a new
+one); pymavlink packs it again on every send.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from typing import TYPE_CHECKING
+
+from pymavlink.dialects.v20 import ardupilotmega as mavlink
+
+if TYPE_CHECKING:
+    from .server import MavlinkServer
+
+# Telemetry streams a client can ask for, with the MessageRates field of its default rate.
+STREAMS: dict[int, str] = {
+    mavlink.MAVLINK_MSG_ID_HEARTBEAT: "heartbeat",
+    mavlink.MAVLINK_MSG_ID_ATTITUDE: "attitude",
+    mavlink.MAVLINK_MSG_ID_GLOBAL_POSITION_INT: "global_position_int",
+    mavlink.MAVLINK_MSG_ID_LOCAL_POSITION_NED: "local_position_ned",
+    mavlink.MAVLINK_MSG_ID_DISTANCE_SENSOR: "distance_sensor",
+    mavlink.MAVLINK_MSG_ID_SYS_STATUS: "sys_status",
+    mavlink.MAVLINK_MSG_ID_EXTENDED_SYS_STATE: "extended_sys_state",
+    mavlink.MAVLINK_MSG_ID_BATTERY_STATUS: "battery_status",
+    mavlink.MAVLINK_MSG_ID_HOME_POSITION: "home_position",
+    mavlink.MAVLINK_MSG_ID_GPS_RAW_INT: "gps_raw_int",
+    mavlink.MAVLINK_MSG_ID_SYSTEM_TIME: "system_time",
+    mavlink.MAVLINK_MSG_ID_MISSION_CURRENT: "mission_current",
+}
+
+_S = mavlink
+_SENSORS = (
+    _S.MAV_SYS_STATUS_SENSOR_3D_GYRO
+    | _S.MAV_SYS_STATUS_SENSOR_3D_ACCEL
+    | _S.MAV_SYS_STATUS_SENSOR_3D_MAG
+    | _S.MAV_SYS_STATUS_SENSOR_ABSOLUTE_PRESSURE
+    | _S.MAV_SYS_STATUS_SENSOR_GPS
+    | _S.MAV_SYS_STATUS_SENSOR_LASER_POSITION
+    | _S.MAV_SYS_STATUS_SENSOR_MOTOR_OUTPUTS
+    | _S.MAV_SYS_STATUS_AHRS
+    | _S.MAV_SYS_STATUS_SENSOR_BATTERY
+    | _S.MAV_SYS_STATUS_PREARM_CHECK
+)
+# Reported healthy although absent, as ArduPilot does for what has not failed: ground stations
+# (MAVProxy's fence module) read a missing GEOFENCE health bit as a fence breach.
+_HEALTHY_ABSENT = _S.MAV_SYS_STATUS_GEOFENCE | _S.MAV_SYS_STATUS_TERRAIN | _S.MAV_SYS_STATUS_LOGGING
+_NEEDS_SETTLING = (
+    _S.MAV_SYS_STATUS_SENSOR_GPS | _S.MAV_SYS_STATUS_AHRS | _S.MAV_SYS_STATUS_PREARM_CHECK
+)
+_UINT16_MAX = 65535
+_INT16_MAX = 32767
+
+# What each personality's AUTOPILOT_VERSION claims: only what this simulator does.
+_COMMON_CAPABILITIES = (
+    _S.MAV_PROTOCOL_CAPABILITY_MAVLINK2
+    | _S.MAV_PROTOCOL_CAPABILITY_COMMAND_INT
+    | _S.MAV_PROTOCOL_CAPABILITY_MISSION_INT
+    | _S.MAV_PROTOCOL_CAPABILITY_MISSION_FLOAT
+    | _S.MAV_PROTOCOL_CAPABILITY_MISSION_FENCE
+    | _S.MAV_PROTOCOL_CAPABILITY_MISSION_RALLY
+    | _S.MAV_PROTOCOL_CAPABILITY_PARAM_FLOAT
+    | _S.MAV_PROTOCOL_CAPABILITY_SET_POSITION_TARGET_LOCAL_NED
+    | _S.MAV_PROTOCOL_CAPABILITY_SET_POSITION_TARGET_GLOBAL_INT
+)
+CAPABILITIES = {
+    "ardupilot": _COMMON_CAPABILITIES | _S.MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_C_CAST,
+    "px4": _COMMON_CAPABILITIES | _S.MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_BYTEWISE,
+}
+# flight_sw_version: major, minor, patch, release type (0xFF = official).
+SOFTWARE_VERSION = {"ardupilot": 0x040500FF, "px4": 0x010F00FF}
+
+
+class Telemetry:
+    """Builds the telemetry of ``server``'s autopilot; :attr:`builders` maps message id to a
+    builder returning the message."""
+
+    def __init__(self, server: MavlinkServer) -> None:
+        self.server = server
+        self.autopilot = ap = server.autopilot
+        home = ap.settings.home
+        lat, lon = int(home.lat * 1e7), int(home.lon * 1e7)
+        alt = int(home.alt * 1000)
+        self._heartbeat_msg = mavlink.MAVLink_heartbeat_message(
+            mavlink.MAV_TYPE_QUADROTOR, ap.mav_autopilot, 0, 0, 0, 3
+        )
+        self._attitude_msg = mavlink.MAVLink_attitude_message(0, 0, 0, 0, 0, 0, 0)
+        self._gpi_msg = mavlink.MAVLink_global_position_int_message(
+            0, lat, lon, alt, 0, 0, 0, 0, 0
+        )
+        self._lpn_msg = mavlink.MAVLink_local_position_ned_message(0, 0, 0, 0, 0, 0, 0)
+        self._distance_msg = mavlink.MAVLink_distance_sensor_message(
+            0, 0, 0, 0, mavlink.MAV_DISTANCE_SENSOR_LASER, 0,
+            mavlink.MAV_SENSOR_ROTATION_PITCH_270, 0,
+        )
+        self._sys_status_msg = mavlink.MAVLink_sys_status_message(
+            _SENSORS, _SENSORS, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0
+        )
+        self._ess_msg = mavlink.MAVLink_extended_sys_state_message(
+            mavlink.MAV_VTOL_STATE_UNDEFINED, mavlink.MAV_LANDED_STATE_ON_GROUND
+        )
+        self._battery_msg = mavlink.MAVLink_battery_status_message(
+            0, mavlink.MAV_BATTERY_FUNCTION_ALL, mavlink.MAV_BATTERY_TYPE_LIPO, _INT16_MAX,
+            [_UINT16_MAX] * 10, 0, 0, 0, 100,
+        )
+        self._home_msg = mavlink.MAVLink_home_position_message(
+            lat, lon, alt, 0.0, 0.0, 0.0, [1.0, 0.0, 0.0, 0.0], 0.0, 0.0, 0.0, 0
+        )
+        self._gps_msg = mavlink.MAVLink_gps_raw_int_message(0, 0, lat, lon, alt, 121, 200, 0, 0, 0)
+        self._system_time_msg = mavlink.MAVLink_system_time_message(0, 0)
+        self.builders: dict[int, Callable[[], object]] = {
+            mavlink.MAVLINK_MSG_ID_HEARTBEAT: self.heartbeat,
+            mavlink.MAVLINK_MSG_ID_ATTITUDE: self._attitude,
+            mavlink.MAVLINK_MSG_ID_GLOBAL_POSITION_INT: self._global_position_int,
+            mavlink.MAVLINK_MSG_ID_LOCAL_POSITION_NED: self._local_position_ned,
+            mavlink.MAVLINK_MSG_ID_DISTANCE_SENSOR: self._distance_sensor,
+            mavlink.MAVLINK_MSG_ID_SYS_STATUS: self._sys_status,
+            mavlink.MAVLINK_MSG_ID_EXTENDED_SYS_STATE: self._extended_sys_state,
+            mavlink.MAVLINK_MSG_ID_BATTERY_STATUS: self._battery_status,
+            mavlink.MAVLINK_MSG_ID_HOME_POSITION: self._home_position,
+            mavlink.MAVLINK_MSG_ID_GPS_RAW_INT: self._gps_raw_int,
+            mavlink.MAVLINK_MSG_ID_SYSTEM_TIME: self._system_time,
+            mavlink.MAVLINK_MSG_ID_AUTOPILOT_VERSION: self._autopilot_version,
+            mavlink.MAVLINK_MSG_ID_MISSION_CURRENT: self.mission_current,
+        }
+
+    def _time_ms(self) -> int:
+        return int(self.server.time * 1000.0) & 0xFFFFFFFF
+
+    def heartbeat(self):
+        ap = self.autopilot
+        msg = self._heartbeat_msg
+        msg.base_mode = ap.base_mode
+        msg.custom_mode = ap.custom_mode
+        if ap.crashed:
+            msg.system_status = mavlink.MAV_STATE_EMERGENCY
+        elif ap.armed:
+            msg.system_status = mavlink.MAV_STATE_ACTIVE
+        else:
+            msg.system_status = mavlink.MAV_STATE_STANDBY
+        return msg
+
+    def _attitude(self):
+        m = self.autopilot.model
+        msg = self._attitude_msg
+        msg.time_boot_ms = self._time_ms()
+        msg.roll, msg.pitch = m.attitude()
+        msg.yaw = m.heading
+        msg.yawspeed = m.yaw_speed
+        return msg
+
+    def _global_position_int(self):
+        ap = self.autopilot
+        m = ap.model
+        msg = self._gpi_msg
+        lat, lon = ap.geo.to_global(m.x, m.y)
+        rel = m.z - ap.home_z
+        msg.time_boot_ms = self._time_ms()
+        msg.lat = int(round(lat * 1e7))
+        msg.lon = int(round(lon * 1e7))
+        msg.alt = int(round((ap.settings.home.alt + rel) * 1000.0))
+        msg.relative_alt = int(round(rel * 1000.0))
+        msg.vx = int(round(m.vy * 100.0))
+        msg.vy = int(round(m.vx * 100.0))
+        msg.vz = int(round(-m.vz * 100.0))
+        msg.hdg = int(round(math.degrees(m.heading) * 100.0)) % 36000
+        return msg
+
+    def _local_position_ned(self):
+        ap = self.autopilot
+        m = ap.model
+        msg = self._lpn_msg
+        msg.time_boot_ms = self._time_ms()
+        msg.x, msg.y, msg.z = m.y, m.x, -(m.z - ap.home_z)
+        msg.vx, msg.vy, msg.vz = m.vy, m.vx, -m.vz
+        return msg
+
+    def _distance_sensor(self):
+        ap = self.autopilot
+        m = ap.model
+        s = ap.settings
+        msg = self._distance_msg
+        roll, pitch = m.attitude()
+        tilt = max(math.cos(roll) * math.cos(pitch), 0.1)
+        distance = self.server.agl() / tilt
+        # Beyond the sensor's range it reports max + 1 cm, as ArduPilot does for "out of range".
+        cm = min(max(distance, s.rangefinder_min), s.rangefinder_max + 0.01) * 100.0
+        msg.time_boot_ms = self._time_ms()
+        msg.min_distance = int(s.rangefinder_min * 100)
+        msg.max_distance = int(s.rangefinder_max * 100)
+        msg.current_distance = int(round(cm))
+        return msg
+
+    def _sys_status(self):
+        ap = self.autopilot
+        b = ap.battery
+        msg = self._sys_status_msg
+        health = _SENSORS if ap.settled else _SENSORS & ~_NEEDS_SETTLING
+        msg.onboard_control_sensors_health = health | _HEALTHY_ABSENT
+        msg.load = 200
+        msg.voltage_battery = int(b.voltage * 1000.0)
+        msg.current_battery = int(b.current * 100.0)
+        msg.battery_remaining = int(b.percent)
+        return msg
+
+    def _extended_sys_state(self):
+        msg = self._ess_msg
+        msg.landed_state = self.autopilot.landed_state
+        return msg
+
+    def _battery_status(self):
+        b = self.autopilot.battery
+        msg = self._battery_msg
+        mv = int(b.voltage * 1000.0)
+        msg.voltages = [min(mv, _UINT16_MAX - 1)] + [_UINT16_MAX] * 9
+        msg.current_battery = int(b.current * 100.0)
+        msg.current_consumed = int(b.consumed_mah)
+        msg.energy_consumed = int(b.energy_j / 100.0)
+        msg.battery_remaining = int(b.percent)
+        return msg
+
+    def _home_position(self):
+        msg = self._home_msg
+        msg.time_usec = int(self.server.time * 1e6)
+        return msg
+
+    def _gps_raw_int(self):
+        ap = self.autopilot
+        m = ap.model
+        msg = self._gps_msg
+        lat, lon = ap.geo.to_global(m.x, m.y)
+        msg.time_usec = int(self.server.time * 1e6)
+        msg.fix_type = mavlink.GPS_FIX_TYPE_3D_FIX if ap.settled else mavlink.GPS_FIX_TYPE_NO_FIX
+        msg.satellites_visible = 12 if ap.settled else 3
+        msg.lat = int(round(lat * 1e7))
+        msg.lon = int(round(lon * 1e7))
+        msg.alt = int(round((ap.settings.home.alt + m.z - ap.home_z) * 1000.0))
+        speed = math.hypot(m.vx, m.vy)
+        msg.vel = int(speed * 100.0)
+        course = math.degrees(math.atan2(m.vx, m.vy)) % 360.0 if speed > 0.1 else 0.0
+        msg.cog = int(course * 100.0) % 36000
+        return msg
+
+    def _system_time(self):
+        msg = self._system_time_msg
+        s = self.autopilot.settings
+        msg.time_unix_usec = int((s.unix_time_at_boot + self.server.time) * 1e6)
+        msg.time_boot_ms = self._time_ms()
+        return msg
+
+    def _autopilot_version(self):
+        name = self.autopilot.name
+        return mavlink.MAVLink_autopilot_version_message(
+            CAPABILITIES.get(name, _COMMON_CAPABILITIES), SOFTWARE_VERSION.get(name, 0), 0, 0,
+            0, [0] * 8, [0] * 8, [0] * 8, 0, 0, self.autopilot.settings.system_id,
+        )
+
+    def mission_current(self):
+        ap = self.autopilot
+        store = ap.mission
+        total = len(store.items) - store.first if store.has_mission() else _UINT16_MAX
+        return mavlink.MAVLink_mission_current_message(
+            store.current, total, ap.auto.mission_state, int(ap.mode == ap.auto_mode)
+        )
