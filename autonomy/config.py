@@ -17,7 +17,7 @@ import copy
 import math
 import os
 import re
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
@@ -59,8 +59,21 @@ def _flat_world() -> Any:
     return TypeAdapter(TerrainSettings).validate_python({"kind": "flat"})
 
 
+HomeSource = Literal["vehicle", "file"]
+Projection = Callable[[float, float, float, float], tuple[float, float]]
+"""(lat, lon, lat0, lon0) degrees -> (east, north) metres of (lat, lon) from (lat0, lon0)."""
+
+
 class VehicleConfig(BaseModel):
-    """How to reach the vehicle; ``link`` tunes the MAVLink driver."""
+    """How to reach the vehicle; ``link`` tunes the MAVLink driver.
+
+    On a live link lat/lon waypoints are converted about the home the vehicle reports, and a
+    file ``home`` farther than ``home_tolerance`` (or ``home_altitude_tolerance``) from it
+    makes the flight refuse to start unless ``home_from`` says which home to fly by:
+    ``vehicle`` (lat/lon waypoints are flown to their lat/lon) or ``file`` (the mission is
+    flown as drawn about the file's home, moved to the vehicle's home: lat/lon waypoints keep
+    their offsets from the file's home and are not reached at their own lat/lon).
+    """
 
     model_config = ConfigDict(extra="forbid", frozen=True)
 
@@ -78,6 +91,16 @@ class VehicleConfig(BaseModel):
         None, description="name of an environment variable holding the signing key"
     )
     link: VehicleLinkSettings = VehicleLinkSettings()
+    home_from: HomeSource | None = Field(
+        None, description="live flights whose file home and vehicle home disagree: fly by "
+        "the 'vehicle' home or the 'file' home; unset = refuse to fly"
+    )
+    home_tolerance: float = Field(
+        5.0, gt=0, description="m horizontally the file's home may lie from the vehicle's"
+    )
+    home_altitude_tolerance: float = Field(
+        10.0, gt=0, description="m the file's home altitude may differ from the vehicle's"
+    )
 
     @property
     def lockstep(self) -> bool:
@@ -167,7 +190,8 @@ class Mission(BaseModel):
     """A mission file, validated.
 
     Waypoints are ENU metres ``[x, y, z]`` (z above home) or ``{lat, lon, alt}`` (degrees,
-    alt above home), converted with a local tangent plane about ``home``.
+    alt above home), converted with a local tangent plane about ``home`` in lockstep, about
+    the home the vehicle reports on a live link (see :class:`VehicleConfig`).
     ``weights.normaliser`` defaults to ``cruise_altitude`` and ``lsm.verification_altitude``
     to ``landing.verification_altitude``.
     """
@@ -220,22 +244,37 @@ class Mission(BaseModel):
                 )
         return self
 
-    def waypoints_enu(self) -> list[tuple[float, float, float]]:
-        """The waypoints as ENU metres about home."""
+    @property
+    def has_home(self) -> bool:
+        """True when the mission file gives a ``home`` (else it is the default)."""
+        return "home" in self.source_data()
+
+    def waypoints_enu(
+        self, home: tuple[float, float] | None = None, project: Projection | None = None
+    ) -> list[tuple[float, float, float]]:
+        """The waypoints as ENU metres about home: lat/lon ones are converted about ``home``
+        (lat, lon degrees; default: the file's ``home``) with ``project(lat, lon, lat0,
+        lon0) -> (east, north)`` (default: the WGS-84 tangent plane, :func:`geodetic_to_enu`;
+        a live flight passes the autopilot's own projection)."""
+        lat0, lon0 = (self.home.lat, self.home.lon) if home is None else home
+        project = project or geodetic_to_enu
         out = []
         for wp in self.waypoints:
             if isinstance(wp, GeoWaypoint):
-                x, y = geodetic_to_enu(wp.lat, wp.lon, self.home.lat, self.home.lon)
+                x, y = project(wp.lat, wp.lon, lat0, lon0)
                 z = self.cruise_altitude if wp.alt is None else wp.alt
                 out.append((x, y, float(z)))
             else:
                 out.append(tuple(float(v) for v in wp))
         return out
 
-    def plan(self) -> MissionPlan:
-        """The :class:`behaviors.settings.MissionPlan` the tree is built from."""
+    def plan(
+        self, home: tuple[float, float] | None = None, project: Projection | None = None
+    ) -> MissionPlan:
+        """The :class:`behaviors.settings.MissionPlan` the tree is built from; lat/lon
+        waypoints are converted about ``home`` (see :meth:`waypoints_enu`)."""
         return MissionPlan(
-            waypoints=self.waypoints_enu(),
+            waypoints=self.waypoints_enu(home, project),
             takeoff_altitude=self.takeoff_altitude,
             cruise_altitude=self.cruise_altitude,
             landing=self.landing,

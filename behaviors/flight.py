@@ -63,8 +63,9 @@ class Preflight(MissionBehaviour):
 class Takeoff(VehicleAction):
     """Take off vertically to ``altitude`` m above home (the vehicle arms as needed).
 
-    A vehicle already flying (armed, in the air: a mission started in flight) climbs with a
-    goto instead, since autopilots refuse a take-off in the air.
+    A vehicle already flying (armed, in the air or taking off: a mission started in flight,
+    or a take-off restarted after the link came back) climbs with a goto instead, since
+    autopilots refuse a take-off in the air.
 
     * SUCCESS: within ``acceptance_radius`` below (or above) the altitude
     * FAILURE: the takeoff command was denied or not answered (the autopilot's reason)
@@ -88,7 +89,8 @@ class Takeoff(VehicleAction):
     def initialise(self) -> None:
         super().initialise()
         state = self.vehicle.state
-        if state.armed and state.landed_state is LandedState.IN_AIR and state.position:
+        flying = state.landed_state in (LandedState.IN_AIR, LandedState.TAKEOFF)
+        if state.armed and flying and state.position:
             x, y, _ = state.position
             self.command(self.vehicle.goto(x, y, self.altitude))
         else:

@@ -19,7 +19,9 @@ from autonomy.campaign.spec import Variant
 from autonomy.campaign.stats import newcombe_paired_interval, wilson_interval
 from autonomy.report.summary import OUTCOMES as FLIGHT_OUTCOMES
 
-OUTCOMES: tuple[str, ...] = (*FLIGHT_OUTCOMES, "error")
+# Campaigns fly lockstep: the outcomes only a live flight has get no column.
+_LIVE_ONLY = ("landed_unjudged", "link_lost", "refused")
+OUTCOMES: tuple[str, ...] = (*(o for o in FLIGHT_OUTCOMES if o not in _LIVE_ONLY), "error")
 OUTCOME_TITLES: dict[str, str] = {
     "landed": "landed safe",
     "landed_unsafe": "landed unsafe",

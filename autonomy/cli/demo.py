@@ -29,7 +29,7 @@ def run(args: argparse.Namespace) -> int:
     out = Path(args.out)
     print(f"flying {path} on the embedded SITL (lockstep); report in {out}/")
     result = fly(mission, out_dir=out, console=True)
-    return 0 if result.outcome == "landed" else 1
+    return result.exit_code
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:

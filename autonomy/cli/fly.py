@@ -11,6 +11,7 @@ import yaml
 from autonomy.cli.validate import load_or_explain
 from autonomy.config import apply_overrides
 from autonomy.errors import UserError
+from autonomy.report.summary import EXIT_MEANINGS
 
 
 def parse_settings(items: list[str]) -> dict[str, Any]:
@@ -36,6 +37,8 @@ def run(args: argparse.Namespace) -> int:
     overrides = parse_settings(args.set or [])
     if args.connect is not None:
         overrides["vehicle.connection"] = args.connect
+    if args.home_from is not None:
+        overrides["vehicle.home_from"] = args.home_from
     if overrides:
         mission = apply_overrides(mission, overrides)
     out = Path(args.out) if args.out else Path("out") / Path(args.mission).stem
@@ -44,17 +47,20 @@ def run(args: argparse.Namespace) -> int:
     result = fly(mission, seed=args.seed, out_dir=out, console=not args.quiet,
                  on_interrupt=args.on_interrupt)
     if args.quiet:
-        print(f"{result.outcome}: report {out / 'report.png'}")
-    return 0 if result.outcome == "landed" else 1
+        print(f"{result.outcome} (exit {result.exit_code}): report {out / 'report.png'}")
+    return result.exit_code
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser(
         "fly", help="fly a mission and write its flight report",
         description="Fly a mission: lockstep on the embedded SITL for sim://, live over "
-        "MAVLink otherwise. Writes summary.json, events.jsonl, flight.tlog and report.png "
-        "to --out. Exit 0 when the vehicle landed safely, 1 for any other outcome, 2 for "
-        "bad input.",
+        "MAVLink otherwise (on the vehicle's own time; lat/lon waypoints converted about the "
+        "home the vehicle reports). Writes summary.json, events.jsonl, flight.tlog and "
+        "report.png to --out whatever ends the flight.",
+        epilog="exit codes: " + "; ".join(
+            f"{code} = {meaning}" for code, meaning in sorted(EXIT_MEANINGS.items())
+        ) + ".",
     )
     parser.add_argument("mission", metavar="MISSION.yaml", help="mission file")
     parser.add_argument("--connect", metavar="URL",
@@ -69,4 +75,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                         help="no per-phase lines, only the outcome and the report path")
     parser.add_argument("--on-interrupt", choices=("land", "hold"), default="land",
                         help="live mode: what Ctrl-C does before exiting (default land)")
+    parser.add_argument("--home-from", choices=("vehicle", "file"), default=None,
+                        help="live mode, when the mission file's home and the vehicle's "
+                        "differ by more than vehicle.home_tolerance (else the flight is "
+                        "refused, exit 2): 'vehicle' flies lat/lon waypoints to their "
+                        "lat/lon; 'file' flies the mission as drawn about the file's home, "
+                        "moved to the vehicle's home (lat/lon waypoints are then NOT reached "
+                        "at their lat/lon); overrides vehicle.home_from")
     parser.set_defaults(func=run)

@@ -9,14 +9,19 @@ from autonomy.report.data import FlightData, FlightTrace
 from autonomy.report.events import EventLog, TreeStatusRecorder, read_events
 from autonomy.report.plot import write_report_png
 from autonomy.report.summary import (
+    EXIT_CODES,
+    EXIT_MEANINGS,
     OUTCOMES,
     build_summary,
     classify,
+    exit_code,
     format_summary,
     write_summary,
 )
 
 __all__ = [
+    "EXIT_CODES",
+    "EXIT_MEANINGS",
     "OUTCOMES",
     "EventLog",
     "FlightData",
@@ -24,6 +29,7 @@ __all__ = [
     "TreeStatusRecorder",
     "build_summary",
     "classify",
+    "exit_code",
     "format_summary",
     "read_events",
     "write_report_png",

@@ -94,9 +94,13 @@ class FlightData:
     sites_verified: int
     lsm_counters: dict[str, int]
     perception_counters: dict[str, int]
-    lockstep: bool = True  # simulated time (False: a live flight on wall time)
+    lockstep: bool = True  # simulated time (False: a live flight on the vehicle's time)
     chosen_verified: bool | None = None  # the chosen site counted as verified at the end
     energy_wh: float | None = None
     wall_time: float = 0.0
     terrain: Any = None  # sitl.terrain.Terrain or None (flat)
+    link: dict[str, Any] | None = None  # the driver's link statistics
+    link_lost: str | None = None  # why the flight ended on the link (outcome link_lost)
+    home: dict[str, Any] | None = None  # live: the homes compared and the one flown by
+    refused: bool = False  # live: refused before takeoff (the homes disagree)
     extra: dict[str, Any] = field(default_factory=dict)

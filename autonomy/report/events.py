@@ -1,7 +1,7 @@
 """The flight's event log (events.jsonl) and the tree-status recorder that feeds it.
 
 Every event is a JSON object with ``t`` (clock seconds), ``kind`` (``tree``, ``phase``,
-``lsm``, ``perception``, ``flight``) and kind-specific fields. Events carry nothing that
+``lsm``, ``perception``, ``flight``, ``link``) and kind-specific fields. Events carry nothing that
 differs between two runs with the same seed (no wall time, no object ids), so a lockstep
 flight's events.jsonl is reproducible byte for byte.
 """
@@ -59,7 +59,9 @@ class EventLog:
             self.events.append(event)
             if self._path is not None:
                 if self._file is None:
-                    self._file = self._path.open("w", encoding="utf-8")
+                    # Line-buffered: each event is on disk at once (a live flight is
+                    # followed with tail -f, and a killed run keeps what it logged).
+                    self._file = self._path.open("w", encoding="utf-8", buffering=1)
                 self._file.write(json.dumps(event, separators=(",", ":")) + "\n")
         return event
 

@@ -95,7 +95,8 @@ def write_report_png(data: FlightData, path: Path, *, outcome: str = "") -> None
     ax_map.set_aspect("equal")
     ax_map.set_xlabel("east (m)")
     ax_map.set_ylabel("north (m)")
-    ax_map.legend(loc="upper left", fontsize=8, framealpha=0.8)
+    if ax_map.get_legend_handles_labels()[0]:  # nothing to show before the vehicle was heard
+        ax_map.legend(loc="upper left", fontsize=8, framealpha=0.8)
     ax_map.set_title(f"{data.mission_name or 'mission'} - {data.world} world")
 
     if len(t):
@@ -104,7 +105,9 @@ def write_report_png(data: FlightData, path: Path, *, outcome: str = "") -> None
             ground = data.terrain.height(xyz[:, 0], xyz[:, 1])
             ax_alt.fill_between(t, np.minimum(ground, xyz[:, 2]).min() - 1, ground,
                                 color="tan", alpha=0.6, label="ground below")
-        ends = [start for start, _ in data.trace.phases[1:]] + [float(t[-1])]
+        # No phases at all when the flight never got past waiting for the vehicle.
+        ends = [start for start, _ in data.trace.phases[1:]] + [float(t[-1])] * bool(
+            data.trace.phases)
         names = sorted({p for _, p in data.trace.phases})
         seen: set[str] = set()
         for (start, phase), end in zip(data.trace.phases, ends, strict=True):
@@ -114,7 +117,8 @@ def write_report_png(data: FlightData, path: Path, *, outcome: str = "") -> None
             seen.add(phase)
     ax_alt.set_xlabel("time (s)")
     ax_alt.set_ylabel("altitude above home (m)")
-    ax_alt.legend(loc="upper right", fontsize=8, ncol=2, framealpha=0.8)
+    if ax_alt.get_legend_handles_labels()[0]:
+        ax_alt.legend(loc="upper right", fontsize=8, ncol=2, framealpha=0.8)
     ax_alt.set_title(f"outcome: {outcome}" if outcome else "altitude")
     ax_alt.grid(alpha=0.3)
     fig.tight_layout()

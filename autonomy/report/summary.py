@@ -13,15 +13,38 @@ from autonomy.report.data import FlightData
 from autonomy.report.events import _clean
 from behaviors.blackboard import FAILSAFE_KINDS
 
-OUTCOMES = ("landed", "landed_unsafe", "crashed", "no_site", "failsafe", "aborted")
-"""landed: touched down and disarmed on ground-truth-safe ground (or unjudged ground when
-there is no simulated truth), on a verified site or, once the landing tries are spent, on
-the best site verified earlier (outcome hint "verified_site"); landed_unsafe: touched down on
-unsafe ground; crashed: the simulator flagged a crash; no_site: no landing try was left (by
-count or by battery) and no verified site either: the vehicle landed in place on purpose;
-failsafe: a failsafe (critical battery, GPS loss) took over and landed wherever the vehicle
-was, on safe ground or not; aborted: the mission failed, hit the time limit or was
-interrupted before landing."""
+OUTCOMES = ("landed", "landed_unjudged", "landed_unsafe", "crashed", "no_site", "failsafe",
+            "aborted", "link_lost", "refused")
+"""landed: touched down and disarmed on a verified site (or, once the landing tries are
+spent, on the best site verified earlier: outcome hint "verified_site"), on ground the
+simulator's ground truth judged safe (lockstep flights); landed_unjudged: the same landing
+with no ground truth to judge the ground by (live flights); landed_unsafe: touched down on
+ground the truth calls unsafe; crashed: the simulator flagged a crash; no_site: no landing
+try was left (by count or by battery) and no verified site either: the vehicle landed in
+place on purpose; failsafe: a failsafe (critical battery, GPS loss) took over and landed
+wherever the vehicle was, on safe ground or not; aborted: the mission failed, hit the time
+limit or was interrupted before landing; link_lost: the autopilot was not heard for longer
+than the flight waits (or never heard): it is left to its own failsafe; refused: a live
+flight refused to take off (the file's home and the vehicle's disagree)."""
+
+EXIT_CODES = {"landed": 0, "refused": 2, "landed_unjudged": 3, "link_lost": 4}
+"""``lander fly``'s exit code per outcome; any other outcome exits 1."""
+
+EXIT_MEANINGS = {
+    0: "landed on ground the simulator's ground truth judged safe (lockstep flights only)",
+    1: "did not land as planned (landed_unsafe, crashed, no_site, failsafe or aborted)",
+    2: "bad input, or refused before takeoff (the file's home and the vehicle's disagree)",
+    3: "landed and disarmed on a verified site; the ground was not judged (live flight: no "
+       "ground truth)",
+    4: "link lost: the autopilot was not heard for longer than the flight waits, or never; "
+       "it is left to its own failsafe",
+}
+"""What each exit code of ``lander fly`` means (also in ``lander fly --help`` and README)."""
+
+
+def exit_code(outcome: str) -> int:
+    """The exit code ``lander fly`` gives a flight with ``outcome``."""
+    return EXIT_CODES.get(outcome, 1)
 
 HINT_WORDS = {
     "no_site": "no landing try left; landed in place",
@@ -35,8 +58,12 @@ HINT_WORDS = {
 
 def classify(data: FlightData) -> str:
     """The outcome (one of :data:`OUTCOMES`) of a finished flight."""
+    if data.refused:
+        return "refused"
     if data.crashed:
         return "crashed"
+    if data.link_lost is not None:
+        return "link_lost"
     if data.status != "SUCCESS":
         return "aborted"
     if data.outcome_hint in FAILSAFE_KINDS:
@@ -45,6 +72,8 @@ def classify(data: FlightData) -> str:
         return "no_site"
     if data.touchdown_safe is False:
         return "landed_unsafe"
+    if data.touchdown_safe is None:
+        return "landed_unjudged"
     return "landed"
 
 
@@ -63,6 +92,7 @@ def build_summary(data: FlightData) -> dict[str, Any]:
     start = float(known[0]) if known.size else None
     end = float(known[-1]) if known.size else None
     counters = dict(sorted(data.lsm_counters.items()))
+    outcome = classify(data)
     summary = {
         "mission": data.mission_name,
         "seed": data.seed,
@@ -70,12 +100,15 @@ def build_summary(data: FlightData) -> dict[str, Any]:
         "world": data.world,
         "detector": data.detector,
         "mode": "lockstep" if data.lockstep else "live",
-        "outcome": classify(data),
+        "outcome": outcome,
+        "exit_code": exit_code(outcome),
+        "exit_meaning": EXIT_MEANINGS[exit_code(outcome)],
         "tree_status": data.status,
         "stop_reason": data.stop_reason,
         "outcome_hint": data.outcome_hint,
         "failure_reason": data.failure_reason,
         "crash_reason": data.crash_reason,
+        "link_lost": data.link_lost,
         "chosen_site": None if site is None else {
             "id": site.id, "x": site.x, "y": site.y, "z": site.z,
             "roughness": site.roughness, "uncertainty": site.uncertainty, "size": site.size,
@@ -106,6 +139,8 @@ def build_summary(data: FlightData) -> dict[str, Any]:
         "search_patterns": data.search_patterns,
         "lsm_counters": counters,
         "perception": dict(sorted(data.perception_counters.items())),
+        "link": data.link,
+        "home": data.home,
         "wall_time": data.wall_time,
         "realtime_factor": (
             data.end_time / data.wall_time if data.lockstep and data.wall_time > 0 else None
@@ -132,6 +167,8 @@ def format_summary(summary: dict[str, Any]) -> str:
         lines.append(f"reason: {summary['failure_reason']}")
     elif summary["outcome"] == "aborted":
         lines.append(f"reason: {summary['stop_reason']}")
+    elif summary["outcome"] == "link_lost":
+        lines.append(f"reason: {summary['link_lost']}")
     site = summary.get("chosen_site")
     td = summary.get("touchdown")
     if td is not None:
@@ -154,9 +191,19 @@ def format_summary(summary: dict[str, Any]) -> str:
         f"{summary['verification_attempts']} verification attempts, "
         f"{summary['search_patterns']} search patterns"
     )
+    link = summary.get("link")
+    if link and (link["losses"] or summary["mode"] == "live"):
+        lines.append(
+            f"link: {link['messages_received']} messages, {link['corrupt_packets']} corrupt, "
+            f"{link['bad_signature']} bad signatures, {link['backlog_dropped_bytes']} bytes "
+            f"dropped; lost {link['losses']} time(s) for {link['time_lost']:.1f} s, longest "
+            f"heartbeat gap {link['longest_heartbeat_gap']:.1f} s"
+        )
     if summary.get("realtime_factor"):
         lines.append(
             f"simulated {summary['mission_time']:.0f} s in {summary['wall_time']:.1f} s "
             f"({summary['realtime_factor']:.0f}x real time)"
         )
+    if "exit_code" in summary:
+        lines.append(f"exit {summary['exit_code']}: {summary['exit_meaning']}")
     return "\n".join(lines)

@@ -3,7 +3,9 @@
 Per tick (DESIGN.md section 6, lockstep): advance the simulator and the clock, poll the
 vehicle, tell the LSM where the drone is, at the perception rate feed the source's
 observations to the LSM, tick the tree, record. :class:`Flight` does everything after the
-clock advance; :mod:`autonomy.runner.lockstep` and :mod:`autonomy.runner.live` drive it.
+clock advance (and holds the mission while the link is lost, see
+:mod:`autonomy.runner.link`); :mod:`autonomy.runner.run` and :mod:`autonomy.runner.live`
+drive it.
 """
 
 from __future__ import annotations
@@ -17,6 +19,7 @@ import py_trees
 
 from autonomy.report.data import FlightTrace
 from autonomy.report.events import EventLog, TreeStatusRecorder
+from autonomy.runner.link import Link, LinkWatch
 from behaviors import blackboard as bb
 from behaviors.ports import LandedState
 from lsm import LandingSiteManager
@@ -41,6 +44,10 @@ class PhaseConsole:
             file=self._stream, flush=True,
         )
 
+    def note(self, t: float, text: str) -> None:
+        """A line about something other than the phase (the link, the homes), at once."""
+        print(f"[{t:7.1f} s] {text}", file=self._stream, flush=True)
+
 
 class Flight:
     """The wiring of one flight, ticked by a driver loop.
@@ -49,7 +56,8 @@ class Flight:
         vehicle: the vehicle (``poll()``, ``state``; satisfies behaviors.ports.VehiclePort).
         lsm: the Landing Site Manager (its ``on_decision`` should log into ``log``).
         source: the perception source.
-        tree: the mission tree.
+        tree: the mission tree, or None until :meth:`attach_tree` (a live flight builds it
+            once the vehicle's home is known).
         log: the event log.
         now: the clock's now.
         perception_every: tree ticks between perception updates.
@@ -59,19 +67,21 @@ class Flight:
         truth: a callable returning the simulator's ground truth, or None when flying live.
         lockstep: True to drain the LSM queue synchronously after each perception update.
         console: optional phase console.
+        loss_wait: clock seconds the mission holds for a lost link (see
+            :mod:`autonomy.runner.link`).
     """
 
     def __init__(
         self, *, vehicle: Any, lsm: LandingSiteManager, source: Any,
-        tree: py_trees.trees.BehaviourTree, log: EventLog, now: Callable[[], float],
+        tree: py_trees.trees.BehaviourTree | None, log: EventLog, now: Callable[[], float],
         perception_every: int, truth: Callable[[], Any] | None, lockstep: bool,
         console: PhaseConsole | None = None, low_altitude_every: int | None = None,
-        low_altitude: float = 0.0,
+        low_altitude: float = 0.0, loss_wait: float = 30.0,
     ) -> None:
         self.vehicle = vehicle
         self.lsm = lsm
         self.source = source
-        self.tree = tree
+        self.tree: py_trees.trees.BehaviourTree | None = None
         self.log = log
         self.now = now
         self.perception_every = max(1, int(perception_every))
@@ -86,6 +96,9 @@ class Flight:
         self.touchdown: tuple[float, float, float] | None = None
         self.touchdown_time: float | None = None
         self.touchdown_speed: float | None = None
+        self.home: Any = None  # autonomy.runner.home.HomeChoice of a live flight
+        self.link = LinkWatch(vehicle, log, loss_wait,
+                              note=console.note if console is not None else None)
         self._airborne = False
         self._last_touchdown: Any = None
         self._truth: Any = None  # ground truth of this tick
@@ -93,7 +106,19 @@ class Flight:
         for key in (bb.PHASE, bb.LANDING_SITE, bb.OUTCOME_HINT, bb.FAILURE_REASON,
                     bb.VERIFICATION_ATTEMPTS, bb.SEARCH_PATTERNS):
             self._reader.register_key(key=key, access=py_trees.common.Access.READ)
-        tree.add_post_tick_handler(TreeStatusRecorder(log))
+        if tree is not None:
+            self.attach_tree(tree)
+
+    def attach_tree(self, tree: py_trees.trees.BehaviourTree) -> None:
+        """Fly with ``tree`` from now on (its status changes are logged)."""
+        tree.add_post_tick_handler(TreeStatusRecorder(self.log))
+        self.tree = tree
+
+    def note(self, text: str, **fields: Any) -> None:
+        """Log a ``flight`` note event and show it on the console."""
+        self.log.add("flight", event="note", text=text, **fields)
+        if self.console is not None:
+            self.console.note(self.now(), text)
 
     def read(self, key: str, default: Any = None) -> Any:
         """A blackboard value, or ``default`` when it is not set."""
@@ -104,7 +129,12 @@ class Flight:
 
     @property
     def status(self) -> Status:
-        return self.tree.root.status
+        return Status.INVALID if self.tree is None else self.tree.root.status
+
+    @property
+    def link_gave_up(self) -> str | None:
+        """Why the flight ended on the link (lost too long, or never heard), or None."""
+        return self.link.gave_up
 
     @property
     def done(self) -> bool:
@@ -121,10 +151,18 @@ class Flight:
         return True, getattr(truth, "crash_reason", None) or "crash"
 
     def tick(self) -> None:
-        """One tick after the clock advanced: poll, perceive, decide, record."""
+        """One tick after the clock advanced: poll, perceive, decide, record. While the link
+        is lost nothing is perceived or decided (the mission holds)."""
+        assert self.tree is not None, "attach_tree() first"
         now = self.now()
         self.vehicle.poll()
         state = self.vehicle.state
+        link = self.link.update(now)
+        if link in (Link.HOLDING, Link.GAVE_UP):
+            self._record(now, state)
+            return
+        if link is Link.RESUMED:
+            self._restart_running()
         if state.position is not None:
             self.lsm.set_drone_position(state.position)
         agl = state.rangefinder_agl
@@ -140,11 +178,23 @@ class Flight:
         self.ticks += 1
         self._record(now, state)
 
-    def follow(self) -> None:
-        """Poll and record without ticking the tree (the vehicle is flown by someone else,
-        e.g. landing after Ctrl-C)."""
+    def _restart_running(self) -> None:
+        """Stop the running leaf so that it starts again on this tick and re-issues its
+        command (the loss cancelled it; the autopilot may have drifted meanwhile)."""
+        tip = self.tree.tip() if self.tree is not None else None
+        if tip is not None and tip.status == Status.RUNNING:
+            self.log.add("link", event="resume", behaviour=tip.name)
+            tip.stop(Status.INVALID)
+
+    def follow(self) -> Link:
+        """Poll and record without ticking the tree (before the tree exists, or while the
+        vehicle is flown by someone else, e.g. landing after Ctrl-C); returns the link's
+        verdict for this tick."""
+        now = self.now()
         self.vehicle.poll()
-        self._record(self.now(), self.vehicle.state)
+        link = self.link.update(now)
+        self._record(now, self.vehicle.state)
+        return link
 
     def _record(self, now: float, state: Any) -> None:
         truth = self._truth = self.truth() if self.truth is not None else None
@@ -188,3 +238,43 @@ class Flight:
     def _touch(self, now: float, xyz: tuple[float, float, float], speed: float | None) -> None:
         self.touchdown, self.touchdown_time, self.touchdown_speed = xyz, now, speed
         self.log.add("flight", event="touchdown", position=xyz, speed=speed)
+
+
+def bring_down(flight: Flight, reason: str, action: str, advance: Callable[[], None],
+               budget: float = 180.0) -> str:
+    """The tree has stopped: land (or hold) the vehicle with a direct command and follow it
+    until it is down and disarmed (or holding), at most ``budget`` clock seconds. A lost link
+    is waited for as during the mission (the command is sent again when it is back), never
+    flown over for the whole budget.
+
+    Returns the stop reason, e.g. ``"mission failed (land: accepted)"``.
+    """
+    vehicle = flight.vehicle
+    state = vehicle.state
+    if action == "land" and not state.armed:
+        return reason  # already down: nothing to do
+    flight.log.add("flight", event=action, reason=reason)
+
+    def command() -> Any:
+        return vehicle.land() if action == "land" else vehicle.hold()
+
+    handle = command()
+    end = flight.now() + budget
+    while flight.now() < end:
+        advance()
+        link = flight.follow()
+        if link is Link.GAVE_UP:
+            return f"{reason} ({action}: {flight.link_gave_up})"
+        if link is Link.HOLDING:
+            continue
+        if link is Link.RESUMED:
+            handle = command()
+        state = vehicle.state
+        if flight.crashed()[0]:
+            break
+        if action == "hold" and handle.status.done:
+            break
+        if (action == "land" and not state.armed
+                and state.landed_state in (LandedState.ON_GROUND, LandedState.UNDEFINED)):
+            break
+    return f"{reason} ({action}: {handle.status.value})"

@@ -2,17 +2,15 @@
 
 Lockstep (``sim://``): every tick advances the simulator and a :class:`SimClock` by
 ``1 / tick_rate`` and then runs the tick, so a flight takes only CPU time and two flights
-with the same seed are identical. Live (any other connection): the LSM runs on its worker
-thread, the tree ticks at ``tick_rate`` on wall time, and Ctrl-C lands (or holds) the
-vehicle before returning.
+with the same seed are identical. Live (any other connection, :mod:`autonomy.runner.live`):
+the LSM runs on its worker thread, the clock follows the vehicle's own time, the tree ticks
+at ``tick_rate`` in that time once the vehicle's home is known, and Ctrl-C lands (or holds)
+the vehicle before returning. The report files are written whatever ends the flight.
 """
 
 from __future__ import annotations
 
-import contextlib
 import math
-import signal
-import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -21,7 +19,7 @@ from typing import Any, Literal
 import numpy as np
 import py_trees
 
-from autonomy.clock import SimClock, WallClock
+from autonomy.clock import SimClock, VehicleClock
 from autonomy.config import Mission
 from autonomy.errors import UserError
 from autonomy.report import (
@@ -32,7 +30,8 @@ from autonomy.report import (
     write_report_png,
     write_summary,
 )
-from autonomy.runner.flight import Flight, PhaseConsole
+from autonomy.runner.flight import Flight, PhaseConsole, bring_down
+from autonomy.runner.home import HomeMismatch
 from autonomy.runner.world import (
     FlightSeeds,
     build_sitl,
@@ -41,7 +40,7 @@ from autonomy.runner.world import (
     judge_touchdown,
 )
 from behaviors import blackboard as bb
-from behaviors.ports import LandedState
+from behaviors.settings import MissionPlan
 from lsm import LandingSiteManager
 
 Status = py_trees.common.Status
@@ -68,6 +67,11 @@ class FlightResult:
     def outcome(self) -> str:
         return self.summary["outcome"]
 
+    @property
+    def exit_code(self) -> int:
+        """The exit code ``lander fly`` gives this flight (see README "Exit codes")."""
+        return self.summary["exit_code"]
+
 
 def fly(
     mission: Mission,
@@ -84,10 +88,14 @@ def fly(
         seed: overrides ``mission.seed`` (terrain, sensor noise, wind, pattern centres).
         out_dir: directory for summary.json, events.jsonl, flight.tlog and report.png
             (created); None writes nothing, which is fastest.
-        console: print a line per phase change and a closing summary to stdout.
+        console: print a line per phase change, link and home notes, and a closing summary
+            to stdout.
         on_interrupt: live mode only: what Ctrl-C does before returning.
 
     Raises:
+        HomeMismatch: live only: the file's home and the vehicle's disagree and
+            ``vehicle.home_from`` does not say which to fly by; raised after the report files
+            are written (``exc.result`` is the FlightResult, outcome ``refused``).
         UserError: the vehicle cannot be reached, or the world cannot be built.
     """
     from autonomy.vehicle import connect
@@ -104,9 +112,10 @@ def fly(
             raise UserError(f"{out}: cannot create the report directory "
                             f"({exc.strerror or exc})") from None
     wall_start = time.perf_counter()
+    bb.reset()  # nothing of an earlier flight in this process may be read as this one's
 
     terrain = build_terrain(mission, seeds.terrain)
-    clock: Any = SimClock() if lockstep else WallClock()
+    clock: Any = SimClock() if lockstep else VehicleClock()
     log = EventLog(clock.now, out / "events.jsonl" if out else None)
     lsm = LandingSiteManager(
         mission.lsm, mission.weights,
@@ -116,6 +125,7 @@ def fly(
     source = build_source(mission, terrain, np.random.default_rng(seeds.perception))
     sitl = build_sitl(mission, terrain, seeds.sitl) if lockstep else None
     vehicle = None
+    refusal: HomeMismatch | None = None
     try:
         vehicle = connect(
             mission.vehicle.connection, clock, sitl=sitl,
@@ -124,13 +134,17 @@ def fly(
             settings=mission.vehicle.link,
             tlog_path=out / "flight.tlog" if out else None,
         )
-        bb.reset()
-        tree = build_mission_tree(
-            mission.plan(), vehicle, lsm, clock, np.random.default_rng(seeds.tree)
-        )
-        tree.setup()
+
+        def build_tree(plan: MissionPlan) -> py_trees.trees.BehaviourTree:
+            bb.reset()
+            tree = build_mission_tree(
+                plan, vehicle, lsm, clock, np.random.default_rng(seeds.tree)
+            )
+            tree.setup()
+            return tree
+
         flight = Flight(
-            vehicle=vehicle, lsm=lsm, source=source, tree=tree, log=log, now=clock.now,
+            vehicle=vehicle, lsm=lsm, source=source, tree=None, log=log, now=clock.now,
             perception_every=_ticks_per_update(mission.tick_rate, mission.perception.rate),
             low_altitude_every=_ticks_per_update(
                 mission.tick_rate,
@@ -139,15 +153,25 @@ def fly(
             low_altitude=mission.perception.low_altitude,
             truth=(lambda: sitl.truth) if sitl is not None else None,
             lockstep=lockstep, console=PhaseConsole() if console else None,
+            loss_wait=mission.vehicle.link.loss_wait,
         )
+        if lockstep:
+            flight.attach_tree(build_tree(mission.plan()))
         log.add("flight", event="start", mission=mission.name, seed=seed,
                 connection=mission.vehicle.connection, lockstep=lockstep)
         if lockstep:
             stop_reason = _run_lockstep(flight, sitl, clock, mission)
         else:
-            stop_reason = _run_live(flight, lsm, mission, on_interrupt)
+            from autonomy.runner.live import run_live
+
+            try:
+                stop_reason = run_live(flight, mission, clock, build_tree, on_interrupt)
+            except HomeMismatch as exc:
+                refusal = exc
+                stop_reason = f"refused: {exc}"
         log.add("flight", event="end", status=flight.status.name, reason=stop_reason)
         data = _flight_data(mission, seed, flight, terrain, stop_reason, lockstep, sitl)
+        data.refused = refusal is not None
     finally:
         if not lockstep:
             lsm.stop()
@@ -161,12 +185,16 @@ def fly(
     if out is not None:
         write_summary(summary, out / "summary.json")
         write_report_png(data, out / "report.png", outcome=summary["outcome"])
+    result = FlightResult(summary=summary, events=log.events, data=data, out_dir=out)
+    if refusal is not None:
+        refusal.result = result
+        raise refusal  # one clear line from the CLI (exit 2); the report is written
     if console:
         print(format_summary(summary))
         if out is not None:
             print(f"report: {out / 'report.png'} (summary.json, events.jsonl, flight.tlog "
                   f"in {out})")
-    return FlightResult(summary=summary, events=log.events, data=data, out_dir=out)
+    return result
 
 
 def _ticks_per_update(tick_rate: float, rate: float) -> int:
@@ -186,91 +214,13 @@ def _run_lockstep(flight: Flight, sitl: Any, clock: SimClock, mission: Mission) 
         flight.tick()
         if flight.crashed()[0]:
             return "crashed"
+        if flight.link_gave_up is not None:
+            return f"link lost: {flight.link_gave_up}"
         if flight.status == Status.SUCCESS:
             return "landed"
         if flight.status == Status.FAILURE:
-            return _bring_down(flight, "mission failed", "land", advance)
-    return _bring_down(flight, "time limit", "land", advance)
-
-
-def _run_live(flight: Flight, lsm: LandingSiteManager, mission: Mission,
-              on_interrupt: str) -> str:
-    period = 1.0 / mission.tick_rate
-    lsm.start()
-    start = time.monotonic()
-    next_tick = start
-
-    def advance() -> None:
-        time.sleep(0.05)
-
-    with _ctrl_c_flag() as interrupted:
-        try:
-            while not interrupted.is_set():
-                flight.tick()
-                if flight.status == Status.SUCCESS:
-                    return "landed"
-                if flight.status == Status.FAILURE:
-                    return _bring_down(flight, "mission failed", "land", advance)
-                if time.monotonic() - start >= mission.time_limit:
-                    return _bring_down(flight, "time limit", "land", advance)
-                next_tick += period
-                time.sleep(max(0.0, next_tick - time.monotonic()))
-            print(f"interrupted: {'landing' if on_interrupt == 'land' else 'holding'} "
-                  "(Ctrl-C again to leave at once)", flush=True)
-            return _bring_down(flight, "interrupted", on_interrupt, advance)
-        except KeyboardInterrupt:
-            return "interrupted twice"
-
-
-@contextlib.contextmanager
-def _ctrl_c_flag():
-    """While inside: the first Ctrl-C (SIGINT) sets the yielded event, the next raises
-    KeyboardInterrupt. A flag rather than an exception at an arbitrary point of the tick, where
-    a callback could swallow it. Outside the main thread (no signal handlers) Ctrl-C keeps its
-    default KeyboardInterrupt, which the caller handles as a second one."""
-    interrupted = threading.Event()
-    if threading.current_thread() is not threading.main_thread():
-        yield interrupted
-        return
-
-    def on_sigint(signum: int, frame: Any) -> None:
-        if interrupted.is_set():
-            raise KeyboardInterrupt
-        interrupted.set()
-
-    previous = signal.signal(signal.SIGINT, on_sigint)
-    try:
-        yield interrupted
-    finally:
-        signal.signal(signal.SIGINT, previous)
-
-
-def _bring_down(flight: Flight, reason: str, action: str, advance: Any,
-                budget: float = 180.0) -> str:
-    """The tree has stopped: land (or hold) the vehicle with a direct command and follow it
-    until it is down and disarmed (or holding), at most ``budget`` clock seconds.
-
-    Returns the stop reason, e.g. ``"mission failed (land: accepted)"``.
-    """
-    vehicle = flight.vehicle
-    state = vehicle.state
-    if action == "land" and not state.armed:
-        return reason  # already down: nothing to do
-    flight.log.add("flight", event=action, reason=reason)
-    handle = vehicle.land() if action == "land" else vehicle.hold()
-    end = flight.now() + budget
-    while flight.now() < end:
-        advance()
-        flight.follow()
-        state = vehicle.state
-        if flight.crashed()[0]:
-            break
-        if action == "hold" and handle.status.done:
-            break
-        if (action == "land" and not state.armed
-                and state.landed_state in (LandedState.ON_GROUND, LandedState.UNDEFINED)):
-            break
-    return f"{reason} ({action}: {handle.status.value})"
+            return bring_down(flight, "mission failed", "land", advance)
+    return bring_down(flight, "time limit", "land", advance)
 
 
 def _flight_data(mission: Mission, seed: int, flight: Flight, terrain: Any,
@@ -319,7 +269,25 @@ def _flight_data(mission: Mission, seed: int, flight: Flight, terrain: Any,
         perception_counters=dict(getattr(flight.source, "counters", dict)()),
         energy_wh=energy,
         terrain=terrain,
+        link=_link_stats(flight.vehicle),
+        link_lost=flight.link_gave_up,
+        home=None if flight.home is None else flight.home.as_dict(),
     )
+
+
+def _link_stats(vehicle: Any) -> dict[str, Any]:
+    """The driver's link statistics for summary.json (times in clock seconds)."""
+    s = vehicle.stats
+    return {
+        "messages_received": s.messages, "bytes_received": s.bytes_received,
+        "messages_sent": s.messages_sent, "corrupt_packets": s.corrupt_packets,
+        "corrupt_bytes": s.corrupt_bytes, "bad_signature": s.bad_signature,
+        "backlog_dropped_bytes": s.backlog_dropped_bytes, "ignored": s.ignored,
+        "read_errors": s.read_errors, "write_errors": s.write_errors,
+        "heartbeats": s.heartbeats, "first_heartbeat": s.first_heartbeat,
+        "longest_heartbeat_gap": vehicle.longest_heartbeat_gap(),
+        "losses": s.links_lost, "time_lost": vehicle.time_lost(),
+    }
 
 
 __all__ = ["REPORT_FILES", "FlightResult", "fly"]

@@ -14,6 +14,7 @@ from autonomy.report import (
     TreeStatusRecorder,
     build_summary,
     classify,
+    exit_code,
     format_summary,
     read_events,
     write_report_png,
@@ -83,7 +84,7 @@ def flight_data(**changes):
 def test_outcome_classification():
     assert classify(flight_data()) == "landed"
     assert classify(flight_data(touchdown_safe=False)) == "landed_unsafe"
-    assert classify(flight_data(touchdown_safe=None)) == "landed"
+    assert classify(flight_data(touchdown_safe=None, lockstep=False)) == "landed_unjudged"
     assert classify(flight_data(outcome_hint="no_site")) == "no_site"
     assert classify(flight_data(crashed=True)) == "crashed"
     assert classify(flight_data(status="FAILURE")) == "aborted"
@@ -102,6 +103,24 @@ def test_a_failsafe_landing_is_its_own_outcome_on_safe_ground_or_not():
     first = format_summary(summary).splitlines()[0]
     assert first == ("outcome: failsafe (battery_critical: the battery reached the critical "
                      "level; landed where it was)")
+
+
+def test_each_outcome_has_its_exit_code_and_says_what_it_means():
+    landed = build_summary(flight_data())
+    assert (landed["exit_code"], landed["exit_meaning"].split(" (")[0]) == (
+        0, "landed on ground the simulator's ground truth judged safe")
+    live = build_summary(flight_data(lockstep=False, touchdown_safe=None))
+    assert (live["outcome"], live["exit_code"]) == ("landed_unjudged", 3)
+    assert "safe" not in live["exit_meaning"] and "not judged" in live["exit_meaning"]
+    assert format_summary(live).splitlines()[-1].startswith("exit 3: landed and disarmed")
+    lost = build_summary(flight_data(lockstep=False, status="RUNNING",
+                                     link_lost="link lost for 30.0 s"))
+    assert (lost["outcome"], lost["exit_code"]) == ("link_lost", 4)
+    assert "reason: link lost for 30.0 s" in format_summary(lost)
+    refused = build_summary(flight_data(lockstep=False, status="INVALID", refused=True))
+    assert (refused["outcome"], refused["exit_code"]) == ("refused", 2)
+    for outcome in ("landed_unsafe", "crashed", "no_site", "failsafe", "aborted"):
+        assert exit_code(outcome) == 1
 
 
 def test_summary_figures():

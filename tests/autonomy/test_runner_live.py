@@ -1,45 +1,27 @@
-"""Live mode: the runner flies a SITL served over TCP in real time; Ctrl-C lands it."""
+"""Live mode: the runner flies a SITL served over TCP faster than real time, on the
+vehicle's own time; Ctrl-C lands it."""
 
 from __future__ import annotations
 
 import _thread
+import json
 import threading
 from pathlib import Path
 
-import pytest
-
 from autonomy.config import apply_overrides, load_mission
 from autonomy.runner import fly
-from sitl import Sitl
-from sitl.realtime import RealTimeRunner
-from sitl.transports import TcpServer
 
 DEMO = Path(__file__).resolve().parents[2] / "missions" / "demo.yaml"
-SPEEDUP = 8.0
 
 
-@pytest.fixture
-def served_sitl():
-    """An embedded SITL served on 127.0.0.1 (ephemeral TCP port) at SPEEDUP x real time."""
-    sitl = Sitl(autopilot="ardupilot")
-    server = TcpServer("127.0.0.1", 0)
-    runner = RealTimeRunner(sitl, tcp=[server], speedup=SPEEDUP)
-    stop = threading.Event()
-    thread = threading.Thread(target=runner.run, kwargs={"should_stop": stop.is_set},
-                              daemon=True)
-    thread.start()
-    yield sitl, server.address[1]
-    stop.set()
-    thread.join(timeout=10)
-    runner.close()
+def live_mission(url: str, **overrides):
+    return apply_overrides(load_mission(DEMO), {"vehicle.connection": url, **overrides})
 
 
 def test_ctrl_c_in_live_mode_lands_the_vehicle(served_sitl, tmp_path):
-    sitl, port = served_sitl
-    mission = apply_overrides(load_mission(DEMO), {
-        "vehicle.connection": f"tcp:127.0.0.1:{port}",
-        "time_limit": 120.0,
-    })
+    served = served_sitl(speedup=8.0)
+    sitl = served.sitl
+    mission = live_mission(served.url, time_limit=120.0)
     airborne = threading.Event()
     done = threading.Event()
 
@@ -61,7 +43,7 @@ def test_ctrl_c_in_live_mode_lands_the_vehicle(served_sitl, tmp_path):
         watcher.join(timeout=5)
     assert airborne.is_set()
     summary = result.summary
-    assert summary["outcome"] == "aborted"
+    assert summary["outcome"] == "aborted" and summary["exit_code"] == 1
     assert summary["mode"] == "live" and summary["realtime_factor"] is None
     assert summary["stop_reason"].startswith("interrupted (land")
     truth = sitl.truth
@@ -69,3 +51,49 @@ def test_ctrl_c_in_live_mode_lands_the_vehicle(served_sitl, tmp_path):
     assert summary["touchdown"] is not None  # seen from the autopilot's landed state
     kinds = [e.get("event") for e in result.events if e["kind"] == "flight"]
     assert "land" in kinds and "touchdown" in kinds
+
+
+def test_a_live_flight_runs_on_the_vehicles_time_at_any_speedup(served_sitl, tmp_path):
+    # At 20x in wall time the verification hover must still last its 8 s of the SITL's
+    # simulated time (on wall time it lasted 160 simulated seconds).
+    served = served_sitl(speedup=20.0)
+    sitl = served.sitl
+    mission = live_mission(served.url)
+    events = tmp_path / "events.jsonl"
+    phases: list[tuple[str, float, float]] = []  # (phase, clock t, SITL time when written)
+    done = threading.Event()
+
+    def follow_events():
+        # events.jsonl is written line by line: tail it and stamp each phase with the
+        # simulator's own time.
+        offset = 0
+        while not done.is_set():
+            if events.exists():
+                with events.open(encoding="utf-8") as f:
+                    f.seek(offset)
+                    for line in iter(f.readline, ""):
+                        if not line.endswith("\n"):
+                            break
+                        offset += len(line.encode("utf-8"))
+                        event = json.loads(line)
+                        if event["kind"] == "phase":
+                            phases.append((event["phase"], event["t"], sitl.time))
+            done.wait(0.002)
+
+    tail = threading.Thread(target=follow_events, daemon=True)
+    tail.start()
+    try:
+        result = fly(mission, out_dir=tmp_path)
+    finally:
+        done.set()
+        tail.join(timeout=5)
+    summary = result.summary
+    assert summary["outcome"] == "landed_unjudged" and summary["exit_code"] == 3
+    names = [p for p, _, _ in phases]
+    first = names.index("verification")  # the demo's first site fails: a full hover
+    hover = phases[first + 1][2] - phases[first][2]
+    assert abs(hover - mission.landing.verification_duration) < 0.5
+    # The flight's clock is the vehicle's: from takeoff to done it counts the simulated time.
+    (_, t0, sim0), (_, t1, sim1) = phases[names.index("takeoff")], phases[-1]
+    assert names[-1] == "done"
+    assert abs((t1 - t0) - (sim1 - sim0)) < 0.02 * (sim1 - sim0)

@@ -1,11 +1,15 @@
-"""ENU <-> NED conversion, the single place the two frames meet."""
+"""ENU <-> NED conversion, the single place the two frames meet, and lat/lon into the
+autopilot's local frame."""
 
 import math
 
+import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
+from autonomy.config import geodetic_to_enu
 from autonomy.vehicle import frames
+from autonomy.vehicle.frames import geodetic_to_local
 
 finite = st.floats(-1e5, 1e5, allow_nan=False)
 angle = st.floats(-10.0, 10.0, allow_nan=False)
@@ -43,3 +47,21 @@ def test_yaw_north_and_east():
     # Heading north (NED 0) points along ENU +y (pi/2); heading east (NED pi/2) is ENU 0.
     assert math.isclose(frames.ned_to_enu_yaw(0.0), math.pi / 2)
     assert math.isclose(frames.ned_to_enu_yaw(math.pi / 2), 0.0, abs_tol=1e-12)
+
+
+def test_lat_lon_reach_the_local_frame_as_each_autopilot_projects_them():
+    from sitl.copter.geo import LocalToGlobal  # the simulator projects as ArduPilot does
+
+    home = (47.397742, 8.545594)
+    to_global = LocalToGlobal(*home)
+    for east, north in ((400.0, -300.0), (-600.0, 500.0)):
+        lat, lon = to_global(east, north)
+        x, y = geodetic_to_local(lat, lon, *home, autopilot="ardupilot")
+        assert math.hypot(x - east, y - north) < 0.05
+        # The exact tangent plane is off by ~0.2 % of the distance: metres at a kilometre.
+        ex, ey = geodetic_to_enu(lat, lon, *home)
+        assert math.hypot(ex - east, ey - north) > 0.001 * math.hypot(east, north)
+    # PX4: an azimuthal equidistant projection on a 6371 km sphere.
+    x, y = geodetic_to_local(48.0, 8.0, 47.0, 8.0, autopilot="px4")
+    assert x == pytest.approx(0.0, abs=1e-6)
+    assert y == pytest.approx(6371000.0 * math.pi / 180.0)

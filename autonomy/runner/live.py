@@ -1,0 +1,145 @@
+"""A live flight: over a real MAVLink link, paced in the vehicle's own time.
+
+Before the tree is built the runner waits for the autopilot's first HEARTBEAT (at most
+``vehicle.link.connect_timeout``; outcome ``link_lost`` if none comes) and for its home
+position (at most ``landing.preflight_timeout``), then chooses the home the lat/lon
+waypoints are converted about (:mod:`autonomy.runner.home`; a disagreement refuses the
+flight). The tree then ticks at ``tick_rate`` Hz of the :class:`~autonomy.clock.VehicleClock`:
+the loop sleeps ``period / rate`` wall seconds, so against a SITL at 8x it ticks eight times
+as often in wall time and every hover, timeout and perception rate stays in vehicle seconds.
+Ctrl-C lands (or holds) the vehicle before returning.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import signal
+import threading
+import time
+from collections.abc import Callable
+from typing import Any
+
+import py_trees
+
+from autonomy.clock import VehicleClock
+from autonomy.config import Mission
+from autonomy.runner.flight import Flight, bring_down
+from autonomy.runner.home import choose_home
+from autonomy.runner.link import Link
+from autonomy.vehicle.frames import geodetic_to_local
+from behaviors.settings import MissionPlan
+
+Status = py_trees.common.Status
+_MAX_SLEEP = 0.25  # wall s: a pause stays responsive to Ctrl-C and to a changed rate
+
+
+def run_live(
+    flight: Flight,
+    mission: Mission,
+    clock: VehicleClock,
+    build_tree: Callable[[MissionPlan], py_trees.trees.BehaviourTree],
+    on_interrupt: str = "land",
+) -> str:
+    """Fly ``mission`` live; returns the stop reason. ``build_tree(plan)`` makes the tree
+    once the home is chosen.
+
+    Raises:
+        autonomy.runner.home.HomeMismatch: the file's home and the vehicle's disagree and
+            ``vehicle.home_from`` does not say which to fly by.
+    """
+    period = 1.0 / mission.tick_rate
+
+    def pause() -> None:
+        time.sleep(min(clock.wall_seconds(period), _MAX_SLEEP))
+
+    flight.lsm.start()
+    with _ctrl_c_flag() as interrupted:
+        try:
+            waited = _await_vehicle(flight, mission, pause, interrupted)
+            if waited is not None:
+                return waited
+            choice = choose_home(mission, flight.vehicle.state.home)
+            flight.home = choice
+            flight.note(choice.describe(), home=choice.as_dict())
+            autopilot = flight.vehicle.state.autopilot
+
+            def project(lat: float, lon: float, lat0: float, lon0: float) -> tuple[float, float]:
+                return geodetic_to_local(lat, lon, lat0, lon0, autopilot)
+
+            flight.attach_tree(build_tree(mission.plan(home=choice.lat_lon, project=project)))
+            start = clock.now()
+            next_tick = start
+            while not interrupted.is_set():
+                flight.tick()
+                if flight.link_gave_up is not None:
+                    return f"link lost: {flight.link_gave_up}"
+                if flight.status == Status.SUCCESS:
+                    return "landed"
+                if flight.status == Status.FAILURE:
+                    return bring_down(flight, "mission failed", "land", pause)
+                if clock.now() - start >= mission.time_limit:
+                    return bring_down(flight, "time limit", "land", pause)
+                next_tick = max(next_tick + period, clock.now() - period)  # no burst after a lag
+                time.sleep(min(clock.wall_seconds(next_tick - clock.now()), _MAX_SLEEP))
+            print(f"interrupted: {'landing' if on_interrupt == 'land' else 'holding'} "
+                  "(Ctrl-C again to leave at once)", flush=True)
+            return bring_down(flight, "interrupted", on_interrupt, pause)
+        except KeyboardInterrupt:
+            return "interrupted twice"
+
+
+def _await_vehicle(flight: Flight, mission: Mission, pause: Callable[[], None],
+                   interrupted: threading.Event) -> str | None:
+    """Wait for the first HEARTBEAT, then for the vehicle's home; None when both came,
+    else the stop reason."""
+    vehicle = flight.vehicle
+    url = mission.vehicle.connection
+    connect_timeout = mission.vehicle.link.connect_timeout
+    flight.note(f"waiting for a heartbeat on {url} (up to {connect_timeout:g} s)")
+    deadline = flight.now() + connect_timeout
+    while vehicle.stats.first_heartbeat is None:
+        if interrupted.is_set():
+            return "interrupted before the vehicle was heard"
+        if flight.now() >= deadline:
+            flight.link.never_heard(flight.now(), url, connect_timeout)
+            return f"link lost: {flight.link_gave_up}"
+        pause()
+        flight.follow()
+    home_timeout = mission.landing.preflight_timeout
+    flight.note(f"heard {vehicle.state.autopilot} (system {vehicle.target_system}); waiting "
+                f"for its home position (up to {home_timeout:g} s)")
+    deadline = flight.now() + home_timeout
+    while vehicle.state.home is None:
+        if interrupted.is_set():
+            return "interrupted before the vehicle reported its home"
+        if flight.now() >= deadline:
+            reason = f"no home position (HOME_POSITION) from the vehicle within {home_timeout:g} s"
+            flight.note(reason)
+            return reason
+        pause()
+        if flight.follow() is Link.GAVE_UP:
+            return f"link lost: {flight.link_gave_up}"
+    return None
+
+
+@contextlib.contextmanager
+def _ctrl_c_flag():
+    """While inside: the first Ctrl-C (SIGINT) sets the yielded event, the next raises
+    KeyboardInterrupt. A flag rather than an exception at an arbitrary point of the tick, where
+    a callback could swallow it. Outside the main thread (no signal handlers) Ctrl-C keeps its
+    default KeyboardInterrupt, which the caller handles as a second one."""
+    interrupted = threading.Event()
+    if threading.current_thread() is not threading.main_thread():
+        yield interrupted
+        return
+
+    def on_sigint(signum: int, frame: Any) -> None:
+        if interrupted.is_set():
+            raise KeyboardInterrupt
+        interrupted.set()
+
+    previous = signal.signal(signal.SIGINT, on_sigint)
+    try:
+        yield interrupted
+    finally:
+        signal.signal(signal.SIGINT, previous)

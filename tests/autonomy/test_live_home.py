@@ -1,0 +1,123 @@
+"""Frames on a live vehicle: lat/lon waypoints are flown to their lat/lon about the home the
+vehicle reports; a mission file whose home disagrees is refused unless told which to use."""
+
+from __future__ import annotations
+
+import json
+import math
+import threading
+from pathlib import Path
+
+import pytest
+import yaml
+
+from autonomy.cli import main
+from autonomy.config import apply_overrides, geodetic_to_enu, load_mission
+from autonomy.errors import UserError
+from autonomy.runner.home import HomeMismatch, choose_home
+from sitl.copter import HomeSettings
+from sitl.copter.geo import LocalToGlobal
+
+DEMO = Path(__file__).resolve().parents[2] / "missions" / "demo.yaml"
+FILE_HOME = (47.397742, 8.545594, 488.0)  # demo.yaml's home
+VEHICLE_HOME = (47.398742, 8.545594, 488.0)  # 111 m north of it
+# A lat/lon waypoint 30 m east and 20 m north of the vehicle's home.
+TARGET = (VEHICLE_HOME[0] + 20.0 / 111_320.0, VEHICLE_HOME[1] + 30.0 / 75_460.0)
+
+
+def write_mission(tmp_path: Path) -> Path:
+    """demo.yaml flying one lat/lon waypoint, then landing at a scripted site near it."""
+    data = load_mission(DEMO).source_data()
+    data["waypoints"] = [{"lat": TARGET[0], "lon": TARGET[1], "alt": 12.0}]
+    data["sites"] = [{"x": 33.0, "y": 24.0, "size": 5.0}]
+    path = tmp_path / "geo.yaml"
+    path.write_text(yaml.safe_dump(data), encoding="utf-8")
+    return path
+
+
+def closest_approach(sitl, done: threading.Event, out: list[float]) -> None:
+    """Track the simulator's truth, as lat/lon, against the commanded lat/lon (metres)."""
+    to_global = LocalToGlobal(VEHICLE_HOME[0], VEHICLE_HOME[1])
+    while not done.is_set():
+        x, y, _ = sitl.truth.position
+        lat, lon = to_global(x, y)
+        east, north = geodetic_to_enu(lat, lon, TARGET[0], TARGET[1])
+        out.append(math.hypot(east, north))
+        done.wait(0.001)
+
+
+def test_lat_lon_waypoints_are_flown_about_the_vehicles_home(served_sitl, tmp_path, capsys):
+    served = served_sitl(speedup=10.0, home=HomeSettings(
+        lat=VEHICLE_HOME[0], lon=VEHICLE_HOME[1], alt=VEHICLE_HOME[2]))
+    mission = write_mission(tmp_path)
+    args = ["fly", str(mission), "--connect", served.url, "--set",
+            "landing.acceptance_radius=0.5"]
+
+    refused = tmp_path / "refused"
+    assert main([*args, "--out", str(refused)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1
+    assert "47.3987420, 8.5455940" in err[0] and "47.3977420, 8.5455940" in err[0]
+    assert "111.2 m apart" in err[0] and "--home-from" in err[0]
+    summary = json.loads((refused / "summary.json").read_text())
+    assert (summary["outcome"], summary["exit_code"]) == ("refused", 2)
+    assert not served.sitl.truth.armed, "refused before takeoff"
+
+    distances: list[float] = []
+    done = threading.Event()
+    watch = threading.Thread(target=closest_approach, args=(served.sitl, done, distances),
+                             daemon=True)
+    watch.start()
+    flown = tmp_path / "flown"
+    try:
+        code = main([*args, "--out", str(flown), "--home-from", "vehicle"])
+    finally:
+        done.set()
+        watch.join(timeout=5)
+    summary = json.loads((flown / "summary.json").read_text())
+    assert (code, summary["outcome"]) == (3, "landed_unjudged")
+    assert summary["home"]["used"] == "vehicle" and summary["home"]["agree"] is False
+    assert min(distances) < 1.0
+    out = capsys.readouterr().out
+    assert "flying by the vehicle's home" in out
+    assert "exit 3: landed and disarmed on a verified site; the ground was not judged" in out
+
+
+def mission_with_home(home: tuple[float, float, float] | None, **overrides):
+    mission = load_mission(DEMO)
+    data = mission.source_data()
+    if home is None:
+        data.pop("home")
+    else:
+        data["home"] = {"lat": home[0], "lon": home[1], "alt": home[2]}
+    data["waypoints"] = [{"lat": TARGET[0], "lon": TARGET[1], "alt": 20.0}]
+    return apply_overrides(type(mission).model_validate(data), overrides)
+
+
+def test_homes_within_the_tolerances_agree_and_the_vehicles_is_flown_by():
+    near = (FILE_HOME[0] + 3.0 / 111_320.0, FILE_HOME[1], FILE_HOME[2] + 8.0)
+    choice = choose_home(mission_with_home(FILE_HOME), near)
+    assert choice.agree and choice.used == "vehicle" and choice.lat_lon == near[:2]
+    with pytest.raises(HomeMismatch, match="tolerance 5 m, 10 m"):
+        choose_home(mission_with_home(FILE_HOME), (near[0], near[1], FILE_HOME[2] + 12.0))
+    looser = mission_with_home(FILE_HOME, **{"vehicle.home_altitude_tolerance": 15.0})
+    assert choose_home(looser, (near[0], near[1], FILE_HOME[2] + 12.0)).agree
+
+
+def test_home_from_file_flies_the_mission_as_drawn_about_the_files_home():
+    mission = mission_with_home(FILE_HOME, **{"vehicle.home_from": "file"})
+    choice = choose_home(mission, VEHICLE_HOME)
+    assert choice.used == "file" and not choice.agree
+    x, y, _ = mission.plan(home=choice.lat_lon).waypoints[0]
+    # Offsets from the file's home: 111 m further north than the target is from the vehicle.
+    assert x == pytest.approx(30.0, abs=0.2) and y == pytest.approx(131.2, abs=0.3)
+
+
+def test_without_a_home_in_the_file_the_vehicles_is_used():
+    mission = mission_with_home(None)
+    choice = choose_home(mission, VEHICLE_HOME)
+    assert choice.used == "vehicle" and choice.file is None
+    x, y, _ = mission.plan(home=choice.lat_lon).waypoints[0]
+    assert x == pytest.approx(30.0, abs=0.2) and y == pytest.approx(20.0, abs=0.2)
+    with pytest.raises(UserError, match="gives no home"):
+        choose_home(mission, VEHICLE_HOME, "file")
