@@ -38,9 +38,14 @@ class MiniGcs:
         self.last: dict[str, object] = {}
         self.counts: dict[str, int] = defaultdict(int)
         self.keep = True
+        self.upload: list = []  # MISSION_ITEM_INT messages offered to the vehicle's requests
+        self.downloaded: list = []  # items received since the last download_mission()
+        self._download: tuple[int, int] | None = None  # (count, mission_type) in progress
 
     def poll(self) -> list:
-        """Parse everything that arrived; returns the new messages."""
+        """Parse everything that arrived; returns the new messages. Answers the vehicle's
+        requests for the items of :meth:`upload_mission` and asks for the next item of a
+        :meth:`download_mission`."""
         data = self.endpoint.read()
         if not data:
             return []
@@ -49,6 +54,10 @@ class MiniGcs:
             name = msg.get_type()
             self.last[name] = msg
             self.counts[name] += 1
+            if name in ("MISSION_REQUEST_INT", "MISSION_REQUEST") and msg.seq < len(self.upload):
+                self.mav.send(self.upload[msg.seq])
+            elif name in ("MISSION_COUNT", "MISSION_ITEM_INT") and self._download is not None:
+                self._next_download(msg)
         if self.keep:
             self.received.extend(msgs)
         return msgs
@@ -112,3 +121,54 @@ class MiniGcs:
             0, *self.target, mavlink.MAV_FRAME_LOCAL_NED, mask,
             0, 0, 0, vn, ve, vd, 0, 0, 0, 0, 0,
         )
+
+    # ----------------------------------------------------------------- parameters
+    def param_request_list(self) -> None:
+        self.mav.param_request_list_send(*self.target)
+
+    def param_read(self, name: str = "", index: int = -1) -> None:
+        self.mav.param_request_read_send(*self.target, name.encode(), index)
+
+    def param_set(self, name: str, value: float, param_type: int) -> None:
+        self.mav.param_set_send(*self.target, name.encode(), value, param_type)
+
+    def params(self) -> dict[str, float]:
+        """The newest PARAM_VALUE of each parameter received, by name."""
+        return {m.param_id: m.param_value for m in self.of_type("PARAM_VALUE")}
+
+    # ----------------------------------------------------------------- missions
+    def mission_item(self, seq: int, command: int, lat: float = 0.0, lon: float = 0.0,
+                     alt: float = 0.0, *, frame: int = mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
+                     params: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0),
+                     mission_type: int = mavlink.MAV_MISSION_TYPE_MISSION):
+        """A MISSION_ITEM_INT for :meth:`upload_mission` (lat/lon in degrees)."""
+        return mavlink.MAVLink_mission_item_int_message(
+            *self.target, seq, frame, command, 0, 1, *params,
+            int(round(lat * 1e7)), int(round(lon * 1e7)), alt, mission_type,
+        )
+
+    def upload_mission(self, items: list,
+                       mission_type: int = mavlink.MAV_MISSION_TYPE_MISSION) -> None:
+        """Start an upload; :meth:`poll` sends each item the vehicle asks for. The vehicle's
+        MISSION_ACK ends it."""
+        self.upload = list(items)
+        self.mav.mission_count_send(*self.target, len(items), mission_type)
+
+    def download_mission(self, mission_type: int = mavlink.MAV_MISSION_TYPE_MISSION) -> None:
+        """Start a download; the items arrive in :attr:`downloaded` as :meth:`poll` runs."""
+        self.downloaded = []
+        self._download = (-1, mission_type)
+        self.mav.mission_request_list_send(*self.target, mission_type)
+
+    def _next_download(self, msg) -> None:
+        count, mission_type = self._download
+        if msg.get_type() == "MISSION_COUNT":
+            count = msg.count
+        else:
+            self.downloaded.append(msg)
+        self._download = (count, mission_type)
+        if len(self.downloaded) < count:
+            self.mav.mission_request_int_send(*self.target, len(self.downloaded), mission_type)
+        else:
+            self._download = None
+            self.mav.mission_ack_send(*self.target, mavlink.MAV_MISSION_ACCEPTED, mission_type)

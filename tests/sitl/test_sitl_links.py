@@ -133,3 +133,43 @@ def test_parse_address_explains_what_is_wrong():
             assert str(exc)
         else:
             raise AssertionError(f"{bad!r} accepted")
+
+
+def test_a_tcp_client_is_greeted_before_it_speaks():
+    # As ArduPilot SITL does: a plain pymavlink wait_heartbeat() on tcp: gets one at once.
+    sim = Sitl()
+    server = TcpServer("127.0.0.1", 0)
+    client_sock = socket.create_connection(server.address)
+    try:
+        for _ in range(100):
+            clients = server.accept()
+            if clients:
+                break
+            select.select([], [], [], 0.01)
+        sim.attach(clients[0])
+        gcs = MiniGcs(_SocketClient(client_sock))  # never sends anything
+        assert _exchange(sim, gcs, lambda: "HEARTBEAT" in gcs.last, steps=5)
+        assert gcs.last["HEARTBEAT"].autopilot == mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA
+    finally:
+        client_sock.close()
+        sim.close()
+        server.close()
+
+
+def test_udp_out_sends_unasked_then_answers_whoever_speaks():
+    # PX4 SITL sends to 14540 / 14550 before anyone speaks; MAVSDK's udpin: listens there.
+    listener = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    listener.bind(("127.0.0.1", 0))
+    sim = Sitl(autopilot="px4")
+    out = UdpEndpoint("127.0.0.1", 0, peer=listener.getsockname())
+    sim.attach(out)
+    try:
+        gcs = MiniGcs(_SocketClient(listener))
+        assert _exchange(sim, gcs, lambda: "HEARTBEAT" in gcs.last, steps=5)
+        # The listener answers from its own address: the vehicle replies there.
+        listener.connect(out.address)
+        gcs.command(mavlink.MAV_CMD_REQUEST_MESSAGE, mavlink.MAVLINK_MSG_ID_AUTOPILOT_VERSION)
+        assert _exchange(sim, gcs, lambda: "AUTOPILOT_VERSION" in gcs.last, steps=20)
+    finally:
+        listener.close()
+        sim.close()
