@@ -1,0 +1,231 @@
+"""MAVProxy (the ArduPilot ground station) on the vehicle, driven through its console.
+
+Commands are typed on MAVProxy's stdin; its output is the evidence for what it was told
+(parameter values, COMMAND_ACK / MISSION_ACK, mode and arming announcements, alarms). Where a
+position matters, a pymavlink listener reads the telemetry MAVProxy forwards (``--out``). Its
+state (logs, parameter and waypoint files) goes to a temporary folder.
+
+ArduPilot is flown end to end (GUIDED takeoff, two lat/lon targets, a mission in AUTO ending
+in a landing). MAVProxy does not fly PX4 (its takeoff, guided and waypoint commands follow
+ArduPilot's conventions), so against PX4 it connects, fetches, shows and sets parameters and
+must announce nothing false.
+"""
+
+from __future__ import annotations
+
+import re
+import time
+
+import pytest
+from conformance_support import HOME, Monitor, distance, free_port, mavproxy_master, offset
+
+pytestmark = pytest.mark.timeout(600)
+
+FLOAT_PARAM = {"ardupilot": ("WPNAV_SPEED", 750.0), "px4": ("MPC_XY_CRUISE", 6.5)}
+# What MAVProxy says when the vehicle reports a problem; a healthy vehicle on the ground
+# (and in a normal flight) makes it say none of these.
+ALARMS = re.compile(
+    r"fence breach|GPS fix lost|Flight battery warning|Cell warning|Calibration failed"
+    r"|link \d+ down|no link",
+    re.IGNORECASE,
+)
+COPTER_MODE = {"AUTO": 3, "GUIDED": 4, "RTL": 6, "LAND": 9}
+MAV_CMD_NAV_WAYPOINT, MAV_CMD_NAV_LAND = 16, 21
+# *_INT frames mean the same as their float twins (ArduPilot answers with the latter).
+SAME_FRAME = {5: 0, 6: 3, 11: 10}
+# `param show NAME` prints the name and its value (after MAVProxy's prompt, if any).
+NUMBER = r"\b{}\s+(-?\d[\d.eE+-]*)"
+
+
+def alarms(lines: list[str]) -> list[str]:
+    return [line for line in lines if ALARMS.search(line)]
+
+
+def check_parameters(mp, vehicle, autopilot: str) -> None:
+    name, value = FLOAT_PARAM[autopilot]
+    mp.expect(r"Received \d+ parameters", vehicle.wall(120), "parameter download")
+    mp.mark()
+    mp.send(f"param show {name}")
+    old = float(mp.expect(NUMBER.format(name), vehicle.wall(5), f"param show {name}").group(1))
+    assert old > 0 and old != value, f"{name} = {old}"
+    mp.send(f"param set {name} {value:g}")
+    # MAVProxy sets in the background (retrying) and says only "Failed to set" on failure;
+    # its parameter cache takes the vehicle's PARAM_VALUE answer.
+    end = time.monotonic() + vehicle.wall(20)
+    while True:
+        mp.mark()
+        mp.send(f"param show {name}")
+        shown = float(mp.expect(NUMBER.format(name), vehicle.wall(5), f"param show {name}")[1])
+        if shown == pytest.approx(value, abs=1e-4):
+            break
+        failed = [line for line in mp.output() if "Failed to set" in line]
+        assert not failed and time.monotonic() < end, f"param set {name}: {failed or shown}"
+        time.sleep(vehicle.sim_sleep(0.5))
+    mp.mark()
+    mp.send(f"param fetch {name}")
+    fetched = mp.expect(rf"\b{name} = (-?\d[\d.eE+-]*)", vehicle.wall(20), f"param fetch {name}")
+    assert float(fetched.group(1)) == pytest.approx(value, abs=1e-4), fetched.group(0)
+
+
+@pytest.mark.parametrize("autopilot", ["ardupilot", "px4"])
+def test_mavproxy_parameters_and_no_false_alarms(start_vehicle, mavproxy, autopilot):
+    vehicle = start_vehicle(autopilot)
+    out = free_port()
+    mp = mavproxy(mavproxy_master(vehicle), "--out", f"udp:127.0.0.1:{out}")
+    monitor = Monitor(f"udpin:127.0.0.1:{out}")
+    try:
+        check_parameters(mp, vehicle, autopilot)
+        # Give the ground station 20 s of the vehicle's own time on the ground to complain.
+        start = monitor.wait(lambda m: m.boot_seconds(), vehicle.wall(10), "vehicle time")
+        monitor.wait(
+            lambda m: m.boot_seconds() > start + 20 and m.counts.get("SYS_STATUS", 0) >= 5,
+            vehicle.wall(20),
+            "20 s of the vehicle's time with SYS_STATUS",
+        )
+    finally:
+        monitor.close()
+    assert not alarms(mp.output()), f"MAVProxy announced: {alarms(mp.output())}"
+    vehicle.alive()
+
+
+def write_wpl(path, home, items) -> None:
+    """A QGC WPL 110 file: item 0 home (AMSL), then (command, lat, lon, alt above home)."""
+    lat, lon, alt = home
+    lines = ["QGC WPL 110", f"0\t1\t0\t16\t0\t0\t0\t0\t{lat:.7f}\t{lon:.7f}\t{alt:.6f}\t1"]
+    for seq, (command, lat, lon, alt) in enumerate(items, start=1):
+        lines.append(f"{seq}\t0\t3\t{command}\t0\t0\t0\t0\t{lat:.7f}\t{lon:.7f}\t{alt:.6f}\t1")
+    path.write_text("\n".join(lines) + "\n")
+
+
+LISTED = re.compile(
+    r"(\d+) (\d+) (-?\d+\.\d+) (-?\d+\.\d+) (-?\d+\.\d+) "
+    r"p1=(\S+) p2=(\S+) p3=(\S+) p4=(\S+) cur=(\d+) auto=(\d+)$"
+)
+
+
+def parse_listed(m: re.Match) -> dict:
+    """One item as `wp list` prints it: command frame lat lon alt p1..p4 current auto."""
+    return {
+        "command": int(m[1]), "frame": int(m[2]), "x": float(m[3]), "y": float(m[4]),
+        "z": float(m[5]), "params": [float(m[i]) for i in range(6, 10)],
+        "autocontinue": int(m[11]),
+    }  # fmt: skip
+
+
+def test_mavproxy_flies_guided_and_a_mission_on_ardupilot(start_vehicle, mavproxy, tmp_path):
+    """mode guided, arm throttle, takeoff 10, guided LAT LON ALT (MAV_CMD_DO_REPOSITION, then
+    a guided MISSION_ITEM_INT with current=2), wp load, mode auto through 3 waypoints and a
+    landing, see the vehicle disarm; wp list returns what was loaded."""
+    vehicle = start_vehicle("ardupilot")
+    w = vehicle.wall
+    out = free_port()
+    mp = mavproxy(mavproxy_master(vehicle), "--out", f"udp:127.0.0.1:{out}")
+    monitor = Monitor(f"udpin:127.0.0.1:{out}")
+    try:
+        mp.expect(r"Received \d+ parameters", w(120), "parameter download")
+        home_msg = monitor.wait(lambda m: m.get("HOME_POSITION"), w(180), "HOME_POSITION")
+        home = (home_msg.latitude * 1e-7, home_msg.longitude * 1e-7, home_msg.altitude * 1e-3)
+        assert distance(home[0], home[1], HOME[0], HOME[1]) < 5.0, home_msg
+        monitor.wait(
+            lambda m: m.get("GPS_RAW_INT") and m.get("GPS_RAW_INT").fix_type >= 3,
+            w(60),
+            "GPS 3D fix",
+        )
+
+        def until_mode(mode: str, what: str) -> None:
+            """Ask for a mode until the vehicle is in it (refused while it settles)."""
+            for _ in range(30):
+                mp.send(f"mode {mode.lower()}")
+                try:
+                    monitor.wait(
+                        lambda m: m.custom_mode() == COPTER_MODE[mode], w(5), what
+                    )
+                    return
+                except AssertionError:
+                    continue
+            raise AssertionError(f"{what}: refused 30 times; {monitor.summary()}")
+
+        until_mode("GUIDED", "mode GUIDED")
+        for _ in range(30):  # arming is refused until the EKF has a position estimate
+            mp.mark()
+            mp.send("arm throttle")
+            try:
+                monitor.wait(lambda m: m.armed(), w(5), "armed")
+                break
+            except AssertionError:
+                continue
+        else:
+            raise AssertionError(f"arm throttle refused 30 times; {mp.recent()}")
+        mp.expect(r"\bARMED\b", w(10), "ARMED announced")
+
+        mp.mark()
+        mp.send("takeoff 10")
+        mp.expect(r"COMMAND_ACK: NAV_TAKEOFF: ACCEPTED", w(10), "takeoff accepted")
+        monitor.wait(lambda m: m.positions and m.positions[-1][2] > 9.0, w(60), "climb to 10 m")
+
+        def reach(lat, lon, alt, what, radius=2.0):
+            monitor.wait(
+                lambda m: m.positions
+                and distance(m.positions[-1][0], m.positions[-1][1], lat, lon) < radius
+                and abs(m.positions[-1][2] - alt) < 1.5,
+                w(90),
+                what,
+            )
+
+        lat, lon = offset(home[0], home[1], 20.0, 15.0)
+        mp.mark()
+        mp.send(f"guided {lat:.7f} {lon:.7f} 15")
+        mp.expect(r"COMMAND_ACK: DO_REPOSITION: ACCEPTED", w(10), "guided (DO_REPOSITION)")
+        reach(lat, lon, 15.0, "reach the DO_REPOSITION target")
+
+        lat, lon = offset(home[0], home[1], 25.0, -10.0)
+        mp.send("set guided_use_reposition 0")
+        mp.mark()
+        mp.send(f"guided {lat:.7f} {lon:.7f} 18")
+        mp.expect(r"MISSION_ACK: TYPE_MISSION: ACCEPTED", w(10), "guided (MISSION_ITEM_INT)")
+        reach(lat, lon, 18.0, "reach the guided MISSION_ITEM_INT target")
+
+        items = [
+            (MAV_CMD_NAV_WAYPOINT, *offset(home[0], home[1], 35.0, 10.0), 15.0),
+            (MAV_CMD_NAV_WAYPOINT, *offset(home[0], home[1], 35.0, -20.0), 18.0),
+            (MAV_CMD_NAV_WAYPOINT, *offset(home[0], home[1], 5.0, -25.0), 15.0),
+            (MAV_CMD_NAV_LAND, *offset(home[0], home[1], -10.0, -10.0), 0.0),
+        ]
+        sent_file = tmp_path / "mission.txt"
+        write_wpl(sent_file, home, items)
+        mp.mark()
+        mp.send(f"wp load {sent_file}")
+        mp.expect(r"MISSION_ACK: TYPE_MISSION: ACCEPTED", w(30), "wp load")
+
+        flown_from = len(monitor.positions)
+        until_mode("AUTO", "mode AUTO")
+        monitor.wait(lambda m: not m.armed(), w(300), "fly the mission, land and disarm")
+        track = monitor.positions[flown_from:]
+        closest = [
+            min(distance(p[0], p[1], lat, lon) for p in track) for _, lat, lon, _ in items
+        ]
+        assert all(d < 5.0 for d in closest), f"closest approach per item {closest} m"
+        last = track[-1]
+        assert distance(last[0], last[1], items[-1][1], items[-1][2]) < 3.0, last
+        assert abs(last[2]) < 1.0, last
+
+        start = mp.mark()
+        mp.send("wp list")
+        mp.expect(r"Saved waypoints to", w(30), "wp list")
+        # `wp list` prints each item at full precision (its saved file has only 6 decimals)
+        got = [parse_listed(m) for m in map(LISTED.search, mp.output(start)) if m]
+        assert len(got) == len(items) + 1, f"{len(got)} items back, sent {len(items) + 1}"
+        assert distance(got[0]["x"], got[0]["y"], home[0], home[1]) < 5.0, got[0]
+        for (command, lat, lon, alt), b in zip(items, got[1:], strict=True):
+            assert b["command"] == command and SAME_FRAME.get(b["frame"], b["frame"]) == 3, b
+            assert b["x"] == pytest.approx(lat, abs=1.5e-7), (lat, b)
+            assert b["y"] == pytest.approx(lon, abs=1.5e-7), (lon, b)
+            assert b["z"] == pytest.approx(alt, abs=0.01), (alt, b)
+            assert b["params"] == pytest.approx([0.0] * 4, abs=0.01), b
+            assert b["autocontinue"] == 1, b
+    finally:
+        monitor.close()
+    said = mp.output()
+    assert not alarms(said), f"MAVProxy announced: {alarms(said)}"
+    assert not [line for line in said if "Arming checks disabled" in line]
+    vehicle.alive()
