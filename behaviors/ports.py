@@ -13,7 +13,7 @@ from typing import Protocol, runtime_checkable
 
 
 class Clock(Protocol):
-    """Injected time source: simulated time in lockstep runs, monotonic wall time live."""
+    """Injected time source: simulated time in lockstep runs, the vehicle's own time live."""
 
     def now(self) -> float: ...
 

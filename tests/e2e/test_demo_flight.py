@@ -80,7 +80,7 @@ def test_report_files_exist_and_the_tlog_reads_back(demo_flights):
 def test_lander_fly_writes_the_report(tmp_path, capsys):
     out = tmp_path / "out"
     assert main(["fly", str(DEMO), "--out", str(out), "--quiet"]) == 0
-    assert f"landed: report {out / 'report.png'}" in capsys.readouterr().out
+    assert f"landed (exit 0): report {out / 'report.png'}" in capsys.readouterr().out
     assert all((out / name).exists() for name in REPORT_FILES)
 
 
