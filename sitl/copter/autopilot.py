@@ -40,6 +40,8 @@ TAKEOFF_REACHED = 0.3
 _FAR_BELOW = 1000.0
 # Within this horizontal distance (m) of home, RTL starts its descent.
 _RTL_RADIUS = 1.0
+# Slowest speed (m/s) DO_CHANGE_SPEED sets (ArduPilot's WPNAV_WP_SPEED_MIN, 20 cm/s).
+_MIN_SPEED = 0.2
 
 Slope = Callable[[float, float], float]
 
@@ -221,8 +223,12 @@ class Autopilot:
         return False
 
     def change_speed(self, kind: int, speed: float) -> int:
-        """MAV_CMD_DO_CHANGE_SPEED: ``kind`` 0/1 horizontal, 2 climb, 3 descent; m/s."""
+        """MAV_CMD_DO_CHANGE_SPEED: ``kind`` 0/1 horizontal, 2 climb, 3 descent; m/s. Holds
+        until the next mode change; a speed below ArduPilot's floor (WPNAV_WP_SPEED_MIN,
+        0.2 m/s) changes nothing."""
         m = self.model
+        if speed < _MIN_SPEED:
+            return ACCEPTED
         if kind in (0, 1):
             self.speed_limit = min(speed, m.max_horizontal_speed)
         elif kind == 2:
@@ -294,6 +300,7 @@ class Autopilot:
         self.mode = name
         self.hold = self.model.position
         self.hold_yaw = None
+        self.speed_limit = self.climb_limit = self.descent_limit = None
         self.takeoff_target = None
         self.guided = Setpoint(position=self.model.position, hold_ground=not self.flying)
         if name in self.rtl_modes:
