@@ -73,7 +73,8 @@ def build_source(mission: Mission, terrain: Any, rng: np.random.Generator) -> Si
 
 def build_sitl(mission: Mission, terrain: Any, seed: int) -> Any:
     """The embedded simulator for a sim:// flight; ``sim://px4`` or ``sim://ardupilot``
-    chooses the personality, otherwise ``vehicle.autopilot`` does."""
+    chooses the personality, otherwise ``vehicle.autopilot`` does. With a signing key in the
+    mission the simulator signs with it too, as a vehicle set up with that key would."""
     from sitl import Sitl
 
     url = urlsplit(mission.vehicle.connection)
@@ -81,7 +82,8 @@ def build_sitl(mission: Mission, terrain: Any, seed: int) -> Any:
     if autopilot not in ("ardupilot", "px4"):
         raise UserError(f"{mission.vehicle.connection}: the simulator flies 'ardupilot' or "
                         f"'px4', not {autopilot!r}")
-    return Sitl(mission.sitl, terrain=terrain, autopilot=autopilot, seed=seed)
+    return Sitl(mission.sitl, terrain=terrain, autopilot=autopilot, seed=seed,
+                signing_key=mission.vehicle.signing_key_bytes())
 
 
 def judge_touchdown(terrain: Any, x: float, y: float) -> bool | None:

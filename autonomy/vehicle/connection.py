@@ -175,7 +175,7 @@ def open_transport(url: str, baud: int = 115200) -> PymavlinkTransport:
     return PymavlinkTransport(conn, url)
 
 
-def _open_sim(url: str, sitl: Any) -> tuple[MemoryTransport, Any, bool]:
+def _open_sim(url: str, sitl: Any, signing_key: bytes | None) -> tuple[MemoryTransport, Any, bool]:
     parts = urlsplit(url)
     autopilot = parts.netloc or parts.path.strip("/") or "ardupilot"
     if autopilot not in ("ardupilot", "px4"):
@@ -194,7 +194,7 @@ def _open_sim(url: str, sitl: Any) -> tuple[MemoryTransport, Any, bool]:
     if owns:
         from sitl import Sitl
 
-        sitl = Sitl(autopilot=autopilot, seed=seed)
+        sitl = Sitl(autopilot=autopilot, seed=seed, signing_key=signing_key)
     link = MemoryLink()
     sitl.attach(link.vehicle)
     # A simulator that outlives the vehicle must stop writing into a link nobody reads.
@@ -244,7 +244,7 @@ def connect(
         if not url.startswith("sim://"):
             raise UserError(f"{url}: the simulator link is written sim://[ardupilot|px4]")
         transport: Any
-        transport, sitl, owns = _open_sim(url, sitl)
+        transport, sitl, owns = _open_sim(url, sitl, signing_key)
         epoch = SIM_EPOCH
     else:
         transport = open_transport(url)
