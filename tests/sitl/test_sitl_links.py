@@ -173,3 +173,50 @@ def test_udp_out_sends_unasked_then_answers_whoever_speaks():
     finally:
         listener.close()
         sim.close()
+
+
+def _accept(server: TcpServer) -> list:
+    for _ in range(200):
+        clients = server.accept()
+        if clients:
+            return clients
+        select.select([], [], [], 0.01)
+    raise AssertionError("no client connected")
+
+
+def test_a_client_that_reconnects_mid_flight_finds_the_vehicle_where_it_left_it():
+    sim = Sitl()
+    server = TcpServer("127.0.0.1", 0)
+    first = socket.create_connection(server.address)
+    try:
+        sim.attach(_accept(server)[0])
+        gcs = MiniGcs(_SocketClient(first))
+        gcs.heartbeat()
+        _exchange(sim, gcs, lambda: False, steps=int(sim.settings.arming_settle_time / 0.05) + 2)
+        gcs.set_mode(4)  # GUIDED
+        gcs.arm()
+        gcs.takeoff(10.0)
+        assert _exchange(sim, gcs, lambda: sim.truth.position[2] > 9.7, steps=400)
+        gcs.goto_ned(0.0, 20.0, -10.0)
+        assert _exchange(sim, gcs, lambda: sim.truth.position[0] > 19.5, steps=400)
+        first.close()  # the ground station goes away mid-flight
+        for _ in range(200):  # 10 s without it
+            sim.step(0.05)
+        assert len(sim.server.links) == 0
+        second = socket.create_connection(server.address)
+        try:
+            sim.attach(_accept(server)[0])
+            gcs = MiniGcs(_SocketClient(second))
+            gcs.set_interval(mavlink.MAVLINK_MSG_ID_LOCAL_POSITION_NED, 5)
+            assert _exchange(sim, gcs, lambda: "LOCAL_POSITION_NED" in gcs.last, steps=40)
+            where = gcs.last["LOCAL_POSITION_NED"]
+            assert abs(where.y - 20.0) < 0.5 and abs(where.x) < 0.5 and abs(where.z + 10) < 0.5
+            heartbeat = gcs.last["HEARTBEAT"]
+            assert heartbeat.custom_mode == 4
+            assert heartbeat.base_mode & mavlink.MAV_MODE_FLAG_SAFETY_ARMED
+        finally:
+            second.close()
+    finally:
+        first.close()
+        sim.close()
+        server.close()
