@@ -88,12 +88,24 @@ def test_mavproxy_parameters_and_no_false_alarms(start_vehicle, mavproxy, autopi
     vehicle.alive()
 
 
+def arming_parameters(mp, timeout: float) -> dict[str, float]:
+    """The vehicle's ARMING_* parameters as MAVProxy holds them."""
+    start = mp.mark()
+    mp.send("param show ARMING_*")
+    mp.send("param show WPNAV_SPEED")  # printed after every ARMING_* line
+    mp.expect(NUMBER.format("WPNAV_SPEED"), timeout, "param show")
+    found = (re.search(NUMBER.format(r"(ARMING_\w+)"), line) for line in mp.output(start))
+    return {m[1]: float(m[2]) for m in found if m}
+
+
 def write_wpl(path, home, items) -> None:
-    """A QGC WPL 110 file: item 0 home (AMSL), then (command, lat, lon, alt above home)."""
+    """A QGC WPL 110 file: item 0 home (AMSL), then (command, lat, lon, alt above home, p4)."""
     lat, lon, alt = home
     lines = ["QGC WPL 110", f"0\t1\t0\t16\t0\t0\t0\t0\t{lat:.7f}\t{lon:.7f}\t{alt:.6f}\t1"]
-    for seq, (command, lat, lon, alt) in enumerate(items, start=1):
-        lines.append(f"{seq}\t0\t3\t{command}\t0\t0\t0\t0\t{lat:.7f}\t{lon:.7f}\t{alt:.6f}\t1")
+    for seq, (command, lat, lon, alt, p4) in enumerate(items, start=1):
+        lines.append(
+            f"{seq}\t0\t3\t{command}\t0\t0\t0\t{p4:g}\t{lat:.7f}\t{lon:.7f}\t{alt:.6f}\t1"
+        )
     path.write_text("\n".join(lines) + "\n")
 
 
@@ -123,6 +135,11 @@ def test_mavproxy_flies_guided_and_a_mission_on_ardupilot(start_vehicle, mavprox
     monitor = Monitor(f"udpin:127.0.0.1:{out}")
     try:
         mp.expect(r"Received \d+ parameters", w(120), "parameter download")
+        arming = arming_parameters(mp, w(10))
+        # ArduPilot up to 4.6 has ARMING_CHECK (1 = all checks), 4.7 ARMING_SKIPCHK (0 = skip
+        # none); MAVProxy 1.8.74 reads only the first, and without it says "Arming checks
+        # disabled" whatever the vehicle does.
+        assert arming.get("ARMING_CHECK") == 1 or arming.get("ARMING_SKIPCHK") == 0, arming
         home_msg = monitor.wait(lambda m: m.get("HOME_POSITION"), w(180), "HOME_POSITION")
         home = (home_msg.latitude * 1e-7, home_msg.longitude * 1e-7, home_msg.altitude * 1e-3)
         assert distance(home[0], home[1], HOME[0], HOME[1]) < 5.0, home_msg
@@ -185,11 +202,13 @@ def test_mavproxy_flies_guided_and_a_mission_on_ardupilot(start_vehicle, mavprox
         mp.expect(r"MISSION_ACK: TYPE_MISSION: ACCEPTED", w(10), "guided (MISSION_ITEM_INT)")
         reach(lat, lon, 18.0, "reach the guided MISSION_ITEM_INT target")
 
+        # ArduPilot keeps only the sign of a NAV_LAND's param 4 (it answers -1 or 1), so the
+        # landing says 1 to come back as sent.
         items = [
-            (MAV_CMD_NAV_WAYPOINT, *offset(home[0], home[1], 35.0, 10.0), 15.0),
-            (MAV_CMD_NAV_WAYPOINT, *offset(home[0], home[1], 35.0, -20.0), 18.0),
-            (MAV_CMD_NAV_WAYPOINT, *offset(home[0], home[1], 5.0, -25.0), 15.0),
-            (MAV_CMD_NAV_LAND, *offset(home[0], home[1], -10.0, -10.0), 0.0),
+            (MAV_CMD_NAV_WAYPOINT, *offset(home[0], home[1], 35.0, 10.0), 15.0, 0.0),
+            (MAV_CMD_NAV_WAYPOINT, *offset(home[0], home[1], 35.0, -20.0), 18.0, 0.0),
+            (MAV_CMD_NAV_WAYPOINT, *offset(home[0], home[1], 5.0, -25.0), 15.0, 0.0),
+            (MAV_CMD_NAV_LAND, *offset(home[0], home[1], -10.0, -10.0), 0.0, 1.0),
         ]
         sent_file = tmp_path / "mission.txt"
         write_wpl(sent_file, home, items)
@@ -202,7 +221,7 @@ def test_mavproxy_flies_guided_and_a_mission_on_ardupilot(start_vehicle, mavprox
         monitor.wait(lambda m: not m.armed(), w(300), "fly the mission, land and disarm")
         track = monitor.positions[flown_from:]
         closest = [
-            min(distance(p[0], p[1], lat, lon) for p in track) for _, lat, lon, _ in items
+            min(distance(p[0], p[1], lat, lon) for p in track) for _, lat, lon, _, _ in items
         ]
         assert all(d < 5.0 for d in closest), f"closest approach per item {closest} m"
         last = track[-1]
@@ -216,16 +235,17 @@ def test_mavproxy_flies_guided_and_a_mission_on_ardupilot(start_vehicle, mavprox
         got = [parse_listed(m) for m in map(LISTED.search, mp.output(start)) if m]
         assert len(got) == len(items) + 1, f"{len(got)} items back, sent {len(items) + 1}"
         assert distance(got[0]["x"], got[0]["y"], home[0], home[1]) < 5.0, got[0]
-        for (command, lat, lon, alt), b in zip(items, got[1:], strict=True):
+        for (command, lat, lon, alt, p4), b in zip(items, got[1:], strict=True):
             assert b["command"] == command and SAME_FRAME.get(b["frame"], b["frame"]) == 3, b
             assert b["x"] == pytest.approx(lat, abs=1.5e-7), (lat, b)
             assert b["y"] == pytest.approx(lon, abs=1.5e-7), (lon, b)
             assert b["z"] == pytest.approx(alt, abs=0.01), (alt, b)
-            assert b["params"] == pytest.approx([0.0] * 4, abs=0.01), b
+            assert b["params"] == pytest.approx([0.0, 0.0, 0.0, p4], abs=0.01), b
             assert b["autocontinue"] == 1, b
     finally:
         monitor.close()
     said = mp.output()
     assert not alarms(said), f"MAVProxy announced: {alarms(said)}"
-    assert not [line for line in said if "Arming checks disabled" in line]
+    if "ARMING_CHECK" in arming:
+        assert not [line for line in said if "Arming checks disabled" in line]
     vehicle.alive()

@@ -79,11 +79,11 @@ def test_sys_status_is_consistent(start_vehicle, autopilot):
         assert not extra, f"#{i}: enabled but not present: {bit_names(extra)} in {s}"
         assert 0 <= s.load <= 1000, s
         assert s.battery_remaining == -1 or 0 <= s.battery_remaining <= 100, s
-        assert s.voltage_battery > 0, s
     for s in seen[n - 1:]:
         present, enabled = s.onboard_control_sensors_present, s.onboard_control_sensors_enabled
         health = s.onboard_control_sensors_health
         failing = present & enabled & ~health
+        assert s.voltage_battery > 0 and s.battery_remaining > 0, f"battery: {s}"
         assert not failing, f"ready to arm, yet unhealthy: {bit_names(failing)} in {s}"
         for name, bit in ESSENTIAL.items():
             if autopilot == "px4" and name == "3D accelerometer":
