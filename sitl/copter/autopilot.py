@@ -104,7 +104,8 @@ class Autopilot:
         self.slope = slope
         self.home_z = ground_z
         home = settings.home
-        self.geo = geo or GeoFrame(home.lat, home.lon, home.alt, ground_z, lambda x, y: ground_z)
+        self.geo = geo or GeoFrame(home.lat, home.lon, home.alt, ground_z,
+                                   lambda x, y: ground_z, self.name)
         self.mission = MissionStore(
             home_at_zero=self.home_at_zero, capacity=settings.mission_capacity
         )
@@ -142,6 +143,13 @@ class Autopilot:
     def settled(self) -> bool:
         """EKF and GPS have settled: arming checks pass (prearm-ok health bit)."""
         return self.time >= self.settings.arming_settle_time
+
+    @property
+    def position_known(self) -> bool:
+        """The EKF has an absolute position: home is set, position modes may be entered."""
+        s = self.settings
+        settle = s.arming_settle_time if s.position_settle_time is None else s.position_settle_time
+        return self.time >= settle
 
     @property
     def custom_mode(self) -> int:

@@ -143,7 +143,7 @@ class Commands:
         return ACCEPTED
 
     def _get_home_position(self, link: Link, r: CommandRequest) -> int:
-        if not self.autopilot.settled:
+        if not self.autopilot.position_known:
             return FAILED  # no home before the position estimate, as on ArduPilot
         link.once.append(mavlink.MAVLINK_MSG_ID_HOME_POSITION)
         return ACCEPTED

@@ -1,7 +1,11 @@
 """The simulator's own frame conversions: local ENU <-> MAVLink NED and geodetic.
 
 The SITL is a separate vehicle, so it keeps its own copy of these (the autonomy's driver has
-its own, at its boundary). Flat-earth scaling around home, as ArduPilot does.
+its own, at its boundary). Each personality projects latitude and longitude as its autopilot
+does, so a lat/lon target is flown to where that autopilot's GPS would read it: ArduPilot
+scales degrees flat about the mid latitude (``Location::offset``, ``get_distance_NE``), PX4
+uses an azimuthal equidistant projection about home (``map_projection``). The two differ by
+about 0.1-0.2 % of the distance from home.
 """
 
 from __future__ import annotations
@@ -9,8 +13,10 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 
-# ArduPilot's RADIUS_OF_EARTH (m).
+# ArduPilot's RADIUS_OF_EARTH (m), behind its LOCATION_SCALING_FACTOR.
 EARTH_RADIUS = 6378100.0
+# PX4's CONSTANTS_RADIUS_OF_EARTH (m).
+PX4_EARTH_RADIUS = 6371000.0
 
 
 def enu_to_ned(e: float, n: float, u: float) -> tuple[float, float, float]:
@@ -28,28 +34,66 @@ def heading_to_enu_yaw(heading: float) -> float:
     return (math.pi / 2.0 - heading + math.pi) % (2.0 * math.pi) - math.pi
 
 
+def _wrap_lon(lon: float) -> float:
+    return (lon + 180.0) % 360.0 - 180.0
+
+
 class LocalToGlobal:
-    """Local ENU metres around home -> (lat deg, lon deg)."""
+    """ArduPilot's projection: local ENU metres around home <-> (lat deg, lon deg), degrees
+    scaled flat with the cosine of the mid latitude (never below 0.01, as ArduPilot's
+    ``longitude_scale``)."""
 
     def __init__(self, lat: float, lon: float) -> None:
         self.lat0 = lat
         self.lon0 = lon
-        self._deg_per_m_lat = math.degrees(1.0 / EARTH_RADIUS)
-        self._deg_per_m_lon = math.degrees(1.0 / (EARTH_RADIUS * math.cos(math.radians(lat))))
+        self._m_per_deg = math.radians(1.0) * EARTH_RADIUS
+
+    def _lon_scale(self, lat: float) -> float:
+        return max(0.01, math.cos(math.radians((lat + self.lat0) / 2.0)))
 
     def __call__(self, east: float, north: float) -> tuple[float, float]:
-        return (
-            self.lat0 + north * self._deg_per_m_lat,
-            self.lon0 + east * self._deg_per_m_lon,
-        )
+        lat = self.lat0 + north / self._m_per_deg
+        return lat, _wrap_lon(self.lon0 + east / (self._m_per_deg * self._lon_scale(lat)))
 
     def to_local(self, lat: float, lon: float) -> tuple[float, float]:
         """(lat deg, lon deg) -> local (east, north) metres around home; the inverse of
         calling the object."""
-        return (
-            ((lon - self.lon0 + 180.0) % 360.0 - 180.0) / self._deg_per_m_lon,
-            (lat - self.lat0) / self._deg_per_m_lat,
-        )
+        east = _wrap_lon(lon - self.lon0) * self._m_per_deg * self._lon_scale(lat)
+        return east, (lat - self.lat0) * self._m_per_deg
+
+
+class AzimuthalEquidistant:
+    """PX4's projection (``map_projection_project`` / ``reproject``) about home."""
+
+    def __init__(self, lat: float, lon: float) -> None:
+        self.lat0 = lat
+        self.lon0 = lon
+        self._phi0 = math.radians(lat)
+        self._lam0 = math.radians(lon)
+
+    def __call__(self, east: float, north: float) -> tuple[float, float]:
+        x, y = north / PX4_EARTH_RADIUS, east / PX4_EARTH_RADIUS
+        c = math.hypot(x, y)
+        if c == 0.0:
+            return self.lat0, self.lon0
+        sin_c, cos_c = math.sin(c), math.cos(c)
+        sin0, cos0 = math.sin(self._phi0), math.cos(self._phi0)
+        phi = math.asin(max(-1.0, min(1.0, cos_c * sin0 + x * sin_c * cos0 / c)))
+        lam = self._lam0 + math.atan2(y * sin_c, c * cos0 * cos_c - x * sin0 * sin_c)
+        return math.degrees(phi), _wrap_lon(math.degrees(lam))
+
+    def to_local(self, lat: float, lon: float) -> tuple[float, float]:
+        phi, d_lam = math.radians(lat), math.radians(lon) - self._lam0
+        sin0, cos0 = math.sin(self._phi0), math.cos(self._phi0)
+        arg = sin0 * math.sin(phi) + cos0 * math.cos(phi) * math.cos(d_lam)
+        c = math.acos(max(-1.0, min(1.0, arg)))
+        k = 1.0 if abs(c) < 1e-12 else c / math.sin(c)
+        north = k * (cos0 * math.sin(phi) - sin0 * math.cos(phi) * math.cos(d_lam))
+        east = k * math.cos(phi) * math.sin(d_lam)
+        return east * PX4_EARTH_RADIUS, north * PX4_EARTH_RADIUS
+
+
+PROJECTIONS = {"ardupilot": LocalToGlobal, "px4": AzimuthalEquidistant}
 
 
 # Altitude references of MAVLink's global frames.
@@ -65,11 +109,12 @@ class GeoFrame:
         lat, lon: home, degrees; alt: home ground altitude AMSL, m.
         home_z: ENU z of the ground at home (the terrain height there), m.
         height: function (x, y) -> terrain height (ENU z, m), for terrain-relative frames.
+        autopilot: whose projection to use ("ardupilot" or "px4").
     """
 
     def __init__(self, lat: float, lon: float, alt: float, home_z: float,
-                 height: Callable[[float, float], float]) -> None:
-        self.to_global = LocalToGlobal(lat, lon)
+                 height: Callable[[float, float], float], autopilot: str = "ardupilot") -> None:
+        self.to_global = PROJECTIONS[autopilot](lat, lon)
         self.home_alt = alt
         self.home_z = home_z
         self.height = height

@@ -61,7 +61,9 @@ class ArduCopter(Autopilot):
     # Modes this simulator cannot fly (no pilot sticks): changing to them fails.
     _unflyable = frozenset({"ACRO", "CIRCLE"})
     _not_armable = frozenset({"LAND", "RTL", "SMART_RTL", "AUTO", "CIRCLE"})
-    _needs_position = frozenset({"GUIDED", "LOITER", "RTL", "SMART_RTL", "POSHOLD", "BRAKE"})
+    _needs_position = frozenset(
+        {"GUIDED", "AUTO", "LOITER", "RTL", "SMART_RTL", "POSHOLD", "BRAKE"}
+    )
 
     @property
     def base_mode(self) -> int:
@@ -92,6 +94,9 @@ class ArduCopter(Autopilot):
             if self.battery.empty:
                 self.text(_CRITICAL, "PreArm: Battery 1 below minimum capacity")
                 return FAILED
+            if self.mode in self._needs_position and not self.position_known:
+                self.text(_CRITICAL, "Arm: Need Position Estimate")
+                return FAILED
         self._arm()
         return ACCEPTED
 
@@ -99,10 +104,11 @@ class ArduCopter(Autopilot):
         if name not in self.modes or name in self._unflyable:
             self.text(_WARNING, "Flight mode change failed")
             return FAILED
-        if name in self._needs_position and not self.settled:
-            self.text(_WARNING, f"Flight mode change failed: {name} requires position")
+        if name in self._needs_position and not self.position_known:
+            self.text(_WARNING, f"Mode change to {name} failed: requires position")
             return FAILED
         if name == "AUTO" and name != self.mode and not self._auto_can_start():
+            self.text(_WARNING, "Mode change to AUTO failed: init failed")
             return FAILED
         if name != self.mode:
             self._enter(name)
@@ -114,11 +120,7 @@ class ArduCopter(Autopilot):
 
     def _auto_can_start(self) -> bool:
         """ModeAuto::init: a mission to fly, and a take-off first when armed on the ground."""
-        if not self.settled:
-            self.text(_WARNING, "Flight mode change failed: AUTO requires position")
-            return False
         if not self.mission.has_mission():
-            self.text(_WARNING, "Flight mode change failed: no mission")
             return False
         first = self.mission.items[self.mission.current]
         if self.armed and self.model.on_ground and first.command != mavlink.MAV_CMD_NAV_TAKEOFF:
@@ -313,7 +315,7 @@ class Px4Copter(Autopilot):
         if name not in self.modes or name in self._unflyable:
             self.text(_CRITICAL, f"Switching to {name} is currently not possible")
             return TEMPORARILY_REJECTED
-        if name in self._needs_position and not self.settled:
+        if name in self._needs_position and not self.position_known:
             self.text(_CRITICAL, f"Switching to {name} is currently not possible")
             return TEMPORARILY_REJECTED
         if name == "OFFBOARD":

@@ -42,6 +42,7 @@ _DATA_STREAMS: dict[int, tuple[int, ...]] = {
         mavlink.MAVLINK_MSG_ID_BATTERY_STATUS,
         mavlink.MAVLINK_MSG_ID_DISTANCE_SENSOR,
         mavlink.MAVLINK_MSG_ID_SYSTEM_TIME,
+        mavlink.MAVLINK_MSG_ID_EKF_STATUS_REPORT,
     ),
 }
 _DATA_STREAMS[mavlink.MAV_DATA_STREAM_ALL] = tuple(
@@ -219,7 +220,7 @@ class MavlinkServer:
         return sum(link.corrupt_bytes for link in self.links)
 
     def can_stream(self, msgid: int) -> bool:
-        return msgid in STREAMS
+        return msgid in STREAMS and msgid in self.telemetry.builders
 
     def can_build(self, msgid: int) -> bool:
         return msgid in self.telemetry.builders
@@ -383,7 +384,8 @@ class MavlinkServer:
         group = _DATA_STREAMS.get(msg.req_stream_id, ())
         rate = msg.req_message_rate if msg.start_stop else 0
         for msgid in group:
-            link.set_interval(msgid, 1.0 / rate if rate > 0 else 0.0, self.time)
+            if self.can_stream(msgid):
+                link.set_interval(msgid, 1.0 / rate if rate > 0 else 0.0, self.time)
 
     # ---------------------------------------------------------------- signing, time
     def _signing_timestamp(self) -> int:
@@ -461,12 +463,12 @@ class MavlinkServer:
         for link in self.links:
             if not link.open:
                 continue
-            if ap.settled and (not link.home_sent or ap.home_changed):
+            if ap.position_known and (not link.home_sent or ap.home_changed):
                 link.once.append(home_msg)
             once = link.once
             for msgid in once:
                 if msgid == home_msg:
-                    if not ap.settled:
+                    if not ap.position_known:
                         continue  # no home until the EKF has a position
                     link.home_sent = True
                 link.mav.send(build[msgid]())
@@ -474,7 +476,7 @@ class MavlinkServer:
             due = link.next_due
             for msgid, when in due.items():
                 if now + 1e-9 >= when:
-                    if msgid == home_msg and not ap.settled:
+                    if msgid == home_msg and not ap.position_known:
                         continue
                     msg = cache.get(msgid)
                     if msg is None:
@@ -485,5 +487,5 @@ class MavlinkServer:
             self.params.emit(link)
             self.missions.emit(link)
             link.flush()
-        if ap.settled:
+        if ap.position_known:
             ap.home_changed = False

@@ -69,6 +69,7 @@ class MessageRates(BaseModel):
     gps_raw_int: float = Field(2.0, ge=0)
     system_time: float = Field(1.0, ge=0)
     mission_current: float = Field(1.0, ge=0)
+    ekf_status_report: float = Field(0.0, ge=0, description="ArduPilot only, when asked")
 
 
 class SitlSettings(BaseModel):
@@ -113,6 +114,13 @@ class SitlSettings(BaseModel):
     arming_settle_time: float = Field(
         5.0, ge=0, description="sim seconds after boot before the EKF/GPS let the vehicle arm"
     )
+    position_settle_time: float | None = Field(
+        None, ge=0, description="sim seconds after boot before the EKF has an absolute position "
+        "(home set; GUIDED, AUTO, LOITER, RTL allowed and armable); None: with "
+        "arming_settle_time. ArduPilot judges its prearm checks for the current mode, so "
+        "between the two it arms in STABILIZE but refuses GUIDED ('Arm: Need Position "
+        "Estimate')"
+    )
     disarm_delay: float = Field(
         10.0, ge=0, description="armed on the ground this long (no takeoff) -> disarm, s"
     )
@@ -156,4 +164,7 @@ class SitlSettings(BaseModel):
     def _ranges_make_sense(self) -> SitlSettings:
         if self.rangefinder_min >= self.rangefinder_max:
             raise ValueError("rangefinder_min: must be below rangefinder_max")
+        if (self.position_settle_time is not None
+                and self.position_settle_time < self.arming_settle_time):
+            raise ValueError("position_settle_time: must not be before arming_settle_time")
         return self

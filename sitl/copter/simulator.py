@@ -102,7 +102,7 @@ class Sitl:
         )
         self.battery = Battery(s.battery)
         self.wind = Wind(s.wind, np.random.default_rng(seed))
-        geo = GeoFrame(s.home.lat, s.home.lon, s.home.alt, home_z, self._height)
+        geo = GeoFrame(s.home.lat, s.home.lon, s.home.alt, home_z, self._height, autopilot)
         self.autopilot = PERSONALITIES[autopilot](
             s, self.model, self.battery, self.slope, ground_z=home_z, geo=geo
         )

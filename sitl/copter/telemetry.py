@@ -29,7 +29,10 @@ STREAMS: dict[int, str] = {
     mavlink.MAVLINK_MSG_ID_GPS_RAW_INT: "gps_raw_int",
     mavlink.MAVLINK_MSG_ID_SYSTEM_TIME: "system_time",
     mavlink.MAVLINK_MSG_ID_MISSION_CURRENT: "mission_current",
+    mavlink.MAVLINK_MSG_ID_EKF_STATUS_REPORT: "ekf_status_report",
 }
+# Messages only one personality sends (EKF_STATUS_REPORT is ArduPilot's dialect).
+ONLY = {mavlink.MAVLINK_MSG_ID_EKF_STATUS_REPORT: "ardupilot"}
 
 _S = mavlink
 _SENSORS = (
@@ -50,6 +53,13 @@ _HEALTHY_ABSENT = _S.MAV_SYS_STATUS_GEOFENCE | _S.MAV_SYS_STATUS_TERRAIN | _S.MA
 _NEEDS_SETTLING = (
     _S.MAV_SYS_STATUS_SENSOR_GPS | _S.MAV_SYS_STATUS_AHRS | _S.MAV_SYS_STATUS_PREARM_CHECK
 )
+# EKF_STATUS_REPORT flags: attitude and velocities once settled, then an absolute position
+# (until then ArduPilot's EKF holds a constant position).
+_EKF_SETTLED = (
+    _S.EKF_ATTITUDE | _S.EKF_VELOCITY_HORIZ | _S.EKF_VELOCITY_VERT | _S.EKF_POS_HORIZ_REL
+    | _S.EKF_POS_VERT_ABS | _S.EKF_PRED_POS_HORIZ_REL
+)
+_EKF_POSITION = _S.EKF_POS_HORIZ_ABS | _S.EKF_PRED_POS_HORIZ_ABS
 _UINT16_MAX = 65535
 _INT16_MAX = 32767
 
@@ -124,7 +134,11 @@ class Telemetry:
             mavlink.MAVLINK_MSG_ID_SYSTEM_TIME: self._system_time,
             mavlink.MAVLINK_MSG_ID_AUTOPILOT_VERSION: self._autopilot_version,
             mavlink.MAVLINK_MSG_ID_MISSION_CURRENT: self.mission_current,
+            mavlink.MAVLINK_MSG_ID_EKF_STATUS_REPORT: self._ekf_status_report,
         }
+        for msgid, personality in ONLY.items():
+            if ap.name != personality:
+                del self.builders[msgid]
 
     def _time_ms(self) -> int:
         return int(self.server.time * 1000.0) & 0xFFFFFFFF
@@ -256,6 +270,16 @@ class Telemetry:
             CAPABILITIES.get(name, _COMMON_CAPABILITIES), SOFTWARE_VERSION.get(name, 0), 0, 0,
             0, [0] * 8, [0] * 8, [0] * 8, 0, 0, self.autopilot.settings.system_id,
         )
+
+    def _ekf_status_report(self):
+        ap = self.autopilot
+        if ap.position_known:
+            flags = _EKF_SETTLED | _EKF_POSITION
+        elif ap.settled:
+            flags = _EKF_SETTLED | _S.EKF_CONST_POS_MODE
+        else:
+            flags = _S.EKF_ATTITUDE | _S.EKF_CONST_POS_MODE
+        return mavlink.MAVLink_ekf_status_report_message(flags, 0.1, 0.1, 0.1, 0.1, 0.0, 0.0)
 
     def mission_current(self):
         ap = self.autopilot

@@ -377,3 +377,37 @@ def test_commands_for_another_system_are_ignored():
     run(sim, gcs, 1.0)
     assert gcs.acks(mavlink.MAV_CMD_COMPONENT_ARM_DISARM) == []
     assert not sim.truth.armed
+
+
+def test_between_prearm_and_position_estimate_it_arms_in_stabilize_only():
+    sim, gcs = connect(settings=SitlSettings(arming_settle_time=2.0, position_settle_time=6.0))
+    gcs.heartbeat()
+    gcs.set_interval(mavlink.MAVLINK_MSG_ID_EKF_STATUS_REPORT, 2)
+    run(sim, gcs, 3.0)
+    flags = gcs.last["EKF_STATUS_REPORT"].flags
+    assert flags & mavlink.EKF_CONST_POS_MODE and not flags & mavlink.EKF_POS_HORIZ_ABS
+    assert "HOME_POSITION" not in gcs.last
+    gcs.set_mode(GUIDED)
+    run(sim, gcs, 0.1)
+    assert gcs.acks(mavlink.MAV_CMD_DO_SET_MODE) == [mavlink.MAV_RESULT_FAILED]
+    assert "Mode change to GUIDED failed: requires position" in gcs.texts()
+    gcs.arm()  # in STABILIZE: the prearm checks pass
+    run(sim, gcs, 0.1)
+    assert gcs.acks(mavlink.MAV_CMD_COMPONENT_ARM_DISARM) == [mavlink.MAV_RESULT_ACCEPTED]
+    gcs.disarm()
+    run(sim, gcs, 3.0)
+    flags = gcs.last["EKF_STATUS_REPORT"].flags
+    assert flags & mavlink.EKF_POS_HORIZ_ABS and not flags & mavlink.EKF_CONST_POS_MODE
+    assert "HOME_POSITION" in gcs.last
+    gcs.set_mode(GUIDED)
+    run(sim, gcs, 0.1)
+    assert gcs.acks(mavlink.MAV_CMD_DO_SET_MODE)[-1] == mavlink.MAV_RESULT_ACCEPTED
+
+
+def test_px4_does_not_send_ardupilot_messages():
+    sim, gcs = connect(autopilot="px4")
+    gcs.set_interval(mavlink.MAVLINK_MSG_ID_EKF_STATUS_REPORT, 2)
+    gcs.command(mavlink.MAV_CMD_REQUEST_MESSAGE, mavlink.MAVLINK_MSG_ID_EKF_STATUS_REPORT)
+    run(sim, gcs, 2.0)
+    assert "EKF_STATUS_REPORT" not in gcs.last
+    assert gcs.acks(mavlink.MAV_CMD_REQUEST_MESSAGE) == [mavlink.MAV_RESULT_UNSUPPORTED]

@@ -49,19 +49,34 @@ def test_yaw_north_and_east():
     assert math.isclose(frames.ned_to_enu_yaw(math.pi / 2), 0.0, abs_tol=1e-12)
 
 
-def test_lat_lon_reach_the_local_frame_as_each_autopilot_projects_them():
-    from sitl.copter.geo import LocalToGlobal  # the simulator projects as ArduPilot does
+@pytest.mark.parametrize("autopilot", ["ardupilot", "px4"])
+@pytest.mark.parametrize("home", [(47.397742, 8.545594), (-35.363262, 149.165237),
+                                  (78.22, 15.65), (0.1, 179.99)])
+def test_lat_lon_reach_the_local_frame_as_each_autopilot_projects_them(autopilot, home):
+    # The embedded SITL projects as the autopilot it imitates; so must the driver.
+    from sitl.copter.geo import PROJECTIONS
 
-    home = (47.397742, 8.545594)
-    to_global = LocalToGlobal(*home)
-    for east, north in ((400.0, -300.0), (-600.0, 500.0)):
+    to_global = PROJECTIONS[autopilot](*home)
+    for east, north in ((400.0, -300.0), (-600.0, 500.0), (3000.0, 2500.0)):
         lat, lon = to_global(east, north)
-        x, y = geodetic_to_local(lat, lon, *home, autopilot="ardupilot")
-        assert math.hypot(x - east, y - north) < 0.05
-        # The exact tangent plane is off by ~0.2 % of the distance: metres at a kilometre.
+        x, y = geodetic_to_local(lat, lon, *home, autopilot=autopilot)
+        assert math.hypot(x - east, y - north) < 1e-6
+
+
+def test_the_projections_differ_from_the_exact_tangent_plane():
+    # ArduPilot's flat scaling is off the WGS-84 tangent plane by ~0.2 % of the distance.
+    home = (47.397742, 8.545594)
+    for east, north in ((400.0, -300.0), (-600.0, 500.0)):
+        lat, lon = frames_lat_lon(home, east, north)
         ex, ey = geodetic_to_enu(lat, lon, *home)
         assert math.hypot(ex - east, ey - north) > 0.001 * math.hypot(east, north)
     # PX4: an azimuthal equidistant projection on a 6371 km sphere.
     x, y = geodetic_to_local(48.0, 8.0, 47.0, 8.0, autopilot="px4")
     assert x == pytest.approx(0.0, abs=1e-6)
     assert y == pytest.approx(6371000.0 * math.pi / 180.0)
+
+
+def frames_lat_lon(home, east, north):
+    from sitl.copter.geo import LocalToGlobal
+
+    return LocalToGlobal(*home)(east, north)

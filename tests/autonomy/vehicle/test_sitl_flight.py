@@ -263,3 +263,27 @@ def test_velocity_then_hold(flight):
     for _ in range(int(5.0 / DT)):
         s = flight.tick()
     assert s.position == pytest.approx(here, abs=0.2)
+
+
+def test_position_estimate_waits_for_the_ekf_and_guided_is_refused_before_it():
+    # ArduPilot: prearm checks pass (for STABILIZE) before the EKF has an absolute position;
+    # GUIDED is refused until then. The driver reads it from EKF_STATUS_REPORT.
+    from sitl import SitlSettings
+
+    clock = SimClock()
+    sitl = Sitl(SitlSettings(arming_settle_time=3.0, position_settle_time=8.0))
+    vehicle = connect("sim://", clock, sitl=sitl)
+    flight = Lockstep(vehicle, sitl, clock)
+    try:
+        state = flight.until(lambda s: s.prearm_ok, 5, "prearm checks")
+        assert not state.position_estimate and state.home is None
+        early = flight.done(vehicle.set_mode("GUIDED"))
+        assert early.status is CommandStatus.DENIED
+        assert "requires position" in early.reason
+        state = flight.until(lambda s: s.position_estimate, 10, "position estimate")
+        assert clock.now() >= 8.0
+        flight.until(lambda s: s.home is not None, 3, "home")
+        takeoff = flight.done(vehicle.takeoff(5.0), timeout=15)
+        assert takeoff.status is CommandStatus.ACCEPTED, takeoff.reason
+    finally:
+        vehicle.close()
