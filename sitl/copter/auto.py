@@ -74,6 +74,11 @@ class AutoFlier:
         self.state = ACTIVE
         self._begin()
 
+    def resume_at_current(self) -> None:
+        """The current item was set from outside: a completed mission resumes there."""
+        if self.state == COMPLETE:
+            self.state = PAUSED
+
     def pause(self) -> None:
         """The vehicle left AUTO: the mission stops where it is (it resumes there)."""
         if self.state == ACTIVE:
@@ -83,14 +88,19 @@ class AutoFlier:
     def setpoint(self, agl: float) -> Setpoint:
         """The setpoint for this physics step while in AUTO."""
         ap = self.ap
+        if self.state == COMPLETE:
+            return ap.on_mission_complete()
         if self.state != ACTIVE:
             return Setpoint(position=ap.hold, hold_ground=not ap.flying)
         if self.store.changed != self._version:
             self._begin()
         for _ in range(_MAX_ITEMS_PER_STEP):
             item = self._item()
-            if item is None:
-                return self._complete()
+            if item is None:  # the plan was replaced by a shorter one under us
+                self.state = COMPLETE
+            if self.state == COMPLETE:
+                self.landing = False
+                return ap.on_mission_complete()
             if item.command in _NAV:
                 return self._fly(item, agl)
             self._run_do_item(item)
@@ -111,16 +121,16 @@ class AutoFlier:
         self.landing = False
 
     def _advance(self, reached: bool) -> None:
+        """On to the next item; after the last one the mission is complete and the current
+        item stays the last (MISSION_CURRENT then reports seq == total, state COMPLETE)."""
         if reached:
             self.reached.append(self.store.current)
-        self.store.current += 1
-        self.store.changed += 1
+        if self.store.current + 1 < len(self.store.items):
+            self.store.current += 1
+            self.store.changed += 1
+        else:
+            self.state = COMPLETE
         self._begin()
-
-    def _complete(self) -> Setpoint:
-        self.state = COMPLETE
-        self.landing = False
-        return self.ap.on_mission_complete()
 
     def _run_do_item(self, item: MissionItem) -> None:
         ap = self.ap

@@ -85,6 +85,12 @@ class Autopilot:
     auto_mode = ""
     #: ArduPilot keeps home as item 0 of the mission
     home_at_zero = False
+    #: gives a downloaded item the float twin of the *_INT frame it was uploaded in
+    #: (ArduPilot stores the altitude reference, not the frame)
+    float_frames_on_download = False
+    #: sends MISSION_CURRENT whenever the current item or the mission state changes (PX4);
+    #: ArduPilot sends it only in its telemetry stream and when the current item is set
+    announces_mission_current = False
     #: parameter rows (sitl.copter.params) and their float encoding
     param_table: tuple = ()
     param_bytewise = False
@@ -250,9 +256,19 @@ class Autopilot:
         north), or by it when ``relative``."""
         return UNSUPPORTED
 
+    def set_mission_current(self, seq: int) -> bool:
+        """Make item ``seq`` the current one (a completed mission resumes there); False when
+        there is no such item to fly."""
+        if not self.mission.set_current(seq):
+            return False
+        self.auto.resume_at_current()
+        if self.mode == self.auto_mode and self.armed:
+            self.auto.start()
+        return True
+
     def mission_start(self, first: int | None) -> int:
         """MAV_CMD_MISSION_START: fly the stored mission (from item ``first``)."""
-        if first is not None and not self.mission.set_current(first):
+        if first is not None and not self.set_mission_current(first):
             return DENIED
         result = self.set_mode(self.auto_mode)
         if result == ACCEPTED and self.armed:

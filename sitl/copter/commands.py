@@ -222,7 +222,7 @@ class Commands:
 
     def _set_mission_current(self, link: Link, r: CommandRequest) -> int:
         seq = r.integer(1)
-        if seq is None or not self.autopilot.mission.set_current(seq):
+        if seq is None or not self.autopilot.set_mission_current(seq):
             return DENIED
         return ACCEPTED
 

@@ -25,6 +25,11 @@ _RETRY = 1.0  # s without the requested item before asking again
 _ATTEMPTS = 8  # requests for one item before the upload is abandoned
 _GUIDED_GOTO = 2  # MISSION_ITEM.current: ArduPilot's guided "fly to"
 _GUIDED_ALTITUDE = 3  # MISSION_ITEM.current: ArduPilot's guided altitude change
+_FLOAT_TWIN = {
+    mavlink.MAV_FRAME_GLOBAL_INT: mavlink.MAV_FRAME_GLOBAL,
+    mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT: mavlink.MAV_FRAME_GLOBAL_RELATIVE_ALT,
+    mavlink.MAV_FRAME_GLOBAL_TERRAIN_ALT_INT: mavlink.MAV_FRAME_GLOBAL_TERRAIN_ALT,
+}
 
 ACCEPTED = mavlink.MAV_MISSION_ACCEPTED
 ERROR = mavlink.MAV_MISSION_ERROR
@@ -173,17 +178,20 @@ class MissionProtocol:
                       mission_type if mission_type is not None else msg.mission_type)
             return
         item = self._stored(mission_type, msg.seq)
+        frame = item.frame
+        if self.autopilot.float_frames_on_download:
+            frame = _FLOAT_TWIN.get(frame, frame)
         current = int(mission_type == MISSION and msg.seq == self.store.current)
         args = (item.param1, item.param2, item.param3, item.param4)
         if msg.get_type() == "MISSION_REQUEST_INT":
             x, y = item.int_xy()
             reply = mavlink.MAVLink_mission_item_int_message(
-                peer[0], peer[1], msg.seq, item.frame, item.command, current,
+                peer[0], peer[1], msg.seq, frame, item.command, current,
                 item.autocontinue, *args, x, y, item.z, mission_type,
             )
         else:
             reply = mavlink.MAVLink_mission_item_message(
-                peer[0], peer[1], msg.seq, item.frame, item.command, current,
+                peer[0], peer[1], msg.seq, frame, item.command, current,
                 item.autocontinue, *args, item.x, item.y, item.z, mission_type,
             )
         link.mav.send(reply)
@@ -208,7 +216,7 @@ class MissionProtocol:
         self._ack(link, self._peer(msg), ACCEPTED, mission_type)
 
     def _set_current(self, link: Link, msg) -> None:
-        self.store.set_current(msg.seq)
+        self.autopilot.set_mission_current(msg.seq)
         self.server.send_mission_current()
 
     def emit(self, link: Link) -> None:

@@ -57,6 +57,7 @@ class ArduCopter(Autopilot):
     rtl_modes = frozenset({"RTL", "SMART_RTL"})
     auto_mode = "AUTO"
     home_at_zero = True
+    float_frames_on_download = True
     param_table = ARDUPILOT
     # Modes this simulator cannot fly (no pilot sticks): changing to them fails.
     _unflyable = frozenset({"ACRO", "CIRCLE"})
@@ -251,6 +252,7 @@ class Px4Copter(Autopilot):
     land_modes = frozenset({"AUTO.LAND"})
     rtl_modes = frozenset({"AUTO.RTL"})
     auto_mode = "AUTO.MISSION"
+    announces_mission_current = True
     param_table = PX4
     param_bytewise = True
     _unflyable = frozenset({"ACRO"})

@@ -183,7 +183,7 @@ class MavlinkServer:
             **self.missions.handlers,
         }
         self._cache: dict[int, object] = {}
-        self._mission_seq = autopilot.mission.current
+        self._mission_now = (autopilot.mission.current, autopilot.auto.mission_state)
         if signing_key is not None:
             self._sign_with(signing_key, 0)
 
@@ -446,9 +446,11 @@ class MavlinkServer:
                 if link.open:
                     link.mav.send(msg)
         reached.clear()
-        if ap.mission.current != self._mission_seq:
-            self._mission_seq = ap.mission.current
-            self.send_mission_current()
+        now = (ap.mission.current, ap.auto.mission_state)
+        if now != self._mission_now:
+            self._mission_now = now
+            if ap.announces_mission_current:
+                self.send_mission_current()
 
     def emit(self, now: float) -> None:
         """Send the STATUSTEXTs and every telemetry message due at ``now``; flush links."""

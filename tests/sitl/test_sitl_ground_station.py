@@ -253,8 +253,13 @@ def test_mission_upload_then_download_gives_it_back(autopilot):
     gcs.download_mission()
     assert run(sim, gcs, 5, until=lambda: len(gcs.downloaded) == len(items))
     first = 1 if autopilot == "ardupilot" else 0
+    # ArduPilot keeps the altitude reference, not the frame: *_INT frames come back as their
+    # float twins (GLOBAL_RELATIVE_ALT_INT -> GLOBAL_RELATIVE_ALT), as on the real autopilot.
+    twin = {C.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT: C.MAV_FRAME_GLOBAL_RELATIVE_ALT}
     for sent, got in zip(items[first:], gcs.downloaded[first:], strict=True):
-        for field in ("seq", "frame", "command", "param1", "param2", "x", "y", "z"):
+        frame = twin.get(sent.frame, sent.frame) if autopilot == "ardupilot" else sent.frame
+        assert got.frame == frame
+        for field in ("seq", "command", "param1", "param2", "x", "y", "z"):
             assert getattr(got, field) == pytest.approx(getattr(sent, field)), field
 
 
@@ -511,3 +516,32 @@ def test_a_signing_key_from_boot_and_a_zero_key_turns_it_off():
     gcs.command(C.MAV_CMD_REQUEST_MESSAGE, C.MAVLINK_MSG_ID_AUTOPILOT_VERSION)
     run(sim, gcs, 0.2)
     assert last_ack(gcs, C.MAV_CMD_REQUEST_MESSAGE) == C.MAV_RESULT_ACCEPTED
+
+
+@pytest.mark.parametrize("autopilot", ["ardupilot", "px4"])
+def test_mission_current_at_the_end_is_the_last_item_and_complete(autopilot):
+    # MAVSDK's is_mission_finished() trusts MISSION_CURRENT's state: the last item, COMPLETE.
+    sim, gcs = connect(autopilot)
+    items = square_mission(sim, gcs, home_first=autopilot == "ardupilot")
+    gcs.upload_mission(items)
+    run(sim, gcs, 2)
+    if autopilot == "ardupilot":
+        airborne(sim, gcs, 5.0)
+        gcs.set_mode(ARDUPILOT_AUTO)
+    else:
+        settle(sim, gcs)
+        gcs.set_mode(PX4_MISSION, px4=True)
+        gcs.arm()
+    assert run(sim, gcs, 150, until=lambda: not sim.truth.armed)
+    unasked = gcs.of_type("MISSION_CURRENT")
+    if autopilot == "ardupilot":
+        assert unasked == []  # only in its stream, or when the current item is set
+        gcs.set_interval(C.MAVLINK_MSG_ID_MISSION_CURRENT, 2)
+        run(sim, gcs, 1)
+    else:
+        assert unasked  # on every change
+    last = gcs.last["MISSION_CURRENT"]
+    assert last.seq == len(items) - 1
+    # total: ArduPilot leaves its home item out (seq == total on the last item); PX4 counts all.
+    assert last.total == (len(items) - 1 if autopilot == "ardupilot" else len(items))
+    assert last.mission_state == C.MISSION_STATE_COMPLETE
