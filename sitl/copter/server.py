@@ -18,6 +18,7 @@ from collections.abc import Callable
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
+from . import ftp
 from .autopilot import UNSUPPORTED, Autopilot
 from .commands import CommandRequest, Commands
 from .kinematics import Setpoint
@@ -179,6 +180,7 @@ class MavlinkServer:
             "REQUEST_DATA_STREAM": self._on_request_data_stream,
             "SETUP_SIGNING": self._on_setup_signing,
             "TIMESYNC": self._on_timesync,
+            "FILE_TRANSFER_PROTOCOL": self._on_file_transfer,
             **self.params.handlers,
             **self.missions.handlers,
         }
@@ -428,6 +430,11 @@ class MavlinkServer:
         """TIMESYNC with tc1 = 0 is a request: answer with our time in tc1, theirs in ts1."""
         if msg.tc1 == 0:
             link.mav.send(mavlink.MAVLink_timesync_message(int(self.time * 1e9), msg.ts1))
+
+    def _on_file_transfer(self, link: Link, msg) -> None:
+        answer = ftp.reply(msg)
+        if answer is not None:
+            link.mav.send(answer)
 
     # ------------------------------------------------------------------- emit
     def send_mission_current(self) -> None:

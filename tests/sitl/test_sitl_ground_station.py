@@ -545,3 +545,15 @@ def test_mission_current_at_the_end_is_the_last_item_and_complete(autopilot):
     # total: ArduPilot leaves its home item out (seq == total on the last item); PX4 counts all.
     assert last.total == (len(items) - 1 if autopilot == "ardupilot" else len(items))
     assert last.mission_state == C.MISSION_STATE_COMPLETE
+
+
+def test_ftp_requests_are_refused_at_once_so_ground_stations_fall_back():
+    # MAVProxy asks for @PARAM/param.pck over MAVLink FTP first; without an answer it waits.
+    sim, gcs = connect()
+    open_ro = bytes([7, 0, 0, 4, 15, 0, 0, 0, 0, 0, 0, 0]) + b"@PARAM/param.pck\0"
+    gcs.mav.file_transfer_protocol_send(0, 1, 1, list(open_ro.ljust(251, b"\0")))
+    run(sim, gcs, 0.1)
+    answer = bytes(gcs.last["FILE_TRANSFER_PROTOCOL"].payload)
+    seq, opcode, size, req_opcode, error = answer[0], answer[3], answer[4], answer[5], answer[12]
+    assert (seq, opcode, size, req_opcode) == (8, 129, 1, 4)  # NAK of OpenFileRO
+    assert error == 7  # unknown command: this vehicle keeps no files
