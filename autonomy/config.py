@@ -17,7 +17,9 @@ import copy
 import math
 import os
 import re
-from collections.abc import Callable, Mapping, Sequence
+import stat
+import typing
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
@@ -32,14 +34,23 @@ from pydantic import (
     Tag,
     TypeAdapter,
     ValidationError,
+    field_validator,
     model_validator,
 )
 
-from autonomy.errors import UserError
+from autonomy.errors import UserError, one_line
 from autonomy.perception.scripted import ScriptedSettings, ScriptedSite
-from autonomy.vehicle.connection import signing_key_from_text
+from autonomy.vehicle.connection import check_url, signing_key_from_text
 from autonomy.vehicle.settings import VehicleLinkSettings
-from behaviors.settings import LandingSettings, MissionPlan
+from behaviors.settings import (
+    MAX_ALTITUDE,
+    MAX_RANGE,
+    MAX_WAYPOINTS,
+    Altitude,
+    Horizontal,
+    LandingSettings,
+    MissionPlan,
+)
 from lsd.depth_costmap_settings import DepthCostmapSettings
 from lsd.elevation_settings import DetectorSettings, ElevationMapSettings
 from lsd.lidar_pca_settings import LidarPcaSettings
@@ -53,6 +64,34 @@ from sitl.terrain import TerrainSettings
 # WGS-84, for the local tangent plane about home.
 _WGS84_A = 6378137.0
 _WGS84_E2 = 6.69437999014e-3
+
+MAX_SEED = 2**32 - 1
+"""Seeds are 0 .. 2**32-1: numpy's generators take non-negative integers, and every seed a
+flight derives is a 32-bit word."""
+MAX_TIME_LIMIT = 14_400.0
+"""s: four hours, longer than any multicopter battery lasts; a lockstep flight runs
+time_limit x tick_rate ticks."""
+MAX_SITES = 10_000
+"""Sites of the scripted source: typed by hand (a detector finds the others)."""
+_ENV_NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
+
+
+class YamlLoader(getattr(yaml, "CSafeLoader", yaml.SafeLoader)):  # type: ignore[misc]
+    """PyYAML's safe loader (libyaml's when installed: five times faster on big files) that
+    also reads ``1e23`` as a number, as YAML 1.2 does (YAML 1.1 needs ``1.0e+23``)."""
+
+
+YamlLoader.add_implicit_resolver(
+    "tag:yaml.org,2002:float",
+    re.compile(r"^[-+]?[0-9][0-9_]*[eE][-+]?[0-9]+$"),
+    list("-+0123456789"),
+)
+
+
+def read_yaml_value(text: str) -> Any:
+    """A YAML scalar or flow value (``5``, ``1e23``, ``[1, 2]``, ``text``), as mission files
+    read it. Raises yaml.YAMLError."""
+    return yaml.load(text, Loader=YamlLoader)  # noqa: S506 (a safe loader)
 
 
 def _flat_world() -> Any:
@@ -79,16 +118,19 @@ class VehicleConfig(BaseModel):
 
     connection: str = Field(
         "sim://",
+        max_length=1000,
         description="sim:// (embedded SITL, lockstep) or a pymavlink URL (udp:, tcp:, serial)",
     )
     autopilot: Literal["ardupilot", "px4"] = Field(
         "ardupilot", description="personality of the embedded SITL (sim:// only)"
     )
     signing_key: str | None = Field(
-        None, description="MAVLink 2 signing key: 64 hex digits or a passphrase"
+        None, min_length=1, max_length=1000,
+        description="MAVLink 2 signing key: 64 hex digits or a passphrase",
     )
     signing_key_env: str | None = Field(
-        None, description="name of an environment variable holding the signing key"
+        None, max_length=200, description="name of an environment variable holding the "
+        "signing key; it must be set when the mission is validated or flown",
     )
     link: VehicleLinkSettings = VehicleLinkSettings()
     home_from: HomeSource | None = Field(
@@ -96,11 +138,39 @@ class VehicleConfig(BaseModel):
         "the 'vehicle' home or the 'file' home; unset = refuse to fly"
     )
     home_tolerance: float = Field(
-        5.0, gt=0, description="m horizontally the file's home may lie from the vehicle's"
+        5.0, gt=0, le=MAX_RANGE, description="m horizontally the file's home may lie from the "
+        "vehicle's, up to 50 km (a multicopter's range)"
     )
     home_altitude_tolerance: float = Field(
-        10.0, gt=0, description="m the file's home altitude may differ from the vehicle's"
+        10.0, gt=0, le=MAX_ALTITUDE, description="m the file's home altitude may differ from "
+        "the vehicle's, up to 10 km"
     )
+
+    @field_validator("connection")
+    @classmethod
+    def _known_link(cls, url: str) -> str:
+        return check_url(url)
+
+    @field_validator("signing_key")
+    @classmethod
+    def _key_text(cls, text: str | None) -> str | None:
+        if text is not None and not text.strip():
+            raise ValueError("the signing key is empty")
+        return text
+
+    @field_validator("signing_key_env")
+    @classmethod
+    def _key_variable(cls, name: str | None) -> str | None:
+        if name is None:
+            return None
+        if not _ENV_NAME.match(name):
+            raise ValueError(f"{name!r} is not an environment variable name")
+        text = os.environ.get(name)
+        if text is None:
+            raise ValueError(f"environment variable {name} is not set")
+        if not text.strip():
+            raise ValueError(f"environment variable {name} is empty")
+        return name
 
     @property
     def lockstep(self) -> bool:
@@ -129,26 +199,34 @@ class GeoWaypoint(BaseModel):
 
     model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
-    lat: float = Field(ge=-90, le=90)
-    lon: float = Field(ge=-180, le=180)
-    alt: float | None = Field(None, gt=0, description="m above home; default: cruise_altitude")
+    lat: float = Field(ge=-90, le=90, description="latitude, degrees")
+    lon: float = Field(ge=-180, le=180, description="longitude, degrees")
+    alt: float | None = Field(
+        None, gt=0, le=MAX_ALTITUDE, description="m above home, up to 10 km (a multicopter's "
+        "ceiling); default: cruise_altitude"
+    )
 
 
 def _waypoint_kind(value: Any) -> str:
     return "geo" if isinstance(value, (Mapping, GeoWaypoint)) else "enu"
 
 
-def _above_home(wp: tuple[float, float, float]) -> tuple[float, float, float]:
-    if wp[2] <= 0:
-        raise ValueError(f"altitude must be > 0 m above home, got {wp[2]}")
+def _within_range(wp: tuple[float, float, float]) -> tuple[float, float, float]:
+    distance = math.hypot(wp[0], wp[1])
+    if distance > MAX_RANGE:
+        raise ValueError(f"{distance:.0f} m from home, more than the {MAX_RANGE:.0f} m a "
+                         "multicopter flies")
     return wp
 
 
 Waypoint = Annotated[
-    Annotated[tuple[float, float, float], AfterValidator(_above_home), Tag("enu")]
+    Annotated[tuple[Horizontal, Horizontal, Altitude], AfterValidator(_within_range),
+              Tag("enu")]
     | Annotated[GeoWaypoint, Tag("geo")],
     Discriminator(_waypoint_kind),
 ]
+"""``[x, y, z]`` ENU metres (x, y within 50 km of home, 0 < z <= 10 km) or ``{lat, lon,
+alt}``."""
 
 
 class PerceptionConfig(BaseModel):
@@ -167,14 +245,18 @@ class PerceptionConfig(BaseModel):
     detector: Literal["elevation_map", "depth_costmap", "lidar_pca", "scripted"] = Field(
         "elevation_map", description="the site source"
     )
-    rate: float = Field(2.0, gt=0, le=100, description="perception updates per second, Hz")
+    rate: float = Field(
+        2.0, gt=0, le=100, description="perception updates per second, Hz, up to 100 and to "
+        "tick_rate"
+    )
     low_altitude_rate: float | None = Field(
         None, gt=0, le=100, description="perception updates per second while the range finder "
         "reads less than low_altitude (Hz): a stereo camera close to the ground gives many frames "
         "during the verification hover; default: rate"
     )
     low_altitude: float = Field(
-        15.0, gt=0, description="range-finder height (m AGL) below which low_altitude_rate applies"
+        15.0, gt=0, le=MAX_ALTITUDE, description="range-finder height (m AGL, up to 10 km) "
+        "below which low_altitude_rate applies"
     )
     camera: DepthCameraSettings = DepthCameraSettings()
     rangefinder: RangeFinderSettings = RangeFinderSettings()
@@ -198,15 +280,22 @@ class Mission(BaseModel):
 
     model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
-    name: str = ""
-    description: str = ""
+    name: str = Field("", max_length=200, description="title of the flight's report")
+    description: str = Field("", max_length=10_000, description="free text")
     vehicle: VehicleConfig = VehicleConfig()
     home: HomeSettings = HomeSettings()
-    cruise_altitude: float = Field(100.0, gt=0, description="m above home")
-    takeoff_altitude: float | None = Field(
-        None, gt=0, description="m above home; default: the first waypoint's altitude"
+    cruise_altitude: float = Field(
+        100.0, ge=1, le=MAX_ALTITUDE, description="m above home, 1 m .. 10 km (a "
+        "multicopter's ceiling); also the loss's distance normaliser D by default"
     )
-    waypoints: list[Waypoint] = Field(min_length=1)
+    takeoff_altitude: float | None = Field(
+        None, gt=0, le=MAX_ALTITUDE, description="m above home, up to 10 km; default: the "
+        "first waypoint's altitude"
+    )
+    waypoints: list[Waypoint] = Field(
+        min_length=1, max_length=MAX_WAYPOINTS, description="1 to 1000 waypoints, ENU "
+        "[x, y, z] metres or {lat, lon, alt}, each within 50 km of home and 10 km above it"
+    )
     weights: LossWeights = LossWeights()
     lsm: LsmSettings = LsmSettings()
     landing: LandingSettings = LandingSettings()
@@ -214,11 +303,22 @@ class Mission(BaseModel):
     sitl: SitlSettings = SitlSettings()
     perception: PerceptionConfig = PerceptionConfig()
     sites: list[ScriptedSite] = Field(
-        default_factory=list, description="sites of the scripted source"
+        default_factory=list, max_length=MAX_SITES,
+        description="sites of the scripted source, at most 10,000",
     )
-    seed: int = Field(0, ge=0, description="seeds terrain, sensor noise, wind, pattern centres")
-    tick_rate: float = Field(10.0, gt=0, le=1000, description="tree ticks per second, Hz")
-    time_limit: float = Field(1800.0, gt=0, description="s of mission time before aborting")
+    seed: int = Field(
+        0, ge=0, le=MAX_SEED, description="seeds terrain, sensor noise, wind, pattern "
+        "centres: 0 .. 2**32-1 (numpy's generators take non-negative integers)"
+    )
+    tick_rate: float = Field(
+        10.0, ge=1, le=1000, description="tree ticks per second, Hz, 1 .. 1000: the tree "
+        "must look at the vehicle at least once a second (GUIDED targets time out in 3 s), "
+        "and a lockstep step is 1 / tick_rate of simulated time"
+    )
+    time_limit: float = Field(
+        1800.0, gt=0, le=MAX_TIME_LIMIT, description="s of mission time before aborting, up "
+        "to 4 hours (longer than any multicopter battery lasts)"
+    )
 
     _source: dict[str, Any] = PrivateAttr(default_factory=dict)
 
@@ -235,6 +335,14 @@ class Mission(BaseModel):
 
     @model_validator(mode="after")
     def _rates(self) -> Mission:
+        if any(isinstance(wp, GeoWaypoint) for wp in self.waypoints):
+            for i, (x, y, _) in enumerate(self.waypoints_enu()):
+                distance = math.hypot(x, y)
+                if distance > MAX_RANGE:
+                    raise ValueError(
+                        f"waypoints.{i}: {distance:.0f} m from home, more than the "
+                        f"{MAX_RANGE:.0f} m a multicopter flies"
+                    )
         for name in ("rate", "low_altitude_rate"):
             rate = getattr(self.perception, name)
             if rate is not None and rate > self.tick_rate:
@@ -379,6 +487,10 @@ class MissionFileError(UserError):
         super().__init__("\n".join(self.problems))
 
 
+MAX_MISSION_BYTES = 10_000_000
+"""A mission file is at most 10 MB: 1000 waypoints and 10,000 sites take well under 1 MB."""
+
+
 def load_mission(path: str | os.PathLike[str]) -> Mission:
     """Read and validate a mission file.
 
@@ -389,13 +501,25 @@ def load_mission(path: str | os.PathLike[str]) -> Mission:
     """
     path = Path(path)
     try:
+        info = path.stat()
+        if not stat.S_ISREG(info.st_mode):
+            what = "a directory" if stat.S_ISDIR(info.st_mode) else "not a regular file"
+            raise MissionFileError([f"{path}: cannot read mission file: {what}"])
+        if info.st_size > MAX_MISSION_BYTES:
+            raise MissionFileError([f"{path}: cannot read mission file: {info.st_size:,} "
+                                    f"bytes, more than {MAX_MISSION_BYTES:,}"])
         text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        reason = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
+    except (OSError, UnicodeDecodeError, ValueError) as exc:
+        if isinstance(exc, MissionFileError):
+            raise
+        if isinstance(exc, UnicodeDecodeError):
+            reason = f"not UTF-8 text (byte {exc.start})"
+        else:
+            reason = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
         raise MissionFileError([f"{path}: cannot read mission file: {reason}"]) from None
     mission = parse_mission(text, str(path), base_dir=path.parent)
     if not mission.name:  # reports are titled with the file's name then
-        mission = apply_overrides(mission, {"name": path.stem})
+        mission = apply_overrides(mission, {"name": path.stem[:200]})
     return mission
 
 
@@ -405,17 +529,19 @@ def parse_mission(text: str, name: str = "<mission>", base_dir: Path | None = No
     A relative ``world.path`` (elevation file) is taken relative to ``base_dir`` (the mission
     file's directory) when given.
     """
-    loader = yaml.SafeLoader(text)
+    loader = YamlLoader(text)
     try:
         node = loader.get_single_node()
         data = loader.construct_document(node) if node is not None else None
     except yaml.MarkedYAMLError as exc:
         mark = exc.problem_mark or exc.context_mark
         line = mark.line + 1 if mark is not None else 1
-        what = exc.problem or exc.context or "malformed YAML"
+        what = one_line(exc.problem or exc.context or "malformed YAML")
         raise MissionFileError([f"{name}:{line}: YAML syntax error: {what}"]) from None
     except yaml.YAMLError as exc:
-        raise MissionFileError([f"{name}:1: YAML error: {exc}"]) from None
+        raise MissionFileError([f"{name}:1: YAML error: {one_line(str(exc))}"]) from None
+    except RecursionError:
+        raise MissionFileError([f"{name}:1: YAML error: nested too deeply"]) from None
     finally:
         loader.dispose()
     if node is None:
@@ -428,27 +554,67 @@ def parse_mission(text: str, name: str = "<mission>", base_dir: Path | None = No
     if (base_dir is not None and isinstance(world, dict) and world.get("kind") == "file"
             and isinstance(world.get("path"), str) and not Path(world["path"]).is_absolute()):
         data["world"] = {**world, "path": str(base_dir / world["path"])}
+    mission, errors = _validate(data)
+    problems += [_locate(err, node, name) for err in errors]
+    if problems or mission is None:
+        raise MissionFileError(sorted(dict.fromkeys(problems), key=_line_of))
+    return mission
+
+
+def _validate(data: Any) -> tuple[Mission | None, list[dict[str, Any]]]:
+    """The mission, or None and pydantic's error dicts (plus numbers written as true/false,
+    which pydantic would take as 1 and 0)."""
     try:
         mission = Mission.model_validate(data)
     except ValidationError as exc:
-        problems += [_locate(err, node, name) for err in exc.errors()]
-    if problems:
-        raise MissionFileError(sorted(problems, key=_line_of))
-    return mission
+        return None, list(exc.errors())
+    except RecursionError:
+        return None, [{"type": "value_error", "loc": (), "msg": "nested too deeply"}]
+    errors = [
+        {"type": "bool_number", "loc": loc, "input": raw,
+         "msg": "must be a number, not true or false"}
+        for loc, raw in _numbers_given_as_bools(mission, data, ())
+    ]
+    return (None, errors) if errors else (mission, [])
+
+
+def _numbers_given_as_bools(value: Any, raw: Any, loc: tuple) -> Iterator[tuple[tuple, Any]]:
+    """Locations where the file wrote true/false and the model holds a number."""
+    if isinstance(raw, bool):
+        if isinstance(value, (int, float)) and not isinstance(value, bool):
+            yield loc, raw
+        return
+    if isinstance(value, BaseModel) and isinstance(raw, Mapping):
+        for name in type(value).model_fields:
+            if name in raw:
+                yield from _numbers_given_as_bools(getattr(value, name), raw[name], (*loc, name))
+    elif (isinstance(value, (list, tuple)) and isinstance(raw, (list, tuple))
+          and len(value) == len(raw)):
+        for i, (v, r) in enumerate(zip(value, raw, strict=True)):
+            yield from _numbers_given_as_bools(v, r, (*loc, i))
+    elif isinstance(value, Mapping) and isinstance(raw, Mapping):
+        for key, r in raw.items():
+            if key in value:
+                yield from _numbers_given_as_bools(value[key], r, (*loc, key))
 
 
 def _duplicate_keys(root: yaml.Node, name: str) -> list[str]:
     problems = []
     stack: list[tuple[yaml.Node, str]] = [(root, "")]
+    visited: set[int] = set()  # anchors and aliases share nodes: visit each once
     while stack:
         node, prefix = stack.pop()
+        if id(node) in visited:
+            continue
+        visited.add(id(node))
         if isinstance(node, yaml.MappingNode):
-            seen: set[Any] = set()
+            seen: set[str] = set()
             for key, value in node.value:
-                field = f"{prefix}{key.value}"
-                if key.value in seen:
+                label = str(key.value)
+                field = f"{prefix}{label}"
+                if label in seen:
                     problems.append(f"{name}:{key.start_mark.line + 1}: {field}: duplicate key")
-                seen.add(key.value)
+                seen.add(label)
                 stack.append((value, field + "."))
         elif isinstance(node, yaml.SequenceNode):
             stack.extend((v, f"{prefix}{i}.") for i, v in enumerate(node.value))
@@ -460,46 +626,156 @@ def _line_of(message: str) -> int:
     return int(match.group(1)) if match else 0
 
 
-def _locate(err: Mapping[str, Any], root: yaml.Node, name: str) -> str:
-    """One message for one pydantic error, at the YAML node its location points to."""
-    node, mark_node, parts = root, root, []
-    loc = list(err.get("loc", ()))
-    msg = str(err.get("msg", "invalid")).removeprefix("Value error, ")
+
+
+def _yaml_children(node: Any) -> tuple[str, Any]:
+    if isinstance(node, yaml.MappingNode):
+        return "map", {str(k.value): (k, v) for k, v in node.value}
+    if isinstance(node, yaml.SequenceNode):
+        return "seq", node.value
+    return "scalar", None
+
+
+def _data_children(node: Any) -> tuple[str, Any]:
+    if isinstance(node, Mapping):
+        return "map", {str(k): (None, v) for k, v in node.items()}
+    if isinstance(node, (list, tuple)):
+        return "seq", list(node)
+    return "scalar", None
+
+
+def _describe(err: Mapping[str, Any], root: Any, children: Any) -> tuple[str, str, Any]:
+    """(field, reason, node) of one pydantic error: the dotted field as the user wrote it
+    (union tags and model names pydantic adds to locations left out; never empty), the
+    reason in one line, and the node (YAML or data) it points at."""
+    node = mark = root
+    parts: list[str] = []
+    loc: list[Any] = list(err.get("loc", ()))
+    msg = str(err.get("msg", "invalid"))
+    for prefix in ("Value error, ", "Assertion failed, "):
+        msg = msg.removeprefix(prefix)
     # Model-level checks name the field they are about first ("search_rectangle: ..."):
     # point at that field.
     named = re.match(r"([A-Za-z_][\w.]*): ", msg)
     if named and err.get("type") == "value_error":
-        loc += named.group(1).split(".")
+        loc += [int(p) if p.isdigit() else p for p in named.group(1).split(".")]
         msg = msg[named.end():]
     for i, item in enumerate(loc):
         last = i == len(loc) - 1
-        if isinstance(node, yaml.MappingNode) and isinstance(item, str):
-            match = next((kv for kv in node.value if kv[0].value == item), None)
+        kind, kids = children(node)
+        if kind == "map" and (not isinstance(item, int) or str(item) in kids):
+            match = kids.get(str(item))
             if match is not None:
-                parts.append(item)
+                parts.append(str(item))
                 key, node = match
-                mark_node = key if err.get("type") == "extra_forbidden" and last else node
+                forbidden = err.get("type") == "extra_forbidden" and last
+                mark = key if forbidden and key is not None else node
                 continue
             if last:  # a missing field: name it, point at its mapping
-                parts.append(item)
-            # otherwise a union tag or model name pydantic adds to locations: skip it
-        elif isinstance(node, yaml.SequenceNode) and isinstance(item, int):
-            if 0 <= item < len(node.value):
                 parts.append(str(item))
-                node = mark_node = node.value[item]
+            # otherwise a union tag or model name pydantic adds to locations: skip it
+        elif kind == "seq" and isinstance(item, int):
+            if 0 <= item < len(kids):
+                parts.append(str(item))
+                node = mark = kids[item]
                 continue
             parts.append(str(item))
-        elif isinstance(item, int) and isinstance(node, yaml.ScalarNode):
+        elif isinstance(item, int) and kind == "scalar":
             parts.append(str(item))  # an item of a scalar that should be a list
-    field = ".".join(parts) or "(mission)"
+    field = ".".join(_shown_key(p) for p in parts) or "(mission)"
     value = err.get("input")
-    if err.get("type") == "extra_forbidden":
-        msg = "unknown setting"
-    elif err.get("type") not in ("missing", "value_error") and isinstance(
+    kind = str(err.get("type"))
+    msg = _REASONS[kind](err.get("ctx") or {}) if kind in _REASONS else msg
+    if kind not in ("missing", "value_error", "extra_forbidden") and isinstance(
         value, (int, float, str, bool)
     ):
-        msg = f"{msg} (got {value!r})"
-    return f"{name}:{mark_node.start_mark.line + 1}: {field}: {msg}"
+        shown = repr(value)
+        msg = f"{msg} (got {shown if len(shown) <= 60 else shown[:57] + '...'})"
+    if kind in _BOUND_ERRORS:
+        about = _field_description(loc)
+        if about:
+            msg = f"{msg}; {about}"
+    return field, one_line(msg), mark
+
+
+_REASONS: dict[str, Callable[[Mapping[str, Any]], str]] = {
+    "greater_than": lambda c: f"must be > {c.get('gt')}",
+    "greater_than_equal": lambda c: f"must be >= {c.get('ge')}",
+    "less_than": lambda c: f"must be < {c.get('lt')}",
+    "less_than_equal": lambda c: f"must be <= {c.get('le')}",
+    "finite_number": lambda c: "must be a finite number",
+    "int_parsing": lambda c: "must be an integer",
+    "int_type": lambda c: "must be an integer",
+    "int_from_float": lambda c: "must be a whole number",
+    "int_parsing_size": lambda c: "a number too large",
+    "float_parsing": lambda c: "must be a number",
+    "float_type": lambda c: "must be a number",
+    "bool_parsing": lambda c: "must be true or false",
+    "bool_type": lambda c: "must be true or false",
+    "string_type": lambda c: "must be text",
+    "list_type": lambda c: "must be a list",
+    "tuple_type": lambda c: "must be a list",
+    "dict_type": lambda c: "must be a mapping of settings",
+    "model_type": lambda c: "must be a mapping of settings",
+    "model_attributes_type": lambda c: "must be a mapping of settings",
+    "missing": lambda c: "required",
+    "extra_forbidden": lambda c: "unknown setting",
+    "literal_error": lambda c: f"must be {c.get('expected')}",
+    "union_tag_invalid": lambda c: f"{c.get('discriminator', 'kind')} must be "
+                                   f"{c.get('expected_tags')}, not {c.get('tag')!r}",
+    "union_tag_not_found": lambda c: f"needs {c.get('discriminator', 'kind')}",
+    "too_long": lambda c: f"at most {c.get('max_length')} "
+                          f"{'characters' if c.get('field_type') == 'Value' else 'items'}",
+    "too_short": lambda c: f"at least {c.get('min_length')} "
+                           f"{'characters' if c.get('field_type') == 'Value' else 'items'}",
+    "string_too_long": lambda c: f"at most {c.get('max_length')} characters",
+    "string_too_short": lambda c: f"at least {c.get('min_length')} characters",
+}
+"""Reasons in the project's words for pydantic's error types (the rest keep pydantic's)."""
+
+_BOUND_ERRORS = frozenset({
+    "greater_than", "greater_than_equal", "less_than", "less_than_equal", "too_long",
+    "too_short", "string_too_long", "string_too_short",
+})
+
+
+def _field_description(loc: Sequence[Any]) -> str | None:
+    """The schema's description of the innermost field along ``loc`` (it says the field's
+    unit, bounds and why), or None."""
+    models: list[type[BaseModel]] = [Mission]
+    description = None
+    for item in loc:
+        if not isinstance(item, str):
+            continue
+        owner = next((m for m in models if item in m.model_fields), None)
+        if owner is None:
+            continue  # a union tag or model name pydantic adds to locations
+        info = owner.model_fields[item]
+        description = info.description
+        models = list(_models_in(info.annotation))
+    return description
+
+
+def _models_in(annotation: Any) -> Iterator[type[BaseModel]]:
+    """The pydantic models an annotation holds (through unions, lists, Annotated...)."""
+    if isinstance(annotation, type) and issubclass(annotation, BaseModel):
+        yield annotation
+        return
+    for arg in typing.get_args(annotation):
+        yield from _models_in(arg)
+
+
+def _shown_key(key: str) -> str:
+    """A key as it can be shown in a dotted field name: quoted when it is not plain text."""
+    plain = key and key.isprintable() and not any(c in key for c in ".: '\"") and (
+        key.strip() == key)
+    return key if plain else repr(key)
+
+
+def _locate(err: Mapping[str, Any], root: yaml.Node, name: str) -> str:
+    """One message for one pydantic error, at the YAML node its location points to."""
+    field, msg, mark = _describe(err, root, _yaml_children)
+    return f"{name}:{mark.start_mark.line + 1}: {field}: {msg}"
 
 
 # --------------------------------------------------------------------------------------
@@ -514,34 +790,32 @@ def apply_overrides(mission: Mission, overrides: Mapping[str, Any]) -> Mission:
     ``cruise_altitude``) follow the new values unless the mission set them explicitly.
 
     Raises:
-        UserError: a key the schema does not have, or a value it rejects.
+        UserError: a key the schema does not have, or a value it rejects: one line, each
+            problem as ``override KEY: REASON`` (``override KEY: FIELD: REASON`` when the
+            value makes another field wrong).
     """
     data = mission.source_data()
     for key, value in overrides.items():
         _set_dotted(data, key, value)
-    try:
-        return Mission.model_validate(data)
-    except ValidationError as exc:
-        problems = []
-        for err in exc.errors():
-            where = ".".join(str(p) for p in err["loc"])
-            key = next(
-                (k for k in overrides if where == k or where.startswith(k + ".")
-                 or k.startswith(where + ".") or _strip_tags(err["loc"], k)),
-                None,
-            )
-            if err["type"] == "extra_forbidden":
-                problems.append(f"override {key or where}: unknown setting")
-            else:
-                problems.append(f"override {key or where}: {err['msg']}")
-        raise UserError("; ".join(dict.fromkeys(problems))) from None
-
-
-def _strip_tags(loc: Sequence[Any], key: str) -> bool:
-    """True if ``key``'s parts appear in order in ``loc`` (union tags skipped)."""
-    parts = key.split(".")
-    it = iter(str(p) for p in loc)
-    return all(any(p == q for q in it) for p in parts)
+    validated, errors = _validate(data)
+    if validated is not None:
+        return validated
+    problems = []
+    for err in errors:
+        field, msg, _ = _describe(err, data, _data_children)
+        key = next(
+            (k for k in overrides if field == k or field.startswith(k + ".")
+             or k.startswith(field + ".")),
+            None,
+        )
+        if key is None:
+            keys = ", ".join(overrides) or "none"
+            problems.append(f"{field}: {msg} (with the overrides: {keys})")
+        elif field == key or key.startswith(field + "."):
+            problems.append(f"override {key}: {msg}")
+        else:
+            problems.append(f"override {key}: {field}: {msg}")
+    raise UserError("; ".join(dict.fromkeys(problems)))
 
 
 def _set_dotted(data: dict[str, Any], key: str, value: Any) -> None:

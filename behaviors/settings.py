@@ -7,7 +7,33 @@ needs no degree conversion for these models.
 
 from __future__ import annotations
 
+import math
+from typing import Annotated
+
 from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+# Bounds of what a mission may ask of a multicopter; each Field names the one it uses.
+MAX_ALTITUDE = 10_000.0
+"""m above home: multicopters lose lift in thin air; their service ceilings are a few
+kilometres and the highest flights reached about 10 km, so no mission flies higher."""
+MAX_RANGE = 50_000.0
+"""m horizontally from home: a multicopter's battery lasts under an hour at up to about
+20 m/s, i.e. some 35 km out and back at best; 50 km bounds every mission."""
+MAX_WAIT = 3_600.0
+"""s: the longest wait or timeout of a behaviour; an hour is more than a multicopter's
+battery can hover."""
+MAX_TRIES = 100
+"""Retries of a search or a landing: each costs a flight of tens of seconds and a share of
+the battery, so a hundred is more than any battery allows."""
+MAX_WAYPOINTS = 1_000
+"""Waypoints of a mission: more legs than a multicopter's endurance flies (1000 legs of 50 m
+are 50 km), about the size of the autopilots' own mission stores (ArduPilot keeps some 700
+items on most boards); each one is a behaviour of the tree."""
+
+Altitude = Annotated[float, Field(gt=0, le=MAX_ALTITUDE)]
+"""m above home, (0, MAX_ALTITUDE]."""
+Horizontal = Annotated[float, Field(ge=-MAX_RANGE, le=MAX_RANGE)]
+"""ENU x or y, m from home, within MAX_RANGE."""
 
 
 class LandingSettings(BaseModel):
@@ -16,42 +42,52 @@ class LandingSettings(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
     verification_altitude: float = Field(
-        2.5, gt=0, description="m above the site to hover at for verification"
+        2.5, gt=0, le=MAX_ALTITUDE, description="m above the site to hover at for "
+        "verification, up to MAX_ALTITUDE (10 km, a multicopter's ceiling)"
     )
     verify: bool = Field(
         True, description="re-detect the chosen site from the verification altitude before "
         "landing (thesis 3.3.1); false lands after the blind descent, for comparisons"
     )
     verification_duration: float = Field(
-        10.0, gt=0, description="s of clock time to wait for the site's re-detection"
+        10.0, gt=0, le=MAX_WAIT, description="s of clock time to wait for the site's "
+        "re-detection, up to an hour (more than a battery hovers)"
     )
     clear_altitude_buffer: float = Field(
-        10.0, ge=0, description="z_buffer of thesis eq. 3.4: margin above the obstacle altitude, m"
+        10.0, ge=0, le=MAX_ALTITUDE, description="z_buffer of thesis eq. 3.4: margin above "
+        "the obstacle altitude, m, up to 10 km (a multicopter's ceiling)"
     )
     failsafe_altitude: float = Field(
-        120.0, gt=0, description="z_failsafe of thesis eq. 3.5: cap of the clear altitude, m"
+        120.0, gt=0, le=MAX_ALTITUDE, description="z_failsafe of thesis eq. 3.5: cap of the "
+        "clear altitude, m above home, up to 10 km (a multicopter's ceiling)"
     )
     acceptance_radius: float = Field(
-        1.0, gt=0, description="a waypoint is reached within this distance (m, horizontal and "
-        "vertical)"
+        1.0, gt=0, le=1000, description="a waypoint is reached within this distance (m, "
+        "horizontal and vertical), up to 1 km"
     )
     centring_radius: float = Field(
-        0.5, gt=0, description="after verification the vehicle centres over the verified "
-        "site to within this distance (m) before landing"
+        0.5, gt=0, le=1000, description="after verification the vehicle centres over the "
+        "verified site to within this distance (m, up to 1 km) before landing"
     )
-    search_rectangle: tuple[float, float] = Field(
-        (60.0, 40.0), description="width (east) x height (north) of the search pattern, m"
+    search_rectangle: tuple[
+        Annotated[float, Field(gt=0, le=2 * MAX_RANGE)],
+        Annotated[float, Field(gt=0, le=2 * MAX_RANGE)],
+    ] = Field(
+        (60.0, 40.0), description="width (east) x height (north) of the search pattern, m; "
+        "each > 0 and at most 100 km (twice the 50 km a multicopter flies from home)"
     )
     pattern_center_radius: float = Field(
-        50.0, ge=0, description="new pattern centres are drawn within this radius (m) of the "
-        "last mission waypoint"
+        50.0, ge=0, le=MAX_RANGE, description="new pattern centres are drawn within this "
+        "radius (m) of the last mission waypoint; at most 50 km (a multicopter's range)"
     )
     pattern_retries: int = Field(
-        3, ge=1, description="Retry(M): attempts of GetNextPatternCenterWP + LandingSiteSearch"
+        3, ge=1, le=MAX_TRIES, description="Retry(M): attempts of GetNextPatternCenterWP + "
+        "LandingSiteSearch, 1..100 (each is a flight; no battery allows more)"
     )
     landing_retries: int = Field(
-        10, ge=1, description="Retry(N): attempts of the landing phase (sites tried); each "
-        "new try also needs the battery to allow it (landing_try_battery)"
+        10, ge=1, le=MAX_TRIES, description="Retry(N): attempts of the landing phase (sites "
+        "tried), 1..100 (each is a flight; no battery allows more); each new try also needs "
+        "the battery to allow it (landing_try_battery)"
     )
     landing_try_battery: float = Field(
         5.0, ge=0, le=100, description="% of battery a landing try is expected to cost at "
@@ -65,27 +101,24 @@ class LandingSettings(BaseModel):
         15.0, ge=0, le=100, description="% at or below which the vehicle lands where it is"
     )
     command_timeout: float = Field(
-        5.0, gt=0, description="s of clock time for a command to be answered"
+        5.0, gt=0, le=MAX_WAIT, description="s of clock time for a command to be answered, "
+        "up to an hour"
     )
     navigation_timeout: float = Field(
-        300.0, gt=0, description="s of clock time for one navigation (waypoint, pattern, "
-        "takeoff, landing)"
+        300.0, gt=0, le=MAX_WAIT, description="s of clock time for one navigation "
+        "(waypoint, pattern, takeoff, landing), up to an hour (more than a battery flies)"
     )
     preflight_timeout: float = Field(
-        120.0, gt=0, description="s of clock time to wait for link, GPS fix and prearm checks"
+        120.0, gt=0, le=MAX_WAIT, description="s of clock time to wait for link, GPS fix "
+        "and prearm checks, up to an hour"
     )
     gps_loss_timeout: float = Field(
-        5.0, gt=0, description="s without a 3D GPS fix in flight after which the vehicle "
-        "lands where it is"
+        5.0, gt=0, le=MAX_WAIT, description="s without a 3D GPS fix in flight after which "
+        "the vehicle lands where it is, up to an hour"
     )
 
     @model_validator(mode="after")
     def _check(self) -> LandingSettings:
-        width, height = self.search_rectangle
-        if not (width > 0 and height > 0):
-            raise ValueError(
-                f"search_rectangle: width and height must be > 0 m, got {self.search_rectangle}"
-            )
         if self.battery_critical > self.battery_reserve:
             raise ValueError(
                 f"battery_critical ({self.battery_critical} %) must not exceed battery_reserve "
@@ -94,7 +127,7 @@ class LandingSettings(BaseModel):
         return self
 
 
-Waypoint = tuple[float, float, float]
+Waypoint = tuple[Horizontal, Horizontal, Altitude]
 
 
 class MissionPlan(BaseModel):
@@ -107,21 +140,26 @@ class MissionPlan(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
     waypoints: list[Waypoint] = Field(
-        ..., min_length=1, description="ENU waypoints (x east, y north, z above home), m"
+        ..., min_length=1, max_length=MAX_WAYPOINTS, description="ENU waypoints (x east, "
+        "y north, z above home), m: 1 to 1000 of them (MAX_WAYPOINTS), each within 50 km of "
+        "home (MAX_RANGE) and 0 < z <= 10 km (MAX_ALTITUDE)"
     )
     takeoff_altitude: float | None = Field(
-        None, gt=0, description="m above home; default: the first waypoint's z"
+        None, gt=0, le=MAX_ALTITUDE, description="m above home, up to 10 km (a "
+        "multicopter's ceiling); default: the first waypoint's z"
     )
     cruise_altitude: float = Field(
-        100.0, gt=0, description="m above home at which search patterns are flown"
+        100.0, gt=0, le=MAX_ALTITUDE, description="m above home at which search patterns "
+        "are flown, up to 10 km (a multicopter's ceiling)"
     )
     landing: LandingSettings = Field(default_factory=LandingSettings)
 
     @model_validator(mode="after")
     def _check(self) -> MissionPlan:
-        for i, (_, _, z) in enumerate(self.waypoints):
-            if z <= 0:
-                raise ValueError(f"waypoints[{i}]: altitude must be > 0 m above home, got {z}")
+        for i, (x, y, _) in enumerate(self.waypoints):
+            if math.hypot(x, y) > MAX_RANGE:
+                raise ValueError(f"waypoints[{i}]: {math.hypot(x, y):.0f} m from home, more "
+                                 f"than the {MAX_RANGE:.0f} m a multicopter flies")
         return self
 
     @property

@@ -7,10 +7,12 @@ file is not what its extension says; the command line turns it into a user error
 
 from __future__ import annotations
 
+import contextlib
+import warnings
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
-import cv2
 import numpy as np
 
 # ASPRS LAS 1.4 standard classification codes (the ones a landing decision cares about).
@@ -65,18 +67,32 @@ def class_name(code: int) -> str:
     return LAS_CLASSES.get(int(code), f"class {int(code)}")
 
 
+MAX_IMAGE_PIXELS = 50_000_000
+"""A depth image holds at most 50 megapixels: depth cameras give a few; 50 MP of float32 is
+200 MB, and each costmap is another such layer."""
+
+
+@contextlib.contextmanager
+def _quiet() -> Iterator[None]:
+    """No library warnings while a file is read: a bad file is reported as one line."""
+    with warnings.catch_warnings(), np.errstate(all="ignore"):
+        warnings.simplefilter("ignore")
+        yield
+
+
 def read_point_cloud(path: str | Path) -> CloudData:
     """Read a cloud by extension: ``.npy`` (N, >=3), ``.ply``, ``.las``/``.laz``."""
     p = Path(path)
     if not p.is_file():
         raise DataFileError(f"{p}: no such file")
     ext = p.suffix.lower()
-    if ext == ".npy":
-        return _read_npy_cloud(p)
-    if ext == ".ply":
-        return read_ply(p)
-    if ext in (".las", ".laz"):
-        return read_las(p)
+    with _quiet():
+        if ext == ".npy":
+            return _read_npy_cloud(p)
+        if ext == ".ply":
+            return read_ply(p)
+        if ext in (".las", ".laz"):
+            return read_las(p)
     raise DataFileError(f"{p}: unknown point-cloud extension {ext!r} (use .npy, .ply, .las, .laz)")
 
 
@@ -124,6 +140,8 @@ def read_ply(path: str | Path) -> CloudData:
             elif words[0] == "element" and len(words) == 3:
                 elements.append((words[1], _int(words[2], p), []))
             elif words[0] == "property" and elements:
+                if len(words) < 3:
+                    raise DataFileError(f"{p}: bad PLY property line {' '.join(words)!r}")
                 if words[1] == "list":
                     elements[-1][2].append((words[-1], None))
                 elif len(words) == 3 and words[1] in _PLY_TYPES:
@@ -146,7 +164,8 @@ def read_ply(path: str | Path) -> CloudData:
         if fmt == "ascii":
             skip = sum(c for _, c, _ in elements[:vi])
             for _ in range(skip):
-                f.readline()
+                if not f.readline():
+                    raise DataFileError(f"{p}: PLY ascii data ends before the vertex element")
             try:
                 table = np.loadtxt(f, max_rows=count, ndmin=2, dtype=np.float64)
             except ValueError as exc:
@@ -161,8 +180,14 @@ def read_ply(path: str | Path) -> CloudData:
             order = "<" if fmt == "binary_little_endian" else ">"
             skip = sum(c * np.dtype([(n, order + t) for n, t in pr]).itemsize
                        for _, c, pr in elements[:vi])
-            f.seek(skip, 1)
             dtype = np.dtype([(n, order + t) for n, t in props])
+            left = p.stat().st_size - f.tell() - skip
+            if left < dtype.itemsize * count:
+                raise DataFileError(
+                    f"{p}: PLY binary data truncated ({max(left, 0)} of "
+                    f"{dtype.itemsize * count} bytes)"
+                )
+            f.seek(skip, 1)
             buf = f.read(dtype.itemsize * count)
             if len(buf) < dtype.itemsize * count:
                 raise DataFileError(
@@ -197,7 +222,23 @@ def read_las(path: str | Path) -> CloudData:
             f"{p}: reading LAS/LAZ needs laspy: pip install 'landing-autonomy[las]'"
         ) from None
     try:
+        with laspy.open(p) as reader:
+            header = reader.header
+            scales, offsets = np.asarray(header.scales), np.asarray(header.offsets)
+            if not (np.isfinite(scales).all() and np.isfinite(offsets).all()) or (
+                scales == 0
+            ).any():
+                raise DataFileError(f"{p}: LAS header has a zero or non-finite scale or offset")
+            size = p.stat().st_size
+            ratio = 50 if p.suffix.lower() == ".laz" else 1  # LAZ compresses ~5-10 to 1
+            if header.point_count * header.point_format.size > ratio * size:
+                # A count beyond what the file can hold is a bad header: refused before
+                # laspy allocates arrays for it.
+                raise DataFileError(f"{p}: LAS header claims {header.point_count} points, "
+                                    f"more than a {size}-byte file holds")
         las = laspy.read(p)
+    except DataFileError:
+        raise
     except Exception as exc:  # laspy raises several types for a bad file
         reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         raise DataFileError(f"{p}: not a readable LAS/LAZ file ({reason})") from None
@@ -217,16 +258,19 @@ def read_depth_image(path: str | Path) -> np.ndarray:
         raise DataFileError(f"{p}: no such file")
     ext = p.suffix.lower()
     if ext == ".npy":
-        depth = _load_npy(p)
+        with _quiet():
+            depth = _load_npy(p)
         if depth.ndim == 3 and depth.shape[2] == 1:
             depth = depth[:, :, 0]
         if depth.ndim != 2:
             raise DataFileError(f"{p}: expected an (H, W) depth array, got shape {depth.shape}")
         return depth.astype(np.float32)
     if ext == ".png":
-        img = cv2.imread(str(p), cv2.IMREAD_UNCHANGED)
-        if img is None:
-            raise DataFileError(f"{p}: not a readable PNG image")
+        width, height = _png_size(p)
+        if width * height > MAX_IMAGE_PIXELS:
+            raise DataFileError(f"{p}: a {width} x {height} image, more than "
+                                f"{MAX_IMAGE_PIXELS:,} pixels")
+        img = _read_png(p)
         if img.dtype != np.uint16 or img.ndim != 2:
             raise DataFileError(
                 f"{p}: expected a 16-bit single-channel PNG (millimetres), got "
@@ -234,6 +278,32 @@ def read_depth_image(path: str | Path) -> np.ndarray:
             )
         return img.astype(np.float32) / 1000.0
     raise DataFileError(f"{p}: unknown depth-image extension {ext!r} (use .npy or .png)")
+
+
+def _read_png(p: Path) -> np.ndarray:
+    """The pixels of a PNG, decoded by Pillow (libpng, under OpenCV, prints its complaints
+    about a damaged file to the terminal; Pillow raises them). Pillow comes with matplotlib,
+    a dependency that requires it."""
+    from PIL import Image
+
+    try:
+        with _quiet(), Image.open(p) as image:
+            if image.format != "PNG":
+                raise DataFileError(f"{p}: not a readable PNG image")
+            return np.array(image)
+    except DataFileError:
+        raise
+    except (OSError, SyntaxError, ValueError, EOFError, MemoryError, Image.DecompressionBombError):
+        raise DataFileError(f"{p}: not a readable PNG image") from None
+
+
+def _png_size(p: Path) -> tuple[int, int]:
+    """(width, height) from a PNG's IHDR chunk, read before decoding the image."""
+    with open(p, "rb") as f:
+        head = f.read(24)
+    if len(head) < 24 or head[:8] != b"\x89PNG\r\n\x1a\n" or head[12:16] != b"IHDR":
+        raise DataFileError(f"{p}: not a readable PNG image")
+    return int.from_bytes(head[16:20], "big"), int.from_bytes(head[20:24], "big")
 
 
 def write_ply(path: str | Path, points: np.ndarray, binary: bool = True) -> None:

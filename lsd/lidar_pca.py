@@ -381,7 +381,13 @@ def _first_radius(
     moments[:, 0] = 1.0
     moments[:, 1:4] = rel
     np.multiply(rel[:, _MOMENT_I], rel[:, _MOMENT_J], out=moments[:, 4:])
-    m = np.add.reduceat(moments, starts, axis=0)  # (S, 10) sums over each sphere
+    # (S, 10) sums over each sphere. A sphere holds its own search point, so its run is not
+    # empty, unless rounding lost the point itself (coordinates far from the origin): such
+    # runs sum to zero (reduceat would repeat the next run's first row).
+    filled = np.bincount(owner, minlength=s) > 0
+    m = np.zeros((s, 10))
+    if filled.any():
+        m[filled] = np.add.reduceat(moments, starts[filled], axis=0)
     count = m[:, 0].copy()
     enough = count >= settings.n_min
     first_fail = np.ones(s, dtype=np.int8)  # 1: fewer than n_min points

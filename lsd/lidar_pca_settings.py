@@ -16,10 +16,12 @@ class SpotWeights(BaseModel):
 
     model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
-    radius: float = Field(1.0, ge=0, description="w1: accepted plane radius")
-    slope: float = Field(1.0, ge=0, description="w2: plane slope")
-    sigma: float = Field(1.0, ge=0, description="w3: z standard deviation")
-    distance: float = Field(1.0, ge=0, description="w4: horizontal distance spot -> vehicle")
+    radius: float = Field(1.0, ge=0, le=1000, description="w1: accepted plane radius, 0..1000")
+    slope: float = Field(1.0, ge=0, le=1000, description="w2: plane slope, 0..1000")
+    sigma: float = Field(1.0, ge=0, le=1000, description="w3: z standard deviation, 0..1000")
+    distance: float = Field(
+        1.0, ge=0, le=1000, description="w4: horizontal distance spot -> vehicle, 0..1000"
+    )
 
     @model_validator(mode="after")
     def _not_all_zero(self) -> SpotWeights:
@@ -34,42 +36,59 @@ class LidarPcaSettings(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
     travel_distance: float = Field(
-        10.0, gt=0, description="process the accumulated cloud after this travel (m)"
+        10.0, gt=0, le=50_000, description="process the accumulated cloud after this travel "
+        "(m), up to 50 km"
     )
     max_cloud_points: int = Field(
-        1_000_000, ge=1, description="... or when the accumulated cloud has this many points"
+        1_000_000, ge=1, le=50_000_000, description="... or when the accumulated cloud has "
+        "this many points, up to 50 million (1.2 GB of float64 points)"
     )
     process_interval: float | None = Field(
         2.0,
         gt=0,
+        le=3600,
         description="beyond the paper: also process after this many clock seconds without "
         "processing, so a hovering vehicle (verification) still gets fresh spots; None: off",
     )
-    voxel_size: float = Field(0.05, gt=0, description="voxel-grid filter edge (m)")
+    voxel_size: float = Field(
+        0.05, ge=0.001, le=100, description="voxel-grid filter edge (m), 1 mm .. 100 m"
+    )
     seeding: Literal["random", "grid"] = Field(
         "random",
         description="random: n_points random search points (the paper); grid: one search "
         "point per occupied cell of a horizontal grid covering the cloud",
     )
-    n_points: int = Field(20, ge=1, description="random search points per processed cloud")
-    grid_spacing: float | None = Field(
-        None, gt=0, description="grid seeding cell (m); default r_max"
+    n_points: int = Field(
+        20, ge=1, le=100_000, description="random search points per processed cloud, up to "
+        "100,000 (each is a PCA search)"
     )
-    n_min: int = Field(10, ge=3, description="fewest neighbourhood points for a PCA fit")
+    grid_spacing: float | None = Field(
+        None, ge=0.01, le=1000, description="grid seeding cell (m), 0.01 .. 1000; default r_max"
+    )
+    n_min: int = Field(
+        10, ge=3, le=1_000_000, description="fewest neighbourhood points for a PCA fit"
+    )
     r_min: float = Field(
         1.5,
         gt=0,
+        le=1000,
         description="first neighbourhood radius (m), the smallest spot accepted: by default "
         "our vehicle's footprint (1 m) and clearance margin (0.5 m), as the ground truth's "
         "clearance disk (the paper's tables use 0.5)",
     )
-    r_max: float = Field(3.0, gt=0, description="largest neighbourhood radius (m)")
-    r_step: float = Field(0.5, gt=0, description="radius increment (m)")
+    r_max: float = Field(3.0, gt=0, le=1000, description="largest neighbourhood radius (m)")
+    r_step: float = Field(
+        0.5, gt=0, le=1000, description="radius increment (m); at most 1000 radii from r_min "
+        "to r_max"
+    )
     theta_max_deg: float = Field(15.0, gt=0, lt=90, description="steepest plane accepted (deg)")
-    sigma_max: float = Field(0.2, gt=0, description="largest z standard deviation accepted (m)")
+    sigma_max: float = Field(
+        0.2, gt=0, le=100, description="largest z standard deviation accepted (m)"
+    )
     max_step: float | None = Field(
         0.3,
         gt=0,
+        le=100,
         description="beyond the paper: stop growing when a point lies farther than this from "
         "the fitted plane (m); None disables",
     )
@@ -83,20 +102,30 @@ class LidarPcaSettings(BaseModel):
     )
     weights: SpotWeights = SpotWeights()
     distance_scale: float = Field(
-        100.0, gt=0, description="horizontal distance (m) at which the distance grade is 0"
+        100.0, gt=0, le=50_000, description="horizontal distance (m) at which the distance "
+        "grade is 0, up to 50 km"
     )
     merge_distance: float = Field(
-        1.0, ge=0, description="spots closer than this (m) are the same spot; the better stays"
+        1.0, ge=0, le=1000, description="spots closer than this (m) are the same spot; the "
+        "better stays"
     )
-    max_spots: int = Field(1000, ge=1, description="most registered spots kept (best grades)")
+    max_spots: int = Field(
+        1000, ge=1, le=100_000, description="most registered spots kept (best grades), up to "
+        "the LSM's largest capacity"
+    )
     obstacle_margin: float = Field(
-        1.0, ge=0, description="extra horizontal radius (m) searched for the obstacle altitude"
+        1.0, ge=0, le=1000, description="extra horizontal radius (m) searched for the "
+        "obstacle altitude"
     )
 
     @model_validator(mode="after")
     def _radii(self) -> LidarPcaSettings:
         if self.r_max < self.r_min:
             raise ValueError(f"r_max ({self.r_max}) must be >= r_min ({self.r_min})")
+        if (self.r_max - self.r_min) / self.r_step > 1000:
+            raise ValueError(
+                f"r_step: {self.r_step:g} m makes more than 1000 radii from r_min to r_max"
+            )
         return self
 
     @property

@@ -13,23 +13,29 @@ import numpy as np
 from scipy import sparse
 from scipy.spatial import cKDTree
 
+MAX_COORDINATE = 1e8
+"""m: a coordinate farther than this from the origin is not a point of a landing site (Earth
+fixed frames stay within 6,400 km, UTM northings within 10,000 km); voxel and column indices
+of such clouds would not fit their integers."""
+
 
 def clean_points(points: np.ndarray) -> tuple[np.ndarray, int]:
-    """Keep the finite rows of a cloud.
+    """Keep the rows of a cloud whose coordinates are finite and within MAX_COORDINATE.
 
     Args:
         points: ``(N, 3)`` array-like (any extra columns are dropped).
 
     Returns:
-        ``(cloud, dropped)``: the ``(M, 3)`` float64 rows whose three coordinates are finite,
-        and the number of rows dropped. A cloud of the wrong shape is dropped whole.
+        ``(cloud, dropped)``: the ``(M, 3)`` float64 rows kept, and the number of rows
+        dropped. A cloud of the wrong shape is dropped whole.
     """
     arr = np.asarray(points, dtype=np.float64)
     if arr.ndim != 2 or arr.shape[1] < 3:
         return np.empty((0, 3)), int(arr.shape[0]) if arr.ndim >= 1 else 1
     arr = arr[:, :3]
-    finite = np.isfinite(arr).all(axis=1)
-    return np.ascontiguousarray(arr[finite]), int(arr.shape[0] - finite.sum())
+    with np.errstate(invalid="ignore"):
+        usable = (np.abs(arr) <= MAX_COORDINATE).all(axis=1)  # NaN compares False
+    return np.ascontiguousarray(arr[usable]), int(arr.shape[0] - usable.sum())
 
 
 _ROWS_PER_CALL = 1 << 16  # (centre, grid row) slices looked up at once by cylinders()

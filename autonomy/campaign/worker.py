@@ -122,6 +122,10 @@ def fly_run(task: RunTask) -> dict[str, Any]:
             summary = getattr(result, "summary", result)
             if not isinstance(summary, Mapping) or "outcome" not in summary:
                 raise TypeError(f"the flight returned no summary with an outcome: {result!r}")
+            if summary.get("interrupted"):
+                # Ctrl-C stopped the flight (it wrote its partial report): record nothing,
+                # so that re-running the campaign flies this run again.
+                raise KeyboardInterrupt
             return summary_record(task, summary, time.perf_counter() - start)
         except Exception:
             return error_record(task, traceback.format_exc(), time.perf_counter() - start)

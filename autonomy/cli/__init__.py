@@ -4,6 +4,13 @@ Each subcommand lives in its own module in this package and exposes
 ``register(subparsers)``, which adds its parser and sets ``func`` to a callable taking the
 parsed arguments and returning an exit code. Bad user input raises
 :class:`autonomy.errors.UserError`; :func:`main` prints it as one line and exits 2.
+
+Exit codes of every command: 0 done (``fly``: landed), 1 did not succeed (``fly``: did not
+land as planned; ``link``: no autopilot heard), 2 bad input (a file, a flag, a value, a URL,
+a port in use; ``fly``: also refused before takeoff), 3 and 4 ``fly`` only (a live landing
+not judged; link lost), 130 interrupted (Ctrl-C) before a flight started, 141 the reader of
+the output went away, 70 an internal error (a bug: one line says so; ``LANDER_TRACEBACK=1``
+shows the traceback).
 """
 
 from __future__ import annotations
@@ -14,7 +21,7 @@ import os
 import sys
 
 from autonomy import __version__
-from autonomy.errors import UserError
+from autonomy.errors import UserError, one_line
 
 # Subcommand modules, in the order `lander --help` lists them.
 COMMAND_MODULES: tuple[str, ...] = (
@@ -28,10 +35,19 @@ COMMAND_MODULES: tuple[str, ...] = (
     "autonomy.cli.link",
     "autonomy.cli.terrain",
 )
+EXIT_INTERNAL_ERROR = 70  # sysexits.h EX_SOFTWARE
+TRACEBACK_ENV = "LANDER_TRACEBACK"
+
+
+class Parser(argparse.ArgumentParser):
+    """argparse with one-line errors: ``lander fly: error: ... (lander fly --help)``."""
+
+    def error(self, message: str):  # type: ignore[override]
+        self.exit(2, f"{self.prog}: error: {one_line(message)} (see {self.prog} --help)\n")
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = Parser(
         prog="lander",
         description="Behavior-tree landing autonomy for UAVs over MAVLink.",
     )
@@ -44,14 +60,18 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
-    args = parser.parse_args(argv)
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exc:  # --help, --version, or a bad flag (its line is printed)
+        return exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 2)
     if not getattr(args, "func", None):
         parser.print_help()
         return 2
     try:
         return int(args.func(args) or 0)
     except UserError as exc:
-        print(f"lander {args.command}: error: {exc}", file=sys.stderr)
+        for problem in getattr(exc, "problems", None) or [str(exc)]:
+            print(f"lander {args.command}: error: {one_line(problem, 2000)}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print(f"lander {args.command}: interrupted", file=sys.stderr)
@@ -61,6 +81,15 @@ def main(argv: list[str] | None = None) -> int:
         devnull = os.open(os.devnull, os.O_WRONLY)
         os.dup2(devnull, sys.stdout.fileno())
         return 141
+    except Exception as exc:  # a bug: one line, not a traceback (unless asked for)
+        if os.environ.get(TRACEBACK_ENV):
+            raise
+        print(
+            f"lander {args.command}: internal error: {type(exc).__name__}: "
+            f"{one_line(str(exc), 300)} (a bug; {TRACEBACK_ENV}=1 shows where it happened)",
+            file=sys.stderr,
+        )
+        return EXIT_INTERNAL_ERROR
 
 
 if __name__ == "__main__":  # pragma: no cover

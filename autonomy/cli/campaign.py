@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from autonomy.cli import args as types
 from autonomy.errors import UserError
 
 VARY_HELP = (
@@ -31,19 +32,20 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         ),
     )
     parser.add_argument("mission", nargs="?", metavar="MISSION.yaml", help="mission file")
-    parser.add_argument("--runs", type=int, required=True, metavar="N",
+    parser.add_argument("--runs", type=types.integer(1, 100_000), required=True, metavar="N",
                         help="flights per variant (per mission with --compare)")
-    parser.add_argument("--seed", type=int, default=0, metavar="S",
+    parser.add_argument("--seed", type=types.seed, default=0, metavar="S",
                         help="campaign seed; run i flies with SeedSequence(S).spawn()[i] "
                         "(default 0)")
     parser.add_argument("--vary", action="append", default=[], metavar="KEY=SPEC",
                         help=VARY_HELP)
-    parser.add_argument("--workers", type=int, default=None, metavar="K",
+    parser.add_argument("--workers", type=types.integer(1, 1024), default=None, metavar="K",
                         help="worker processes (default: one per core)")
     parser.add_argument("--scheduler", default=None, metavar="ADDRESS",
                         help="run on Dask: tcp://HOST:PORT of a running scheduler, or 'local' "
                         "for a LocalCluster on 127.0.0.1 (needs the 'cluster' extra)")
-    parser.add_argument("--connect-timeout", type=float, default=10.0, metavar="SECONDS",
+    parser.add_argument("--connect-timeout", type=types.number(0, 3600, low_open=True),
+                        default=10.0, metavar="SECONDS",
                         help="how long to wait for the --scheduler (default 10)")
     parser.add_argument("--out", default=None, metavar="DIR",
                         help="output directory (default campaigns/<mission name>)")

@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from autonomy.cli import args as types
 from autonomy.errors import UserError
 
 if TYPE_CHECKING:  # the detectors are imported when the command runs (fast `lander --help`)
@@ -31,6 +32,7 @@ CSV_FIELDS = (
     "class",
 )  # fmt: skip
 MAX_PLOTTED_POINTS = 200_000
+DROPPED = "with NaN/inf or beyond 1e8 m dropped"
 MAX_DRAWN_SITES = 200  # the best ones; all are in sites.csv
 
 
@@ -217,13 +219,16 @@ def run_lidar(args: argparse.Namespace, out_dir: Path) -> int:
     cloud, dropped = clean_points(raw)
     if len(cloud) < settings.n_min:
         raise UserError(
-            f"{args.lidar}: only {len(cloud)} valid points ({dropped} with NaN/inf dropped); "
+            f"{args.lidar}: only {len(cloud)} valid points ({dropped} {DROPPED}); "
             f"need at least {settings.n_min}"
         )
     if args.paper:  # the paper's Algorithm 1 only: no off-plane, off-data or obstacle cuts
         settings = settings.model_copy(update={"max_step": None, "max_offset": None})
     det = LidarPcaDetector(settings, rng=args.seed)
-    det.process(cloud)
+    try:
+        det.process(cloud)
+    except ValueError as exc:  # e.g. more voxels than int64 keys hold: a cloud too wide
+        raise UserError(f"{args.lidar}: {exc}") from None
     obs = det.observations()
     scores = np.sort(spot_grades(det.spots, settings))[::-1]
     classes = []
@@ -232,7 +237,7 @@ def run_lidar(args: argparse.Namespace, out_dir: Path) -> int:
         classes = _classes(cloud, data.classification[finite], obs)
     search = det.last_search
     print(
-        f"{args.lidar}: {len(raw)} points ({dropped} with NaN/inf dropped); voxel "
+        f"{args.lidar}: {len(raw)} points ({dropped} {DROPPED}); voxel "
         f"{settings.voxel_size:g} m; {settings.seeding} seeding, "
         f"{len(search.seeds) if search else 0} search points: "
         f"{search.n_accepted if search else 0} planes accepted, "
@@ -350,8 +355,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     src.add_argument("--depth", metavar="FILE", help="depth image")
     parser.add_argument("--out", default="lander-detect", metavar="DIR",
                         help="output directory (default: %(default)s)")
-    parser.add_argument("--limit", type=int, default=20, help="table rows printed")
-    parser.add_argument("--seed", type=int, default=0, help="random seed (search points)")
+    parser.add_argument("--limit", type=types.integer(0, 1_000_000), default=20,
+                        help="table rows printed")
+    parser.add_argument("--seed", type=types.seed, default=0, help="random seed (search points)")
     lidar = parser.add_argument_group("LiDAR PCA detector")
     lidar.add_argument("--voxel", type=float, help="voxel size (m), default 0.05")
     lidar.add_argument("--seeding", choices=("random", "grid"), help="search points")
@@ -365,8 +371,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                        help="the paper's checks only (no off-plane, off-the-data or obstacle "
                        "cuts of the radius)")
     depth = parser.add_argument_group("depth costmap detector")
-    for flag in ("fx", "fy", "cx", "cy"):
-        depth.add_argument(f"--{flag}", type=float, help="intrinsics (pixels)")
+    for flag in ("fx", "fy"):
+        depth.add_argument(f"--{flag}", type=types.number(0, 1e6, low_open=True),
+                           help="focal length (pixels)")
+    for flag in ("cx", "cy"):
+        depth.add_argument(f"--{flag}", type=types.number(-1e6, 1e6),
+                           help="principal point (pixels)")
     depth.add_argument("--pose", help="camera pose: x,y,z,yaw (deg, looking down) or 4x4 .npy")
     depth.add_argument("--vehicle-radius", type=float, help="footprint radius (m), default 1")
     depth.add_argument("--threshold", type=float, help="decision threshold, default 0.72")

@@ -8,15 +8,16 @@ from typing import Any
 
 import yaml
 
+from autonomy.cli import args as types
 from autonomy.cli.validate import load_or_explain
-from autonomy.config import apply_overrides
+from autonomy.config import apply_overrides, read_yaml_value
 from autonomy.errors import UserError
 from autonomy.report.summary import EXIT_MEANINGS
 
 
 def parse_settings(items: list[str]) -> dict[str, Any]:
-    """``KEY=VALUE`` strings to overrides; values are read as YAML (``5``, ``[1, 2]``,
-    ``false``, ``text``)."""
+    """``KEY=VALUE`` strings to overrides; values are read as YAML, as in mission files
+    (``5``, ``1e3``, ``[1, 2]``, ``false``, ``text``)."""
     overrides: dict[str, Any] = {}
     for item in items:
         key, sep, text = item.partition("=")
@@ -24,8 +25,8 @@ def parse_settings(items: list[str]) -> dict[str, Any]:
             raise UserError(f"--set {item}: expected KEY=VALUE, e.g. landing.verification_"
                             "altitude=5")
         try:
-            overrides[key.strip()] = yaml.safe_load(text) if text.strip() else ""
-        except yaml.YAMLError:
+            overrides[key.strip()] = read_yaml_value(text) if text.strip() else ""
+        except (yaml.YAMLError, RecursionError):
             raise UserError(f"--set {item}: the value is not valid YAML") from None
     return overrides
 
@@ -66,7 +67,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--connect", metavar="URL",
                         help="vehicle connection (sim://, udp:HOST:PORT, tcp:HOST:PORT, ...); "
                         "overrides vehicle.connection")
-    parser.add_argument("--seed", type=int, help="overrides the mission's seed")
+    parser.add_argument("--seed", type=types.seed,
+                        help="overrides the mission's seed (0 .. 2**32-1)")
     parser.add_argument("--set", action="append", metavar="KEY=VALUE",
                         help="override a mission setting by its dotted name, e.g. "
                         "--set landing.verification_altitude=5 (repeatable)")

@@ -7,6 +7,7 @@ import argparse
 import os
 import time
 
+from autonomy.cli import args as types
 from autonomy.errors import UserError
 
 _TICK = 0.05  # s between polls (20 Hz, the runner's default rate)
@@ -92,11 +93,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "from $LANDER_SIGNING_KEY unless --signing-key-env names another variable.",
     )
     parser.add_argument("url", help="where the vehicle is")
-    parser.add_argument("--duration", type=float, default=10.0,
+    parser.add_argument("--duration", type=types.number(0, 86_400, low_open=True), default=10.0,
                         help="seconds to listen (clock time; simulated for sim://) (default 10)")
-    parser.add_argument("--link-timeout", type=float, default=3.0,
+    parser.add_argument("--link-timeout", type=types.number(0, 3600, low_open=True),
+                        default=3.0,
                         help="silence after which the link counts as lost, s (default 3)")
-    parser.add_argument("--target-system", type=int, default=None,
+    parser.add_argument("--target-system", type=types.integer(1, 255), default=None,
                         help="talk only to this MAVLink system id (default: first autopilot)")
     parser.add_argument("--tlog", default=None, help="write a MAVLink telemetry log here")
     parser.add_argument("--signing-key-env", default=None, metavar="VAR",

@@ -13,6 +13,7 @@ import os
 
 from pydantic import ValidationError
 
+from autonomy.cli import args as types
 from autonomy.errors import UserError
 
 _DEFAULT_TCP = "127.0.0.1:5760"
@@ -161,14 +162,16 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--signing-key-env", metavar="VAR",
                         help="sign MAVLink 2 with the key in this environment variable (64 hex "
                         "digits or a passphrase) and refuse unsigned packets")
-    parser.add_argument("--speedup", type=float, default=1.0,
+    parser.add_argument("--speedup", type=types.number(0, 1000, low_open=True), default=1.0,
                         help="simulated seconds per wall-clock second (default 1)")
     parser.add_argument("--home", metavar="LAT,LON,ALT",
                         help="home position: degrees, degrees, metres AMSL "
                         "(write --home=-35.36,149.16,584 for a negative latitude)")
     parser.add_argument("--autopilot", choices=("ardupilot", "px4"), default="ardupilot",
                         help="personality (default ardupilot)")
-    parser.add_argument("--seed", type=int, default=0, help="seed of the wind gusts (>= 0)")
-    parser.add_argument("--duration", type=float, metavar="SECONDS",
+    parser.add_argument("--seed", type=types.seed, default=0,
+                        help="seed of the wind gusts (0 .. 2**32-1)")
+    parser.add_argument("--duration", type=types.number(0, 1e7, low_open=True),
+                        metavar="SECONDS",
                         help="stop after this many simulated seconds (default: run until Ctrl-C)")
     parser.set_defaults(func=run)

@@ -21,6 +21,8 @@ import numpy as np
 import yaml
 from pydantic import ValidationError
 
+from autonomy.cli import args as types
+from autonomy.config import read_yaml_value
 from autonomy.errors import UserError
 
 KINDS = ("flat", "mars", "urban", "rubble", "file")
@@ -36,9 +38,9 @@ def parse_assignments(items: list[str]) -> dict:
         if not sep or not key.strip():
             raise UserError(f"--set {item}: expected key=value")
         try:
-            values[key.strip()] = yaml.safe_load(text)
-        except yaml.YAMLError as exc:
-            raise UserError(f"--set {item}: {exc}") from None
+            values[key.strip()] = read_yaml_value(text)
+        except (yaml.YAMLError, RecursionError):
+            raise UserError(f"--set {item}: the value is not valid YAML") from None
     return values
 
 
@@ -188,7 +190,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "camera's view from a point above it.",
     )
     parser.add_argument("--kind", choices=KINDS, default="mars", help="world kind")
-    parser.add_argument("--seed", type=int, default=0, help="world seed")
+    parser.add_argument("--seed", type=types.seed, default=0, help="world seed (0 .. 2**32-1)")
     parser.add_argument(
         "--set",
         action="append",

@@ -7,6 +7,7 @@ import sys
 from pathlib import Path
 
 from autonomy.config import Mission, MissionFileError, load_mission
+from autonomy.errors import one_line
 
 
 def load_or_explain(command: str, path: str | Path) -> Mission | None:
@@ -16,7 +17,7 @@ def load_or_explain(command: str, path: str | Path) -> Mission | None:
         return load_mission(path)
     except MissionFileError as exc:
         for problem in exc.problems:
-            print(f"lander {command}: error: {problem}", file=sys.stderr)
+            print(f"lander {command}: error: {one_line(problem, 2000)}", file=sys.stderr)
         return None
 
 

@@ -20,6 +20,7 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
 from behaviors.ports import VehicleState
+from behaviors.settings import MAX_ALTITUDE, MAX_RANGE
 from lsm.records import SiteObservation
 
 HeightFunction = Callable[[np.ndarray, np.ndarray], np.ndarray]
@@ -30,14 +31,25 @@ class ScriptedSite(BaseModel):
 
     model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
-    x: float
-    y: float
-    z: float | None = Field(None, description="ground height; default: the terrain's height")
-    roughness: float = Field(0.1, ge=0, le=1)
-    uncertainty: float = Field(0.1, ge=0, le=1)
-    size: float = Field(3.0, ge=0, description="radius of the landable circle, m")
+    x: float = Field(
+        ge=-MAX_RANGE, le=MAX_RANGE, description="ENU east, m, within 50 km of home (a "
+        "multicopter's range)"
+    )
+    y: float = Field(
+        ge=-MAX_RANGE, le=MAX_RANGE, description="ENU north, m, within 50 km of home"
+    )
+    z: float | None = Field(
+        None, ge=-MAX_ALTITUDE, le=MAX_ALTITUDE, description="ground height, m, within 10 km "
+        "of home's; default: the terrain's height"
+    )
+    roughness: float = Field(0.1, ge=0, le=1, description="0 (smooth) .. 1")
+    uncertainty: float = Field(0.1, ge=0, le=1, description="0 (certain) .. 1")
+    size: float = Field(
+        3.0, ge=0, le=MAX_RANGE, description="radius of the landable circle, m, up to 50 km"
+    )
     obstacle_altitude: float | None = Field(
-        None, description="ENU z of the highest terrain to clear; default: the site's z"
+        None, ge=-MAX_ALTITUDE, le=MAX_ALTITUDE, description="ENU z of the highest terrain to "
+        "clear, m, within 10 km of home's; default: the site's z"
     )
     verifies: bool = Field(True, description="false: never re-detected at low altitude")
 
@@ -48,13 +60,20 @@ class ScriptedSettings(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
     fov: float = Field(90.0, gt=0, lt=180, description="full field of view, degrees")
-    max_range: float = Field(150.0, gt=0, description="largest slant range that sees a site, m")
-    noise_base: float = Field(0.02, ge=0, description="position noise 1-sigma at 0 m, m")
+    max_range: float = Field(
+        150.0, gt=0, le=2 * MAX_RANGE, description="largest slant range that sees a site, m, "
+        "up to 100 km"
+    )
+    noise_base: float = Field(
+        0.02, ge=0, le=1000, description="position noise 1-sigma at 0 m, m, up to 1 km"
+    )
     noise_per_metre: float = Field(
-        0.01, ge=0, description="extra position noise 1-sigma per metre of height, m/m"
+        0.01, ge=0, le=10, description="extra position noise 1-sigma per metre of height, "
+        "m/m, up to 10"
     )
     low_altitude: float = Field(
-        10.0, gt=0, description="below this height a `verifies: false` site is not seen, m"
+        10.0, gt=0, le=MAX_ALTITUDE, description="below this height a `verifies: false` site "
+        "is not seen, m, up to 10 km"
     )
 
 

@@ -103,4 +103,5 @@ class FlightData:
     link_lost: str | None = None  # why the flight ended on the link (outcome link_lost)
     home: dict[str, Any] | None = None  # live: the homes compared and the one flown by
     refused: bool = False  # live: refused before takeoff (the homes disagree)
+    interrupted: bool = False  # Ctrl-C ended the flight (its outcome is then aborted)
     extra: dict[str, Any] = field(default_factory=dict)

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import math
+import operator
 import threading
 from collections.abc import Callable
 from pathlib import Path
@@ -79,6 +80,9 @@ def read_events(path: str | Path) -> list[dict[str, Any]]:
         return [json.loads(line) for line in f if line.strip()]
 
 
+_STATUS = operator.attrgetter("status")
+
+
 class TreeStatusRecorder:
     """Post-tick handler logging every status change of every behaviour in a tree.
 
@@ -90,7 +94,7 @@ class TreeStatusRecorder:
 
     def __init__(self, log: EventLog) -> None:
         self._log = log
-        self._status: dict[int, py_trees.common.Status] = {}
+        self._statuses: list[py_trees.common.Status] = []
         self._paths: dict[int, str] = {}
         self._root: py_trees.behaviour.Behaviour | None = None
         self._nodes: list[py_trees.behaviour.Behaviour] = []
@@ -108,15 +112,19 @@ class TreeStatusRecorder:
         return path
 
     def __call__(self, tree: py_trees.trees.BehaviourTree) -> None:
-        invalid = py_trees.common.Status.INVALID
         if tree.root is not self._root:  # the tree's shape is fixed: flatten it once
             self._root = tree.root
             self._nodes = list(tree.root.iterate())
-        for node in self._nodes:
-            old = self._status.get(id(node), invalid)
-            if node.status != old:
-                self._status[id(node)] = node.status
+            self._statuses = [py_trees.common.Status.INVALID] * len(self._nodes)
+        # One pass in C over the statuses; Python only for the few that changed.
+        now = list(map(_STATUS, self._nodes))
+        if now == self._statuses:
+            return
+        for i, (old, new) in enumerate(zip(self._statuses, now, strict=True)):
+            if new is not old:
+                node = self._nodes[i]
                 self._log.add(
                     "tree", behaviour=node.name, path=self._path(node), old=old.value,
-                    new=node.status.value, feedback=node.feedback_message,
+                    new=new.value, feedback=node.feedback_message,
                 )
+        self._statuses = now

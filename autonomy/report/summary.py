@@ -109,6 +109,7 @@ def build_summary(data: FlightData) -> dict[str, Any]:
         "failure_reason": data.failure_reason,
         "crash_reason": data.crash_reason,
         "link_lost": data.link_lost,
+        "interrupted": data.interrupted,
         "chosen_site": None if site is None else {
             "id": site.id, "x": site.x, "y": site.y, "z": site.z,
             "roughness": site.roughness, "uncertainty": site.uncertainty, "size": site.size,

@@ -30,14 +30,18 @@ Status = py_trees.common.Status
 class PhaseConsole:
     """The live console view: one line each time the mission phase changes."""
 
-    def __init__(self, stream: IO[str] | None = None) -> None:
+    def __init__(self, stream: IO[str] | None = None,
+                 before_line: Callable[[], None] | None = None) -> None:
         self._stream = stream or sys.stdout
+        self.before_line = before_line  # e.g. clear a progress line on the same terminal
 
     def phase(self, t: float, phase: str, altitude: float | None, sites: int,
               best_loss: float | None, battery: float | None) -> None:
         alt = "   -  " if altitude is None else f"{altitude:6.1f}"
         loss = "   -  " if best_loss is None else f"{best_loss:6.3f}"
         batt = "  -" if battery is None else f"{battery:3.0f}"
+        if self.before_line is not None:
+            self.before_line()
         print(
             f"[{t:7.1f} s] {phase:<17} alt {alt} m  sites {sites:3d}  best loss {loss}"
             f"  battery {batt} %",
@@ -46,6 +50,8 @@ class PhaseConsole:
 
     def note(self, t: float, text: str) -> None:
         """A line about something other than the phase (the link, the homes), at once."""
+        if self.before_line is not None:
+            self.before_line()
         print(f"[{t:7.1f} s] {text}", file=self._stream, flush=True)
 
 

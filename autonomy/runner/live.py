@@ -12,12 +12,9 @@ Ctrl-C lands (or holds) the vehicle before returning.
 
 from __future__ import annotations
 
-import contextlib
-import signal
 import threading
 import time
 from collections.abc import Callable
-from typing import Any
 
 import py_trees
 
@@ -25,6 +22,7 @@ from autonomy.clock import VehicleClock
 from autonomy.config import Mission
 from autonomy.runner.flight import Flight, bring_down
 from autonomy.runner.home import choose_home
+from autonomy.runner.interrupt import ctrl_c_flag
 from autonomy.runner.link import Link
 from autonomy.vehicle.frames import geodetic_to_local
 from behaviors.settings import MissionPlan
@@ -53,7 +51,7 @@ def run_live(
         time.sleep(min(clock.wall_seconds(period), _MAX_SLEEP))
 
     flight.lsm.start()
-    with _ctrl_c_flag() as interrupted:
+    with ctrl_c_flag() as interrupted:
         try:
             waited = _await_vehicle(flight, mission, pause, interrupted)
             if waited is not None:
@@ -120,26 +118,3 @@ def _await_vehicle(flight: Flight, mission: Mission, pause: Callable[[], None],
         if flight.follow() is Link.GAVE_UP:
             return f"link lost: {flight.link_gave_up}"
     return None
-
-
-@contextlib.contextmanager
-def _ctrl_c_flag():
-    """While inside: the first Ctrl-C (SIGINT) sets the yielded event, the next raises
-    KeyboardInterrupt. A flag rather than an exception at an arbitrary point of the tick, where
-    a callback could swallow it. Outside the main thread (no signal handlers) Ctrl-C keeps its
-    default KeyboardInterrupt, which the caller handles as a second one."""
-    interrupted = threading.Event()
-    if threading.current_thread() is not threading.main_thread():
-        yield interrupted
-        return
-
-    def on_sigint(signum: int, frame: Any) -> None:
-        if interrupted.is_set():
-            raise KeyboardInterrupt
-        interrupted.set()
-
-    previous = signal.signal(signal.SIGINT, on_sigint)
-    try:
-        yield interrupted
-    finally:
-        signal.signal(signal.SIGINT, previous)

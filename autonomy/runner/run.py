@@ -20,8 +20,8 @@ import numpy as np
 import py_trees
 
 from autonomy.clock import SimClock, VehicleClock
-from autonomy.config import Mission
-from autonomy.errors import UserError
+from autonomy.config import MAX_SEED, Mission
+from autonomy.errors import UserError, one_line
 from autonomy.report import (
     EventLog,
     FlightData,
@@ -32,6 +32,8 @@ from autonomy.report import (
 )
 from autonomy.runner.flight import Flight, PhaseConsole, bring_down
 from autonomy.runner.home import HomeMismatch
+from autonomy.runner.interrupt import ctrl_c_flag
+from autonomy.runner.progress import FlightProgress
 from autonomy.runner.world import (
     FlightSeeds,
     build_sitl,
@@ -80,28 +82,41 @@ def fly(
     out_dir: Path | str | None = None,
     console: bool = False,
     on_interrupt: Literal["land", "hold"] = "land",
+    progress: FlightProgress | bool | None = None,
 ) -> FlightResult:
     """Fly ``mission`` and report on it.
 
     Args:
         mission: the validated mission.
-        seed: overrides ``mission.seed`` (terrain, sensor noise, wind, pattern centres).
+        seed: overrides ``mission.seed`` (terrain, sensor noise, wind, pattern centres),
+            0 .. 2**32-1.
         out_dir: directory for summary.json, events.jsonl, flight.tlog and report.png
-            (created); None writes nothing, which is fastest.
+            (created); None writes nothing, which is fastest. They are written whatever ends
+            the flight once it started: landing, failure, Ctrl-C (summary ``interrupted``:
+            true) or an internal error (which is raised again afterwards).
         console: print a line per phase change, link and home notes, and a closing summary
             to stdout.
-        on_interrupt: live mode only: what Ctrl-C does before returning.
+        on_interrupt: live mode only: what Ctrl-C does before returning. A lockstep flight
+            stops where it is on Ctrl-C (it is simulated: nothing needs bringing down).
+        progress: lockstep only: a :class:`FlightProgress` line on stderr; True for the
+            default one, None for one when ``console`` is set.
 
     Raises:
         HomeMismatch: live only: the file's home and the vehicle's disagree and
             ``vehicle.home_from`` does not say which to fly by; raised after the report files
             are written (``exc.result`` is the FlightResult, outcome ``refused``).
-        UserError: the vehicle cannot be reached, or the world cannot be built.
+        UserError: a seed out of range, the vehicle cannot be reached, or the world cannot
+            be built.
     """
     from autonomy.vehicle import connect
     from behaviors.tree import build_mission_tree
 
-    seed = mission.seed if seed is None else int(seed)
+    seed = mission.seed if seed is None else seed
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not (
+        0 <= seed <= MAX_SEED
+    ):
+        raise UserError(f"seed: must be an integer 0 .. 2**32-1, got {seed!r}")
+    seed = int(seed)
     seeds = FlightSeeds.derive(seed)
     lockstep = mission.vehicle.lockstep
     out = Path(out_dir) if out_dir is not None else None
@@ -114,6 +129,14 @@ def fly(
     wall_start = time.perf_counter()
     bb.reset()  # nothing of an earlier flight in this process may be read as this one's
 
+    if progress is None:
+        progress = console and lockstep
+    meter = None
+    if progress is True:
+        meter = FlightProgress(mission.name or "mission", mission.time_limit,
+                               len(mission.waypoints))
+    elif isinstance(progress, FlightProgress):
+        meter = progress
     terrain = build_terrain(mission, seeds.terrain)
     clock: Any = SimClock() if lockstep else VehicleClock()
     log = EventLog(clock.now, out / "events.jsonl" if out else None)
@@ -126,6 +149,8 @@ def fly(
     sitl = build_sitl(mission, terrain, seeds.sitl) if lockstep else None
     vehicle = None
     refusal: HomeMismatch | None = None
+    failure: BaseException | None = None
+    data: FlightData | None = None
     try:
         vehicle = connect(
             mission.vehicle.connection, clock, sitl=sitl,
@@ -152,26 +177,40 @@ def fly(
             ),
             low_altitude=mission.perception.low_altitude,
             truth=(lambda: sitl.truth) if sitl is not None else None,
-            lockstep=lockstep, console=PhaseConsole() if console else None,
+            lockstep=lockstep,
+            console=PhaseConsole(before_line=meter.clear if meter else None) if console else None,
             loss_wait=mission.vehicle.link.loss_wait,
         )
-        if lockstep:
-            flight.attach_tree(build_tree(mission.plan()))
-        log.add("flight", event="start", mission=mission.name, seed=seed,
-                connection=mission.vehicle.connection, lockstep=lockstep)
-        if lockstep:
-            stop_reason = _run_lockstep(flight, sitl, clock, mission)
-        else:
-            from autonomy.runner.live import run_live
+        try:
+            if lockstep:
+                flight.attach_tree(build_tree(mission.plan()))
+            log.add("flight", event="start", mission=mission.name, seed=seed,
+                    connection=mission.vehicle.connection, lockstep=lockstep)
+            if lockstep:
+                stop_reason = _run_lockstep(flight, sitl, clock, mission, meter)
+            else:
+                from autonomy.runner.live import run_live
 
-            try:
-                stop_reason = run_live(flight, mission, clock, build_tree, on_interrupt)
-            except HomeMismatch as exc:
-                refusal = exc
-                stop_reason = f"refused: {exc}"
+                try:
+                    stop_reason = run_live(flight, mission, clock, build_tree, on_interrupt)
+                except HomeMismatch as exc:
+                    refusal = exc
+                    stop_reason = f"refused: {exc}"
+        except Exception as exc:  # a bug: still write what the flight did, then raise it
+            failure = exc
+            stop_reason = f"internal error: {type(exc).__name__}: {one_line(str(exc))}"
+        finally:
+            if meter is not None:
+                meter.clear()
         log.add("flight", event="end", status=flight.status.name, reason=stop_reason)
-        data = _flight_data(mission, seed, flight, terrain, stop_reason, lockstep, sitl)
+        try:
+            data = _flight_data(mission, seed, flight, terrain, stop_reason, lockstep, sitl)
+        except Exception:
+            if failure is None:
+                raise
+            raise failure from None  # the first error is the one to see
         data.refused = refusal is not None
+        data.interrupted = stop_reason.startswith("interrupted")
     finally:
         if not lockstep:
             lsm.stop()
@@ -183,8 +222,15 @@ def fly(
     data.wall_time = time.perf_counter() - wall_start
     summary = build_summary(data)
     if out is not None:
-        write_summary(summary, out / "summary.json")
-        write_report_png(data, out / "report.png", outcome=summary["outcome"])
+        try:
+            write_summary(summary, out / "summary.json")
+            write_report_png(data, out / "report.png", outcome=summary["outcome"])
+        except OSError as exc:
+            if failure is not None:
+                raise failure from None
+            raise UserError(f"{out}: cannot write the report ({exc.strerror or exc})") from None
+    if failure is not None:
+        raise failure
     result = FlightResult(summary=summary, events=log.events, data=data, out_dir=out)
     if refusal is not None:
         refusal.result = result
@@ -202,25 +248,43 @@ def _ticks_per_update(tick_rate: float, rate: float) -> int:
     return max(1, round(tick_rate / rate))
 
 
-def _run_lockstep(flight: Flight, sitl: Any, clock: SimClock, mission: Mission) -> str:
+def _run_lockstep(flight: Flight, sitl: Any, clock: SimClock, mission: Mission,
+                  meter: FlightProgress | None = None) -> str:
+    """Tick until the flight ends; Ctrl-C stops it where it is (``"interrupted"``: the
+    simulation just stops, the report is written)."""
     dt = 1.0 / mission.tick_rate
 
     def advance() -> None:
+        if interrupted.is_set():
+            raise _Interrupted
         sitl.step(dt)
         clock.advance(dt)
+        if meter is not None and meter.due():
+            tip = flight.tree.tip() if flight.tree is not None else None
+            meter.show(clock.now(), flight.phase, None if tip is None else tip.name)
 
-    for _ in range(math.ceil(mission.time_limit * mission.tick_rate)):
-        advance()
-        flight.tick()
-        if flight.crashed()[0]:
-            return "crashed"
-        if flight.link_gave_up is not None:
-            return f"link lost: {flight.link_gave_up}"
-        if flight.status == Status.SUCCESS:
-            return "landed"
-        if flight.status == Status.FAILURE:
-            return bring_down(flight, "mission failed", "land", advance)
-    return bring_down(flight, "time limit", "land", advance)
+    with ctrl_c_flag() as interrupted:
+        try:
+            for _ in range(math.ceil(mission.time_limit * mission.tick_rate)):
+                advance()
+                flight.tick()
+                if flight.crashed()[0]:
+                    return "crashed"
+                if flight.link_gave_up is not None:
+                    return f"link lost: {flight.link_gave_up}"
+                if flight.status == Status.SUCCESS:
+                    return "landed"
+                if flight.status == Status.FAILURE:
+                    return bring_down(flight, "mission failed", "land", advance)
+            return bring_down(flight, "time limit", "land", advance)
+        except (_Interrupted, KeyboardInterrupt):
+            flight.note(f"interrupted (Ctrl-C) at {clock.now():.1f} s simulated; the "
+                        "simulation stops here")
+            return "interrupted (Ctrl-C)"
+
+
+class _Interrupted(Exception):
+    """Ctrl-C was pressed during a lockstep flight."""
 
 
 def _flight_data(mission: Mission, seed: int, flight: Flight, terrain: Any,

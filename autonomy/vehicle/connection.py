@@ -112,6 +112,63 @@ def signing_key_from_text(text: str) -> bytes:
     return hashlib.sha256(text.encode("utf-8")).digest()
 
 
+_UNKNOWN_LINK = ("unknown link; use sim://, udpin:HOST:PORT, udpout:HOST:PORT, tcp:HOST:PORT, "
+                 "tcpin:HOST:PORT or a serial device such as /dev/ttyACM0,115200")
+
+
+def check_url(url: str) -> str:
+    """``url`` stripped, if it is a link :func:`connect` can open: its form only (scheme,
+    HOST:PORT, serial device and baud, the simulator's personality and options), nothing is
+    opened or resolved.
+
+    Raises:
+        ValueError: the reason, e.g. ``unknown link; use sim://, ...``.
+    """
+    if not isinstance(url, str) or not url.strip():
+        raise ValueError("empty; use sim:// for the embedded simulator")
+    url = url.strip()
+    if any(not c.isprintable() for c in url):
+        raise ValueError("contains control characters")
+    if url == "sim" or url.startswith("sim:"):
+        if not url.startswith("sim://"):
+            raise ValueError("the simulator link is written sim://[ardupilot|px4]")
+        _sim_options(url)
+        return url
+    scheme, sep, rest = url.partition(":")
+    if sep and scheme in _NETWORK_SCHEMES:
+        host, sep, port = rest.rpartition(":")
+        if not sep or not host or not port.isdigit() or not 0 <= int(port) <= 65535:
+            raise ValueError("expected HOST:PORT after the scheme, port 0..65535 (e.g. "
+                             "udpin:0.0.0.0:14550)")
+        if any(c.isspace() for c in host):
+            raise ValueError(f"host {host!r} contains white space")
+        return url
+    serial = _SERIAL.match(url)
+    if serial is not None:
+        baud = serial.group("baud")
+        if baud is not None and not 50 <= int(baud) <= 20_000_000:
+            raise ValueError(f"baud rate {baud}: expected 50 .. 20000000")
+        return url
+    raise ValueError(_UNKNOWN_LINK)
+
+
+def _sim_options(url: str) -> tuple[str, int]:
+    """(personality, seed) of a ``sim://`` URL; ValueError when it names anything else."""
+    parts = urlsplit(url)
+    autopilot = parts.netloc or parts.path.strip("/") or "ardupilot"
+    if autopilot not in ("ardupilot", "px4"):
+        raise ValueError(f"the simulator flies 'ardupilot' or 'px4', not {autopilot!r}")
+    query = parse_qs(parts.query, keep_blank_values=True)
+    unknown = set(query) - {"seed"}
+    if unknown or (parts.query and not query):
+        raise ValueError(f"unknown option {sorted(unknown)[0] if unknown else parts.query!r} "
+                         "(known: seed)")
+    text = query.get("seed", ["0"])[-1]
+    if not text.isdigit() or not 0 <= int(text) <= 2**32 - 1:
+        raise ValueError(f"seed must be an integer 0 .. 2**32-1, got {text!r}")
+    return autopilot, int(text)
+
+
 def _host_port(url: str, rest: str) -> tuple[str, int]:
     host, sep, port = rest.rpartition(":")
     if not sep or not host or not port.isdigit() or not 0 <= int(port) <= 65535:
@@ -158,10 +215,7 @@ def open_transport(url: str, baud: int = 115200) -> PymavlinkTransport:
                 baud = int(serial.group("baud"))
             conn = mavutil.mavlink_connection(device, baud=baud, autoreconnect=False)
         else:
-            raise UserError(
-                f"{url}: unknown link; use sim://, udpin:HOST:PORT, udpout:HOST:PORT, "
-                "tcp:HOST:PORT, tcpin:HOST:PORT or a serial device such as /dev/ttyACM0,115200"
-            )
+            raise UserError(f"{url}: {_UNKNOWN_LINK}")
     except UserError:
         raise
     except ConnectionRefusedError as exc:
@@ -176,18 +230,10 @@ def open_transport(url: str, baud: int = 115200) -> PymavlinkTransport:
 
 
 def _open_sim(url: str, sitl: Any, signing_key: bytes | None) -> tuple[MemoryTransport, Any, bool]:
-    parts = urlsplit(url)
-    autopilot = parts.netloc or parts.path.strip("/") or "ardupilot"
-    if autopilot not in ("ardupilot", "px4"):
-        raise UserError(f"{url}: the simulator flies 'ardupilot' or 'px4', not {autopilot!r}")
-    query = parse_qs(parts.query)
-    unknown = set(query) - {"seed"}
-    if unknown:
-        raise UserError(f"{url}: unknown option {sorted(unknown)[0]!r} (known: seed)")
     try:
-        seed = int(query.get("seed", ["0"])[0])
+        autopilot, seed = _sim_options(url)
     except ValueError as exc:
-        raise UserError(f"{url}: seed must be an integer") from exc
+        raise UserError(f"{url}: {exc}") from None
     from sitl.link import MemoryLink
 
     owns = sitl is None
@@ -230,9 +276,10 @@ def connect(
     Raises:
         UserError: unknown scheme, bad address, port in use, peer unreachable, bad key.
     """
-    if not isinstance(url, str) or not url.strip():
-        raise UserError("vehicle url: empty")
-    url = url.strip()
+    try:
+        url = check_url(url)
+    except ValueError as exc:
+        raise UserError(f"{str(url).strip() or 'vehicle url'}: {exc}") from None
     if signing_key is None and os.environ.get(SIGNING_KEY_ENV):
         signing_key = signing_key_from_text(os.environ[SIGNING_KEY_ENV])
     if signing_key is not None and len(signing_key) != 32:
@@ -240,9 +287,7 @@ def connect(
     if link_timeout <= 0:
         raise UserError(f"link_timeout: must be > 0 s, got {link_timeout}")
     owns = False
-    if url.startswith("sim:"):
-        if not url.startswith("sim://"):
-            raise UserError(f"{url}: the simulator link is written sim://[ardupilot|px4]")
+    if url.startswith("sim://"):
         transport: Any
         transport, sitl, owns = _open_sim(url, sitl, signing_key)
         epoch = SIM_EPOCH

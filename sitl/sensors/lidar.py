@@ -24,6 +24,10 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 from sitl.sensors.raycast import BlockMax, cast_rays
 from sitl.terrain import Terrain
 
+MAX_RAYS = 2_000_000
+"""Rays of one scan: each is marched over the terrain every scan (a VLP-16 fires 28,800 a
+turn, a 128-channel LiDAR about 260,000)."""
+
 
 class LidarSettings(BaseModel):
     """Beam pattern, range limits and noise of the simulated LiDAR."""
@@ -36,22 +40,34 @@ class LidarSettings(BaseModel):
         30.0, gt=0, lt=180, description="spread of the channels (spinning) / square FOV (deg)"
     )
     azimuth_steps: int = Field(
-        900, ge=1, le=20_000, description="firings per turn (spinning) / columns (downward)"
+        900, ge=1, le=20_000, description="firings per turn (spinning) / columns (downward); "
+        "with channels at most 2,000,000 rays a scan (a VLP-16 fires 28,800)"
     )
     mount_tilt_deg: float = Field(
         90.0, ge=0, le=180, description="spin axis tilt from body up (deg); 90: axis horizontal"
     )
-    min_range: float = Field(0.5, ge=0, description="closest return (m)")
-    max_range: float = Field(100.0, gt=0, description="farthest return (m)")
-    range_noise_std: float = Field(0.03, ge=0, description="1-sigma range noise (m)")
+    min_range: float = Field(0.5, ge=0, le=10_000, description="closest return (m)")
+    max_range: float = Field(
+        100.0, gt=0, le=10_000, description="farthest return (m), up to 10 km (airborne "
+        "LiDARs reach a few km)"
+    )
+    range_noise_std: float = Field(
+        0.03, ge=0, le=100, description="1-sigma range noise (m), up to 100"
+    )
     march_step: float | None = Field(
-        None, gt=0, description="horizontal ray-march step (m); None: the terrain cell size"
+        None, ge=0.01, le=100, description="horizontal ray-march step (m), 0.01 .. 100; "
+        "None: the terrain cell size"
     )
 
     @model_validator(mode="after")
     def _ranges(self):
         if self.max_range <= self.min_range:
             raise ValueError(f"max_range: {self.max_range} m must exceed min_range")
+        if self.channels * self.azimuth_steps > MAX_RAYS:
+            raise ValueError(
+                f"azimuth_steps: {self.channels} channels x {self.azimuth_steps} steps is "
+                f"{self.channels * self.azimuth_steps:,} rays a scan, more than {MAX_RAYS:,}"
+            )
         return self
 
 

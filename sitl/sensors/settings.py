@@ -10,9 +10,14 @@ class RangeFinderSettings(BaseModel):
 
     model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
-    min_range: float = Field(0.2, ge=0, description="shortest reported distance (m)")
-    max_range: float = Field(40.0, gt=0, description="longest reported distance (m)")
-    noise_std: float = Field(0.02, ge=0, description="1-sigma range noise (m)")
+    min_range: float = Field(
+        0.2, ge=0, le=1000, description="shortest reported distance (m), up to 1 km"
+    )
+    max_range: float = Field(
+        40.0, gt=0, le=1000, description="longest reported distance (m), up to 1 km (laser "
+        "range finders on multicopters reach tens to a few hundred metres)"
+    )
+    noise_std: float = Field(0.02, ge=0, le=100, description="1-sigma range noise (m)")
 
     @model_validator(mode="after")
     def _ordered(self):
@@ -38,17 +43,39 @@ class DepthCameraSettings(BaseModel):
 
     width: int = Field(256, ge=2, le=4096, description="image width (px)")
     height: int = Field(256, ge=2, le=4096, description="image height (px)")
-    focal_px: float = Field(256.0, gt=0, description="focal length f (px)")
-    disparity_sigma_px: float = Field(0.5, ge=0, description="sigma_d, disparity error (px)")
+    focal_px: float = Field(
+        256.0, ge=0.1, le=100_000, description="focal length f (px), 0.1 .. 100,000 (a "
+        "field of view from almost 180 deg down to a telescope's)"
+    )
+    disparity_sigma_px: float = Field(
+        0.5, ge=0, le=100, description="sigma_d, disparity error (px), up to 100"
+    )
     noise: bool = Field(True, description="add depth noise (False: ground-truth depth)")
-    max_depth: float = Field(1000.0, gt=0, description="far clip (m)")
-    stereo_baseline: float = Field(0.2, gt=0, description="stereo baseline (m)")
-    stereo_max_range: float = Field(30.0, gt=0, description="farthest stereo depth (m)")
-    sfm_window: float = Field(2.0, gt=0, description="pose history for the SfM baseline (s)")
-    sfm_min_baseline: float = Field(2.0, gt=0, description="no SfM depth below this (m)")
-    sfm_max_baseline: float = Field(15.0, gt=0, description="SfM keyframe spacing cap (m)")
-    stereo_below: float = Field(15.0, gt=0, description="switch to stereo below this AGL (m)")
-    sfm_above: float = Field(20.0, gt=0, description="switch to SfM above this AGL (m)")
+    max_depth: float = Field(
+        1000.0, gt=0, le=100_000, description="far clip (m), up to 100 km (the widest world)"
+    )
+    stereo_baseline: float = Field(
+        0.2, gt=0, le=100, description="stereo baseline (m), up to 100"
+    )
+    stereo_max_range: float = Field(
+        30.0, gt=0, le=100_000, description="farthest stereo depth (m), up to 100 km"
+    )
+    sfm_window: float = Field(
+        2.0, gt=0, le=3600, description="pose history for the SfM baseline (s), up to an hour"
+    )
+    sfm_min_baseline: float = Field(
+        2.0, gt=0, le=10_000, description="no SfM depth below this (m), up to 10 km"
+    )
+    sfm_max_baseline: float = Field(
+        15.0, gt=0, le=10_000, description="SfM keyframe spacing cap (m), up to 10 km"
+    )
+    stereo_below: float = Field(
+        15.0, gt=0, le=10_000, description="switch to stereo below this AGL (m), up to 10 km "
+        "(a multicopter's ceiling)"
+    )
+    sfm_above: float = Field(
+        20.0, gt=0, le=10_000, description="switch to SfM above this AGL (m), up to 10 km"
+    )
     level_of_detail: bool = Field(
         True,
         description="render from the terrain's mean-height level whose cell is nearest the "
@@ -56,7 +83,9 @@ class DepthCameraSettings(BaseModel):
         "always full resolution",
     )
     march_step: float | None = Field(
-        None, gt=0, description="horizontal ray-march step (m); None: the terrain cell size"
+        None, ge=0.01, le=100, description="horizontal ray-march step (m), 0.01 .. 100 (a "
+        "finer step costs time per pixel and adds nothing below the terrain cell); None: the "
+        "terrain cell size"
     )
 
     @model_validator(mode="after")

@@ -9,12 +9,13 @@ values (NODATA, NaN) take the nearest valid height.
 
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 
 import numpy as np
 from scipy import ndimage
 
-from sitl.terrain.settings import FileTerrainSettings
+from sitl.terrain.settings import MAX_CELLS, FileTerrainSettings
 
 _ASC_KEYS = (
     "ncols",
@@ -28,14 +29,12 @@ _ASC_KEYS = (
 )
 
 
-def generate(
-    settings: FileTerrainSettings, rng: np.random.Generator
-) -> tuple[np.ndarray, tuple[float, float]]:
-    """(grid, origin) of the elevation model, resampled to ``settings.cell_size`` and
-    placed so that home (0, 0) is at ``settings.home`` (default: the model's centre)."""
-    heights, source_cell = read_elevation(settings.path, settings.source_cell_size)
-    heights = heights * settings.vertical_scale
-    src_ny, src_nx = heights.shape
+def _grid_shape(
+    settings: FileTerrainSettings, shape: tuple[int, int], source_cell: float
+) -> tuple[int, int, float, float]:
+    """(nx, ny, width, depth) of the simulation grid for a model of ``shape`` cells of
+    ``source_cell`` m. Raises ValueError when it is too small, too large or home is off it."""
+    src_ny, src_nx = shape
     width, depth = (src_nx - 1) * source_cell, (src_ny - 1) * source_cell
     cs = settings.cell_size
     nx = int(np.floor(width / cs + 1e-9)) + 1
@@ -44,6 +43,40 @@ def generate(
         raise ValueError(
             f"path: {settings.path} spans {width:g} x {depth:g} m, less than two {cs:g} m cells"
         )
+    if nx * ny > MAX_CELLS:
+        raise ValueError(
+            f"cell_size: {settings.path} spans {width:g} x {depth:g} m, {nx * ny:.3g} cells of "
+            f"{cs:g} m, more than {MAX_CELLS}"
+        )
+    if settings.home is not None:
+        hx, hy = settings.home
+        if not (0 <= hx <= width and 0 <= hy <= depth):
+            raise ValueError(
+                f"home: {settings.home} is outside the model's {width:g} x {depth:g} m"
+            )
+    return nx, ny, width, depth
+
+
+def check_elevation(settings: FileTerrainSettings) -> None:
+    """Read the model (kept for :func:`generate`) and check that it makes a world.
+
+    Raises:
+        ValueError: ``path: ...``, ``cell_size: ...`` or ``home: ...``: unreadable or
+            malformed, more than MAX_CELLS cells once resampled, or home outside it.
+    """
+    heights, source_cell = read_elevation(settings.path, settings.source_cell_size)
+    _grid_shape(settings, heights.shape, source_cell)
+
+
+def generate(
+    settings: FileTerrainSettings, rng: np.random.Generator
+) -> tuple[np.ndarray, tuple[float, float]]:
+    """(grid, origin) of the elevation model, resampled to ``settings.cell_size`` and
+    placed so that home (0, 0) is at ``settings.home`` (default: the model's centre)."""
+    heights, source_cell = read_elevation(settings.path, settings.source_cell_size)
+    heights = heights * settings.vertical_scale
+    nx, ny, width, depth = _grid_shape(settings, heights.shape, source_cell)
+    cs = settings.cell_size
     # Bilinear resampling at the simulation cell centres (source index units).
     rows = np.arange(ny) * (cs / source_cell)
     cols = np.arange(nx) * (cs / source_cell)
@@ -51,15 +84,41 @@ def generate(
         heights, np.meshgrid(rows, cols, indexing="ij"), order=1, mode="nearest"
     ).astype(np.float32)
     hx, hy = settings.home if settings.home is not None else (width / 2, depth / 2)
-    if not (0 <= hx <= width and 0 <= hy <= depth):
-        raise ValueError(f"home: {settings.home} is outside the model's {width:g} x {depth:g} m")
     return grid, (-hx, -hy)
 
 
 def read_elevation(path: Path, source_cell_size: float | None = None) -> tuple[np.ndarray, float]:
     """Heights (ny, nx) float64 with row i along +y (south to north), and the cell size
-    in metres. Raises ValueError("path: ...") on an unreadable or malformed file."""
+    in metres. Raises ValueError("path: ...") on an unreadable or malformed file.
+
+    The last model read is kept (keyed by the file's path, size and modification time), so
+    validating a mission and then flying it reads the file once.
+    """
     path = Path(path)
+    try:
+        stat = path.stat()
+    except OSError as exc:
+        raise ValueError(f"path: cannot read {path}: {exc.strerror or exc}") from None
+    key = (str(path.resolve()), stat.st_size, stat.st_mtime_ns, source_cell_size)
+    if _LAST_READ and _LAST_READ[0] == key:
+        return _LAST_READ[1]
+    result = _read_elevation(path, source_cell_size)
+    result[0].setflags(write=False)
+    _LAST_READ[:] = [key, result]
+    return result
+
+
+_LAST_READ: list = []
+
+
+def _read_elevation(path: Path, source_cell_size: float | None) -> tuple[np.ndarray, float]:
+    with warnings.catch_warnings(), np.errstate(all="ignore"):
+        warnings.simplefilter("ignore")  # a bad file is one line, not a library's warning
+        return _read_elevation_quietly(path, source_cell_size)
+
+
+def _read_elevation_quietly(path: Path, source_cell_size: float | None
+                            ) -> tuple[np.ndarray, float]:
     suffix = path.suffix.lower()
     try:
         if suffix == ".npy":

@@ -13,8 +13,18 @@ from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, field_validator,
 
 # Larger grids would not fit comfortably in a laptop's memory (float32 + work arrays).
 MAX_CELLS = 64_000_000
+MAX_EXTENT = 100_000.0
+"""m: the widest world, twice the 50 km a multicopter flies from home (its battery lasts
+under an hour at up to about 20 m/s)."""
+MAX_RELIEF = 10_000.0
+"""m: heights, relief and feature sizes stay within 10 km (Olympus Mons stands 22 km over
+Mars's datum, but no multicopter flies 10 km above its home)."""
 
-Range = tuple[float, float]
+Range = tuple[
+    Annotated[float, Field(ge=0, le=MAX_RELIEF)], Annotated[float, Field(ge=0, le=MAX_RELIEF)]
+]
+"""(min, max), each 0 .. MAX_RELIEF."""
+
 
 
 def _check_range(value: Range, name: str, low: float = 0.0) -> Range:
@@ -24,29 +34,40 @@ def _check_range(value: Range, name: str, low: float = 0.0) -> Range:
     return value
 
 
+def _size_range(value: Range, name: str) -> Range:
+    """A (min, max) size in metres: 0 < min <= max."""
+    if value[0] <= 0:
+        raise ValueError(f"need min > 0, got {value}")
+    return _check_range(value, name)
+
+
 class _GridSettings(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
-    cell_size: float = Field(0.2, gt=0, le=5.0, description="simulation grid spacing (m)")
+    cell_size: float = Field(
+        0.2, gt=0, le=5.0, description="simulation grid spacing (m), up to 5 m; the world "
+        f"may hold at most {MAX_CELLS:,} cells (memory)"
+    )
     home_clear_radius: float = Field(
-        8.0, ge=0, description="radius (m) around home flattened so that takeoff is safe"
+        8.0, ge=0, le=MAX_EXTENT / 2, description="radius (m) around home flattened so "
+        "that takeoff is safe; it must fit in the world"
     )
 
 
 class _ProceduralSettings(_GridSettings):
-    size: tuple[float, float] = Field(
-        (400.0, 400.0), description="extent (m) along x (east) and y (north)"
+    size: tuple[
+        Annotated[float, Field(ge=10.0, le=MAX_EXTENT)],
+        Annotated[float, Field(ge=10.0, le=MAX_EXTENT)],
+    ] = Field(
+        (400.0, 400.0), description="extent (m) along x (east) and y (north), each 10 m .. "
+        "100 km (twice a multicopter's range); at most MAX_CELLS cells of cell_size"
     )
-    center: tuple[float, float] = Field(
+    center: tuple[
+        Annotated[float, Field(ge=-MAX_EXTENT / 2, le=MAX_EXTENT / 2)],
+        Annotated[float, Field(ge=-MAX_EXTENT / 2, le=MAX_EXTENT / 2)],
+    ] = Field(
         (0.0, 0.0), description="ENU (x, y) of the terrain centre; home (0, 0) must be inside"
     )
-
-    @field_validator("size")
-    @classmethod
-    def _size_positive(cls, v: tuple[float, float]) -> tuple[float, float]:
-        if min(v) < 10.0:
-            raise ValueError(f"each side must be at least 10 m, got {v}")
-        return v
 
     @model_validator(mode="after")
     def _fits(self):
@@ -78,41 +99,50 @@ class MarsTerrainSettings(_ProceduralSettings):
     """Mars-like relief: fractal terrain, craters with raised rims, rock fields, scarps."""
 
     kind: Literal["mars"] = "mars"
-    relief_rms: float = Field(2.0, ge=0, description="RMS height (m) of the fractal relief")
+    relief_rms: float = Field(
+        2.0, ge=0, le=MAX_RELIEF, description="RMS height (m) of the fractal relief, up to "
+        "10 km"
+    )
     relief_wavelength: float = Field(
-        150.0, gt=0, description="longest wavelength (m) of the fractal relief"
+        150.0, gt=0, le=MAX_EXTENT, description="longest wavelength (m) of the fractal "
+        "relief, up to the widest world (100 km)"
     )
     relief_beta: float = Field(
         4.2, gt=1, le=6, description="power-spectrum exponent: P(k) ~ k^-beta (higher: smoother)"
     )
     crater_density: float = Field(
-        150.0, ge=0, description="craters per km^2 with diameter >= crater_diameter[0]"
+        150.0, ge=0, le=10_000, description="craters per km^2 with diameter >= "
+        "crater_diameter[0], up to 10,000 (one per 100 m^2: saturated ground; each crater "
+        "is drawn on the grid)"
     )
-    crater_diameter: Range = Field((5.0, 80.0), description="crater diameter range (m)")
+    crater_diameter: Range = Field(
+        (5.0, 80.0), description="crater diameter range (m), within 10 km"
+    )
     crater_sfd_exponent: float = Field(
-        2.0, gt=0, description="q of the cumulative crater size-frequency law N(>D) ~ D^-q"
+        2.0, gt=0, le=10, description="q of the cumulative crater size-frequency law "
+        "N(>D) ~ D^-q, up to 10 (measured laws have q of 1 to 4)"
     )
     rock_density: float = Field(
-        0.2, ge=0, description="rocks per m^2 with diameter >= rock_diameter[0], in rock fields"
+        0.2, ge=0, le=10, description="rocks per m^2 with diameter >= rock_diameter[0], in "
+        "rock fields, up to 10 (rocks shoulder to shoulder at the 0.15 m default)"
     )
-    rock_diameter: Range = Field((0.15, 2.5), description="rock diameter range (m)")
+    rock_diameter: Range = Field((0.15, 2.5), description="rock diameter range (m), within 10 km")
     rock_sfd_exponent: float = Field(
-        2.5, gt=0, description="q of the cumulative rock size-frequency law N(>D) ~ D^-q"
+        2.5, gt=0, le=10, description="q of the cumulative rock size-frequency law "
+        "N(>D) ~ D^-q, up to 10 (measured laws have q of 1 to 4)"
     )
     rock_field_fraction: float = Field(
         0.4, ge=0, le=1, description="fraction of the area covered by rock fields"
     )
     rock_height_ratio: float = Field(0.5, gt=0, le=1.5, description="rock height / diameter")
     scarp_count: int = Field(3, ge=0, le=100, description="number of steep slopes (scarps)")
-    scarp_height: Range = Field((4.0, 12.0), description="scarp height range (m)")
+    scarp_height: Range = Field((4.0, 12.0), description="scarp height range (m), within 10 km")
     scarp_slope_deg: Range = Field((25.0, 45.0), description="scarp face slope range (deg)")
 
     @field_validator("crater_diameter", "rock_diameter", "scarp_height")
     @classmethod
     def _positive_range(cls, v: Range, info) -> Range:
-        if v[0] <= 0:
-            raise ValueError(f"need min > 0, got {v}")
-        return _check_range(v, info.field_name)
+        return _size_range(v, info.field_name)
 
     @field_validator("scarp_slope_deg")
     @classmethod
@@ -126,28 +156,36 @@ class UrbanTerrainSettings(_ProceduralSettings):
     """A town: flat ground, a street grid, flat-roofed buildings, trees and parked cars."""
 
     kind: Literal["urban"] = "urban"
-    block_size: float = Field(80.0, gt=10, description="street-grid spacing (m)")
-    road_width: float = Field(10.0, gt=0, description="road width (m)")
+    block_size: float = Field(
+        80.0, gt=10, le=MAX_EXTENT, description="street-grid spacing (m), up to 100 km"
+    )
+    road_width: float = Field(10.0, gt=0, le=MAX_EXTENT, description="road width (m)")
     building_fraction: float = Field(
         0.45, ge=0, le=0.9, description="fraction of each block's area built over"
     )
-    building_size: Range = Field((8.0, 30.0), description="building footprint side range (m)")
-    building_height: Range = Field((3.0, 25.0), description="building height range (m)")
+    building_size: Range = Field(
+        (8.0, 30.0), description="building footprint side range (m), within 10 km"
+    )
+    building_height: Range = Field(
+        (3.0, 25.0), description="building height range (m), within 10 km"
+    )
     rooftop_clutter: float = Field(
         0.5, ge=0, le=1, description="probability that a roof carries a rooftop unit"
     )
     tree_density: float = Field(
-        25.0, ge=0, description="trees per hectare of open (non-road, non-building) ground"
+        25.0, ge=0, le=10_000, description="trees per hectare of open (non-road, "
+        "non-building) ground, up to 10,000 (one per m^2)"
     )
-    tree_height: Range = Field((4.0, 14.0), description="tree height range (m)")
-    car_density: float = Field(6.0, ge=0, description="parked cars per 100 m of road")
+    tree_height: Range = Field((4.0, 14.0), description="tree height range (m), within 10 km")
+    car_density: float = Field(
+        6.0, ge=0, le=50, description="parked cars per 100 m of road, up to 50 (a 4 m car "
+        "every 4 m on both sides)"
+    )
 
     @field_validator("building_size", "building_height", "tree_height")
     @classmethod
     def _positive_range(cls, v: Range, info) -> Range:
-        if v[0] <= 0:
-            raise ValueError(f"need min > 0, got {v}")
-        return _check_range(v, info.field_name)
+        return _size_range(v, info.field_name)
 
     @model_validator(mode="after")
     def _road_fits(self):
@@ -162,24 +200,33 @@ class RubbleTerrainSettings(_ProceduralSettings):
     """A collapsed-structure field: debris piles and scattered blocks, a few flat slabs."""
 
     kind: Literal["rubble"] = "rubble"
-    pile_density: float = Field(40.0, ge=0, description="debris piles per hectare")
-    pile_radius: Range = Field((4.0, 15.0), description="pile radius range (m)")
-    pile_height: Range = Field((0.8, 4.0), description="pile height range (m)")
-    block_density: float = Field(
-        0.1, ge=0, description="debris blocks per m^2 with size >= block_size[0]"
+    pile_density: float = Field(
+        40.0, ge=0, le=10_000, description="debris piles per hectare, up to 10,000 (one "
+        "per m^2)"
     )
-    block_size: Range = Field((0.2, 2.0), description="debris block side range (m)")
-    block_sfd_exponent: float = Field(2.2, gt=0, description="q of N(>s) ~ s^-q for blocks")
-    slab_density: float = Field(8.0, ge=0, description="flat slabs per hectare")
-    slab_size: Range = Field((6.0, 12.0), description="slab side range (m)")
+    pile_radius: Range = Field((4.0, 15.0), description="pile radius range (m), within 10 km")
+    pile_height: Range = Field((0.8, 4.0), description="pile height range (m), within 10 km")
+    block_density: float = Field(
+        0.1, ge=0, le=10, description="debris blocks per m^2 with size >= block_size[0], up "
+        "to 10 (blocks side by side at the 0.2 m default)"
+    )
+    block_size: Range = Field(
+        (0.2, 2.0), description="debris block side range (m), within 10 km"
+    )
+    block_sfd_exponent: float = Field(
+        2.2, gt=0, le=10, description="q of N(>s) ~ s^-q for blocks, up to 10 (measured laws "
+        "have q of 1 to 4)"
+    )
+    slab_density: float = Field(
+        8.0, ge=0, le=10_000, description="flat slabs per hectare, up to 10,000 (one per m^2)"
+    )
+    slab_size: Range = Field((6.0, 12.0), description="slab side range (m), within 10 km")
     slab_tilt_deg: float = Field(6.0, ge=0, lt=90, description="largest slab tilt (deg)")
 
     @field_validator("pile_radius", "pile_height", "block_size", "slab_size")
     @classmethod
     def _positive_range(cls, v: Range, info) -> Range:
-        if v[0] <= 0:
-            raise ValueError(f"need min > 0, got {v}")
-        return _check_range(v, info.field_name)
+        return _size_range(v, info.field_name)
 
 
 class FileTerrainSettings(_GridSettings):
@@ -193,13 +240,18 @@ class FileTerrainSettings(_GridSettings):
     kind: Literal["file"] = "file"
     path: Path = Field(description="elevation model file")
     source_cell_size: float | None = Field(
-        None, gt=0, description="cell size (m) of a .npy file (others carry their own)"
+        None, gt=0, le=1000, description="cell size (m) of a .npy file (others carry their "
+        "own), up to 1 km"
     )
-    home: tuple[float, float] | None = Field(
+    home: tuple[
+        Annotated[float, Field(ge=0, le=MAX_EXTENT)], Annotated[float, Field(ge=0, le=MAX_EXTENT)]
+    ] | None = Field(
         None,
         description="home (x, y) in metres from the model's south-west corner; None = centre",
     )
-    vertical_scale: float = Field(1.0, gt=0, description="factor applied to the heights")
+    vertical_scale: float = Field(
+        1.0, gt=0, le=1000, description="factor applied to the heights, up to 1000"
+    )
 
     @field_validator("path")
     @classmethod
@@ -215,6 +267,9 @@ class FileTerrainSettings(_GridSettings):
     def _npy_cell(self):
         if self.path.suffix.lower() == ".npy" and self.source_cell_size is None:
             raise ValueError("source_cell_size: required for a .npy elevation model")
+        from sitl.terrain.files import check_elevation
+
+        check_elevation(self)  # the file itself: readable, a grid, fits MAX_CELLS, home inside
         return self
 
 

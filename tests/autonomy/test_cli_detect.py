@@ -100,7 +100,7 @@ def test_nan_rows_are_dropped_and_counted(tmp_path, capsys):
     cloud[::100] = np.nan
     np.save(tmp_path / "c.npy", cloud)
     assert lander("--lidar", tmp_path / "c.npy", "--voxel", 0.2, "--out", tmp_path / "o") == 0
-    assert f"({len(cloud[::100])} with NaN/inf dropped)" in capsys.readouterr().out
+    assert f"({len(cloud[::100])} with NaN/inf or beyond 1e8 m dropped)" in capsys.readouterr().out
 
 
 def nadir_depth():
@@ -166,7 +166,7 @@ def make_bad(tmp_path):
         "npy shape": (["--lidar", tmp_path / "flat.npy"], "(N, 3)"),
         "empty": (["--lidar", tmp_path / "empty.npy"], "only 0 valid points"),
         "tiny": (["--lidar", tmp_path / "tiny.npy"], "only 4 valid points"),
-        "all nan": (["--lidar", tmp_path / "nan.npy"], "500 with NaN/inf dropped"),
+        "all nan": (["--lidar", tmp_path / "nan.npy"], "500 with NaN/inf or beyond 1e8 m dropped"),
         "missing": (["--lidar", tmp_path / "nope.npy"], "no such file"),
         "extension": (["--lidar", tmp_path / "zeros.txt"], "no such file"),
         "las": (["--lidar", tmp_path / "x.las"], "x.las"),

@@ -32,7 +32,7 @@ def test_validate_prints_one_line_per_problem_and_exits_2(tmp_path, capsys):
     captured = capsys.readouterr()
     lines = captured.err.strip().splitlines()
     assert captured.out == ""
-    expected = [(2, "waypoints.0"), (4, "landing.verification_duration"),
+    expected = [(2, "waypoints.0.2"), (4, "landing.verification_duration"),
                 (5, "landing.typo_field"), (6, "seed")]
     assert len(lines) == len(expected)
     for line, (number, field) in zip(lines, expected, strict=True):

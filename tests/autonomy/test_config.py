@@ -6,6 +6,7 @@ import math
 from pathlib import Path
 
 import pytest
+from pydantic import ValidationError
 
 from autonomy.config import (
     Mission,
@@ -84,7 +85,7 @@ sites:
 """)
     found = problems(path)
     expected = [
-        (2, "waypoints.0"),
+        (2, "waypoints.0.2"),
         (3, "waypoints.1.lat"),
         (5, "landing.verification_altitude"),
         (6, "landing.bogus"),
@@ -101,7 +102,7 @@ sites:
 
 def test_missing_waypoints_names_the_field(tmp_path):
     (message,) = problems(write(tmp_path, "name: x\n"))
-    assert message.endswith("waypoints: Field required")
+    assert message.endswith("waypoints: required")
 
 
 def test_yaml_syntax_error_names_its_line(tmp_path):
@@ -161,12 +162,15 @@ def test_signing_key_hex_passphrase_and_environment(tmp_path, monkeypatch):
     assert mission.vehicle.signing_key_bytes() == bytes.fromhex(hex_key)
     phrase = Mission(waypoints=[(0, 10, 20)], vehicle={"signing_key": "secret"})
     assert len(phrase.vehicle.signing_key_bytes()) == 32
-    env = Mission(waypoints=[(0, 10, 20)], vehicle={"signing_key_env": "LANDER_TEST_KEY"})
     monkeypatch.delenv("LANDER_TEST_KEY", raising=False)
+    with pytest.raises(ValidationError, match="environment variable LANDER_TEST_KEY is not set"):
+        Mission(waypoints=[(0, 10, 20)], vehicle={"signing_key_env": "LANDER_TEST_KEY"})
+    monkeypatch.setenv("LANDER_TEST_KEY", hex_key)
+    env = Mission(waypoints=[(0, 10, 20)], vehicle={"signing_key_env": "LANDER_TEST_KEY"})
+    assert env.vehicle.signing_key_bytes() == bytes.fromhex(hex_key)
+    monkeypatch.delenv("LANDER_TEST_KEY")  # gone between validation and flight
     with pytest.raises(UserError, match="LANDER_TEST_KEY"):
         env.vehicle.signing_key_bytes()
-    monkeypatch.setenv("LANDER_TEST_KEY", hex_key)
-    assert env.vehicle.signing_key_bytes() == bytes.fromhex(hex_key)
     assert Mission(waypoints=[(0, 10, 20)]).vehicle.signing_key_bytes() is None
 
 
@@ -201,7 +205,7 @@ def test_model_level_checks_point_at_the_field_they_name(tmp_path):
     assert "perception.low_altitude_rate: 10.0 Hz is faster than tick_rate" in message
     rectangle = write(tmp_path, GOOD + "landing:\n  search_rectangle: [0, 3]\n")
     (message,) = problems(rectangle)
-    assert message.startswith(f"{rectangle}:7: landing.search_rectangle: width and height")
+    assert message.startswith(f"{rectangle}:7: landing.search_rectangle.0: must be > 0")
 
 
 def test_unnamed_mission_takes_the_file_name(tmp_path):

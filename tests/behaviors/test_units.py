@@ -192,8 +192,10 @@ def test_bad_landing_settings_name_the_field(kwargs, field):
 def test_mission_plan_needs_waypoints_above_home():
     with pytest.raises(ValidationError, match="waypoints"):
         MissionPlan(waypoints=[])
-    with pytest.raises(ValidationError, match=r"waypoints\[1\]"):
+    with pytest.raises(ValidationError, match=r"waypoints\.1\.2"):
         MissionPlan(waypoints=[(0, 0, 50), (10, 0, -5)])
+    with pytest.raises(ValidationError, match=r"waypoints\[1\]: 60000 m from home"):
+        MissionPlan(waypoints=[(0, 0, 50), (36_000, 48_000, 50)])
     plan = MissionPlan(waypoints=[(0, 0, 50), (10, 0, 70)])
     assert plan.effective_takeoff_altitude == 50
     assert MissionPlan(waypoints=[(0, 0, 50)], takeoff_altitude=20).effective_takeoff_altitude == 20

@@ -473,13 +473,25 @@ def test_batched_growth_matches_algorithm_1_point_by_point(scene):
 def test_a_cloud_too_wide_for_its_voxel_keys_is_dropped_not_raised():
     g = grid(-5, 5, -5, 5)
     cloud = np.c_[g, np.zeros(len(g))]
-    cloud[0] = [1e15, -1e15, 1e12]  # bogus far returns
-    cloud[1] = [1e300, 0.0, 0.0]
+    cloud[0] = [1e8, -1e8, 1e6]  # a far return, within MAX_COORDINATE
     with pytest.raises(ValueError, match="too large"):
-        voxel_grid(cloud, 0.01)
-    det = LidarPcaDetector(SETTINGS.model_copy(update={"voxel_size": 0.01}), rng=0)
+        voxel_grid(cloud, 0.001)
+    det = LidarPcaDetector(SETTINGS.model_copy(update={"voxel_size": 0.001}), rng=0)
     assert det.process(cloud) == []
     assert det.counters["clouds_dropped"] == 1
+
+
+def test_returns_beyond_max_coordinate_are_dropped_as_invalid_points():
+    g = grid(-5, 5, -5, 5)
+    cloud = np.c_[g, np.zeros(len(g))]
+    clean = cloud[2:].copy()
+    cloud[0] = [1e15, -1e15, 1e12]  # bogus far returns
+    cloud[1] = [1e300, 0.0, 0.0]
+    det = LidarPcaDetector(SETTINGS, rng=0)
+    spots = det.process(cloud)
+    assert det.counters["points_dropped"] == 2 and det.counters["clouds_dropped"] == 0
+    again = LidarPcaDetector(SETTINGS, rng=0).process(clean)
+    assert [(o.x, o.y) for o in spots] == [(o.x, o.y) for o in again]
 
 
 def test_cylinder_queries_in_batches_equal_one_batch(monkeypatch):

@@ -53,7 +53,9 @@ def test_pool_and_dask_fly_the_same_runs_and_rerun_skips_them(tmp_path, capsys):
     assert records(tmp_path / "dask") == pool
 
 
-def test_a_variant_whose_flights_raise_is_recorded_and_the_others_fly(tmp_path, capsys):
+def test_a_variant_with_a_corrupt_world_file_is_refused_before_any_flight(tmp_path, capsys):
+    # The schema reads a file world when it validates it, so the bad variant is refused up
+    # front (a flight that raises anyway is recorded as error: see test_engine.py).
     good, bad = tmp_path / "flat.npy", tmp_path / "corrupt.npy"
     np.save(good, np.zeros((161, 161), dtype=np.float32))
     bad.write_bytes(b"this is not an elevation model")
@@ -62,14 +64,11 @@ def test_a_variant_whose_flights_raise_is_recorded_and_the_others_fly(tmp_path, 
     path = tmp_path / "file_world.yaml"
     path.write_text(yaml.safe_dump(mission))
     assert lander(path, "--runs", 1, "--vary", f"world.path={bad},{good}", "--workers", 2,
-                  "--out", tmp_path / "out", "--quiet") == 0
-    assert "1 run(s) raised" in capsys.readouterr().out
-    failed, flown = records(tmp_path / "out")
-    assert failed["outcome"] == "error" and "corrupt.npy" in failed["values"]["world.path"]
-    assert "Traceback" in failed["error"]
-    assert flown["outcome"] == "landed"
-    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
-    assert [(row["error"], row["landed"]) for row in summary["variants"]] == [(1, 0), (0, 1)]
+                  "--out", tmp_path / "out", "--quiet") == 2
+    (line,) = capsys.readouterr().err.strip().splitlines()
+    assert line.startswith("lander campaign: error: --vary: override world.path: cannot read ")
+    assert "corrupt.npy" in line
+    assert not (tmp_path / "out" / "runs.jsonl").exists()
 
 
 def test_compare_flies_the_same_seeds_through_each_mission(tmp_path, capsys):
