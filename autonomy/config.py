@@ -14,6 +14,7 @@ mission (campaigns vary settings this way) and re-validates it.
 from __future__ import annotations
 
 import copy
+import functools
 import math
 import os
 import re
@@ -246,11 +247,12 @@ class PerceptionConfig(BaseModel):
         "elevation_map", description="the site source"
     )
     rate: float = Field(
-        2.0, gt=0, le=100, description="perception updates per second, Hz, up to 100 and to "
-        "tick_rate"
+        2.0, ge=0.001, le=100, description="perception updates per second, Hz, 0.001 (one in "
+        "17 minutes) .. 100 and at most tick_rate"
     )
     low_altitude_rate: float | None = Field(
-        None, gt=0, le=100, description="perception updates per second while the range finder "
+        None, ge=0.001, le=100, description="perception updates per second (0.001 .. 100 Hz) "
+        "while the range finder "
         "reads less than low_altitude (Hz): a stereo camera close to the ground gives many frames "
         "during the verification hover; default: rate"
     )
@@ -311,9 +313,10 @@ class Mission(BaseModel):
         "centres: 0 .. 2**32-1 (numpy's generators take non-negative integers)"
     )
     tick_rate: float = Field(
-        10.0, ge=1, le=1000, description="tree ticks per second, Hz, 1 .. 1000: the tree "
-        "must look at the vehicle at least once a second (GUIDED targets time out in 3 s), "
-        "and a lockstep step is 1 / tick_rate of simulated time"
+        10.0, ge=1, le=100, description="tree ticks per second, Hz, 1 .. 100: the tree must "
+        "look at the vehicle at least once a second (GUIDED targets time out in 3 s), and "
+        "autopilots stream their state at up to 50 Hz, so ticking faster decides again on "
+        "the same state; a lockstep step is 1 / tick_rate of simulated time"
     )
     time_limit: float = Field(
         1800.0, gt=0, le=MAX_TIME_LIMIT, description="s of mission time before aborting, up "
@@ -395,7 +398,27 @@ class Mission(BaseModel):
         return self.model_dump(exclude_unset=True)
 
 
-def _positive(value: Any) -> float | None:
+def _positive(value: Any, model: type[BaseModel] | None = None, name: str = ""
+              ) -> float | None:
+    """``value`` as a positive finite float that ``model.name`` accepts, or None (left for
+    validation to report where the user wrote it, not where it would be copied to)."""
+    number = _positive_number(value)
+    if number is None or model is None:
+        return number
+    try:
+        _field_adapter(model, name).validate_python(number)
+    except ValidationError:
+        return None
+    return number
+
+
+@functools.cache
+def _field_adapter(model: type[BaseModel], name: str) -> TypeAdapter:
+    info = model.model_fields[name]
+    return TypeAdapter(Annotated[info.annotation, info])
+
+
+def _positive_number(value: Any) -> float | None:
     """``value`` as a positive finite float, or None (left for validation to report)."""
     if isinstance(value, bool):
         return None
@@ -417,7 +440,7 @@ def _valid(model: type[BaseModel], value: Any) -> bool:
 def _with_derived_defaults(data: Mapping[str, Any]) -> dict[str, Any]:
     """Fill the defaults that follow other fields, where the user left them out."""
     data = dict(data)
-    cruise = _positive(data.get("cruise_altitude", 100.0))
+    cruise = _positive(data.get("cruise_altitude", 100.0), LossWeights, "normaliser")
     weights = data.get("weights")
     if cruise is not None and (weights is None or isinstance(weights, Mapping)):
         weights = dict(weights or {})
@@ -431,7 +454,7 @@ def _with_derived_defaults(data: Mapping[str, Any]) -> dict[str, Any]:
         ver_alt = landing.get("verification_altitude", LandingSettings().verification_altitude)
     else:
         ver_alt = LandingSettings().verification_altitude
-    ver_alt = _positive(ver_alt)
+    ver_alt = _positive(ver_alt, LsmSettings, "verification_altitude")
     if ver_alt is not None and (lsm is None or isinstance(lsm, Mapping)):
         lsm = dict(lsm or {})
         lsm.setdefault("verification_altitude", ver_alt)
@@ -686,6 +709,10 @@ def _describe(err: Mapping[str, Any], root: Any, children: Any) -> tuple[str, st
     value = err.get("input")
     kind = str(err.get("type"))
     msg = _REASONS[kind](err.get("ctx") or {}) if kind in _REASONS else msg
+    if kind == "int_parsing_size":  # pydantic gives no bound: the field has it
+        high = _upper_bound(_field_info(loc))
+        if high is not None:
+            msg, kind = f"must be <= {high}", "less_than_equal"
     if kind not in ("missing", "value_error", "extra_forbidden") and isinstance(
         value, (int, float, str, bool)
     ):
@@ -742,18 +769,31 @@ _BOUND_ERRORS = frozenset({
 def _field_description(loc: Sequence[Any]) -> str | None:
     """The schema's description of the innermost field along ``loc`` (it says the field's
     unit, bounds and why), or None."""
+    info = _field_info(loc)
+    return None if info is None else info.description
+
+
+def _field_info(loc: Sequence[Any]) -> Any:
+    """The pydantic FieldInfo of the innermost field along ``loc``, or None."""
     models: list[type[BaseModel]] = [Mission]
-    description = None
+    found = None
     for item in loc:
         if not isinstance(item, str):
             continue
         owner = next((m for m in models if item in m.model_fields), None)
         if owner is None:
             continue  # a union tag or model name pydantic adds to locations
-        info = owner.model_fields[item]
-        description = info.description
-        models = list(_models_in(info.annotation))
-    return description
+        found = owner.model_fields[item]
+        models = list(_models_in(found.annotation))
+    return found
+
+
+def _upper_bound(info: Any) -> Any:
+    for constraint in getattr(info, "metadata", ()):
+        for name in ("le", "lt"):
+            if getattr(constraint, name, None) is not None:
+                return getattr(constraint, name)
+    return None
 
 
 def _models_in(annotation: Any) -> Iterator[type[BaseModel]]:

@@ -96,18 +96,21 @@ def read_point_cloud(path: str | Path) -> CloudData:
     raise DataFileError(f"{p}: unknown point-cloud extension {ext!r} (use .npy, .ply, .las, .laz)")
 
 
-def _load_npy(p: Path) -> np.ndarray:
+def load_npy(p: Path) -> np.ndarray:
+    """A numeric array from a ``.npy`` file; DataFileError with the reason otherwise."""
     try:
-        arr = np.load(p, allow_pickle=False)
-    except (ValueError, OSError, EOFError) as exc:
-        raise DataFileError(f"{p}: not a NumPy .npy array ({exc})") from None
+        with _quiet():
+            arr = np.load(p, allow_pickle=False)
+    except Exception as exc:  # noqa: BLE001 - a damaged header raises several types
+        reason = " ".join(str(exc).split())[:200] or type(exc).__name__
+        raise DataFileError(f"{p}: not a NumPy .npy array ({reason})") from None
     if not isinstance(arr, np.ndarray) or arr.dtype.kind not in "fiu":
         raise DataFileError(f"{p}: expected a numeric array, got dtype {arr.dtype}")
     return arr
 
 
 def _read_npy_cloud(p: Path) -> CloudData:
-    arr = _load_npy(p)
+    arr = load_npy(p)
     if arr.ndim != 2 or arr.shape[1] < 3:
         raise DataFileError(f"{p}: expected an (N, 3) array of x, y, z, got shape {arr.shape}")
     return CloudData(np.asarray(arr[:, :3], dtype=np.float64))
@@ -166,6 +169,12 @@ def read_ply(path: str | Path) -> CloudData:
             for _ in range(skip):
                 if not f.readline():
                     raise DataFileError(f"{p}: PLY ascii data ends before the vertex element")
+            left = p.stat().st_size - f.tell()
+            if count * len(props) * 2 > left + 1:  # each value is a digit and a separator
+                raise DataFileError(
+                    f"{p}: PLY ascii data too short for the header's {count} vertices "
+                    f"({left} bytes)"
+                )
             try:
                 table = np.loadtxt(f, max_rows=count, ndmin=2, dtype=np.float64)
             except ValueError as exc:
@@ -259,12 +268,16 @@ def read_depth_image(path: str | Path) -> np.ndarray:
     ext = p.suffix.lower()
     if ext == ".npy":
         with _quiet():
-            depth = _load_npy(p)
+            depth = load_npy(p)
         if depth.ndim == 3 and depth.shape[2] == 1:
             depth = depth[:, :, 0]
         if depth.ndim != 2:
             raise DataFileError(f"{p}: expected an (H, W) depth array, got shape {depth.shape}")
-        return depth.astype(np.float32)
+        if depth.size > MAX_IMAGE_PIXELS:
+            raise DataFileError(f"{p}: a {depth.shape[1]} x {depth.shape[0]} image, more than "
+                                f"{MAX_IMAGE_PIXELS:,} pixels")
+        with _quiet():  # depths beyond float32 become inf: no depth
+            return depth.astype(np.float32)
     if ext == ".png":
         width, height = _png_size(p)
         if width * height > MAX_IMAGE_PIXELS:

@@ -55,10 +55,12 @@ def parse_pose(text: str | None) -> tuple[np.ndarray, np.ndarray]:
     if text is None:
         return np.zeros(3), NADIR.copy()
     if text.lower().endswith(".npy"):
+        from lsd.io import DataFileError, load_npy
+
         try:
-            m = np.load(text, allow_pickle=False)
-        except (OSError, ValueError, EOFError) as exc:
-            raise UserError(f"--pose {text}: not a readable .npy ({exc})") from None
+            m = load_npy(Path(text))
+        except DataFileError as exc:
+            raise UserError(f"--pose {exc}") from None
         if m.shape != (4, 4) or not np.isfinite(m).all():
             raise UserError(f"--pose {text}: expected a finite 4x4 matrix, got shape {m.shape}")
         rot = m[:3, :3].astype(np.float64)

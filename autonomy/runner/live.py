@@ -17,11 +17,12 @@ import time
 from collections.abc import Callable
 
 import py_trees
+from pydantic import ValidationError
 
 from autonomy.clock import VehicleClock
 from autonomy.config import Mission
 from autonomy.runner.flight import Flight, bring_down
-from autonomy.runner.home import choose_home
+from autonomy.runner.home import HomeMismatch, choose_home
 from autonomy.runner.interrupt import ctrl_c_flag
 from autonomy.runner.link import Link
 from autonomy.vehicle.frames import geodetic_to_local
@@ -64,7 +65,13 @@ def run_live(
             def project(lat: float, lon: float, lat0: float, lon0: float) -> tuple[float, float]:
                 return geodetic_to_local(lat, lon, lat0, lon0, autopilot)
 
-            flight.attach_tree(build_tree(mission.plan(home=choice.lat_lon, project=project)))
+            try:
+                plan = mission.plan(home=choice.lat_lon, project=project)
+            except ValidationError as exc:  # lat/lon waypoints too far from this home
+                reason = exc.errors()[0]["msg"].removeprefix("Value error, ")
+                raise HomeMismatch(f"about the vehicle's home {choice.lat_lon[0]:.6f}, "
+                                   f"{choice.lat_lon[1]:.6f}: {reason}") from None
+            flight.attach_tree(build_tree(plan))
             start = clock.now()
             next_tick = start
             while not interrupted.is_set():

@@ -122,7 +122,7 @@ def _read_elevation_quietly(path: Path, source_cell_size: float | None
     suffix = path.suffix.lower()
     try:
         if suffix == ".npy":
-            heights = np.load(path, allow_pickle=False).astype(np.float64)
+            heights = _load_npy(path)
             cell = source_cell_size
             nodata = None
         elif suffix == ".asc":
@@ -151,6 +151,16 @@ def _fill_missing(heights: np.ndarray, nodata: float | None, path: Path) -> np.n
         idx = ndimage.distance_transform_edt(missing, return_distances=False, return_indices=True)
         heights = heights[tuple(idx)]
     return heights
+
+
+def _load_npy(path: Path) -> np.ndarray:
+    try:
+        heights = np.load(path, allow_pickle=False)
+    except Exception as exc:  # noqa: BLE001 - a damaged header raises several types
+        raise ValueError(" ".join(str(exc).split())[:200] or type(exc).__name__) from None
+    if heights.dtype.kind not in "fiub":
+        raise ValueError(f"expected numbers, got dtype {heights.dtype}")
+    return heights.astype(np.float64)
 
 
 def _read_asc(path: Path) -> tuple[np.ndarray, float, float | None]:
