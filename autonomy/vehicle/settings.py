@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Annotated
+
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
@@ -85,7 +87,7 @@ class VehicleLinkSettings(BaseModel):
         262144, ge=4096, le=1 << 30, description="unread bytes kept, 4 KiB .. 1 GiB (memory); "
         "older ones are dropped and counted"
     )
-    streams: dict[str, float] = Field(
+    streams: dict[str, Annotated[float, Field(ge=0, le=MAX_RATE)]] = Field(
         default_factory=lambda: dict(DEFAULT_STREAMS),
         description="telemetry asked for with SET_MESSAGE_INTERVAL: MAVLink message name -> "
         "Hz, 0 (off) .. 100",
@@ -96,9 +98,7 @@ class VehicleLinkSettings(BaseModel):
     @field_validator("streams")
     @classmethod
     def _known_messages(cls, streams: dict[str, float]) -> dict[str, float]:
-        for name, rate in streams.items():
+        for name in streams:
             if not hasattr(mavlink, f"MAVLINK_MSG_ID_{name}"):
                 raise ValueError(f"unknown MAVLink message {name!r}")
-            if not 0 <= rate <= MAX_RATE:
-                raise ValueError(f"{name}: rate must be 0 (off) .. {MAX_RATE:g} Hz, got {rate}")
         return streams

@@ -212,3 +212,40 @@ def test_unnamed_mission_takes_the_file_name(tmp_path):
     assert load_mission(write(tmp_path, GOOD.replace("name: t\n", ""), "survey.yaml")).name \
         == "survey"
     assert load_mission(write(tmp_path, GOOD)).name == "t"
+
+
+def _numbers_in_schema(node, defs, path=(), description=None):
+    """(dotted path, schema node, description) of every number the mission schema holds."""
+    while "$ref" in node:
+        node = defs[node["$ref"].rsplit("/", 1)[-1]]
+    description = node.get("description", description)
+    for union in ("anyOf", "oneOf"):
+        for option in node.get(union, ()):
+            yield from _numbers_in_schema(option, defs, path, description)
+    kind = node.get("type")
+    if kind == "object":
+        for key, child in node.get("properties", {}).items():
+            yield from _numbers_in_schema(child, defs, (*path, key))
+        if isinstance(node.get("additionalProperties"), dict):
+            yield from _numbers_in_schema(node["additionalProperties"], defs, (*path, "*"),
+                                          description)
+    elif kind == "array":
+        for i, child in enumerate(node.get("prefixItems", ())):
+            yield from _numbers_in_schema(child, defs, (*path, i), description)
+        if "items" in node:
+            yield from _numbers_in_schema(node["items"], defs, (*path, "[]"), description)
+    elif kind in ("number", "integer"):
+        yield ".".join(map(str, path)), node, description
+
+
+def test_every_number_in_the_schema_is_bounded_and_described():
+    schema = Mission.model_json_schema()
+    numbers = list(_numbers_in_schema(schema, schema["$defs"]))
+    assert len(numbers) > 200  # every section is walked
+    unbounded = [
+        path for path, node, _ in numbers
+        if not ({"minimum", "exclusiveMinimum"} & node.keys()
+                and {"maximum", "exclusiveMaximum"} & node.keys())
+    ]
+    undescribed = [path for path, _, description in numbers if not description]
+    assert unbounded == [] and undescribed == []
