@@ -667,7 +667,16 @@ def _data_children(node: Any) -> tuple[str, Any]:
     return "scalar", None
 
 
-def _describe(err: Mapping[str, Any], root: Any, children: Any) -> tuple[str, str, Any]:
+def describe_error(err: Mapping[str, Any], data: Any, model: Any = None) -> tuple[str, str]:
+    """(field, reason) of one pydantic error of validating ``data`` against ``model`` (a
+    settings model or a union of them; default: the mission): the dotted field as the user
+    wrote it and the reason in the project's words, with the field's bounds and why."""
+    field, reason, _ = _describe(err, data, _data_children, model)
+    return field, reason
+
+
+def _describe(err: Mapping[str, Any], root: Any, children: Any, model: Any = None
+              ) -> tuple[str, str, Any]:
     """(field, reason, node) of one pydantic error: the dotted field as the user wrote it
     (union tags and model names pydantic adds to locations left out; never empty), the
     reason in one line, and the node (YAML or data) it points at."""
@@ -705,12 +714,14 @@ def _describe(err: Mapping[str, Any], root: Any, children: Any) -> tuple[str, st
             parts.append(str(item))
         elif isinstance(item, int) and kind == "scalar":
             parts.append(str(item))  # an item of a scalar that should be a list
-    field = ".".join(_shown_key(p) for p in parts) or "(mission)"
+    field = ".".join(_shown_key(p) for p in parts) or ("(mission)" if model is None
+                                                        else "(settings)")
     value = err.get("input")
     kind = str(err.get("type"))
     msg = _REASONS[kind](err.get("ctx") or {}) if kind in _REASONS else msg
+    roots = [Mission] if model is None else list(_models_in(model))
     if kind == "int_parsing_size":  # pydantic gives no bound: the field has it
-        high = _upper_bound(_field_info(loc))
+        high = _upper_bound(_field_info(loc, roots))
         if high is not None:
             msg, kind = f"must be <= {high}", "less_than_equal"
     if kind not in ("missing", "value_error", "extra_forbidden") and isinstance(
@@ -719,7 +730,7 @@ def _describe(err: Mapping[str, Any], root: Any, children: Any) -> tuple[str, st
         shown = repr(value)
         msg = f"{msg} (got {shown if len(shown) <= 60 else shown[:57] + '...'})"
     if kind in _BOUND_ERRORS:
-        about = _field_description(loc)
+        about = _field_description(loc, roots)
         if about:
             msg = f"{msg}; {about}"
     return field, one_line(msg), mark
@@ -766,16 +777,16 @@ _BOUND_ERRORS = frozenset({
 })
 
 
-def _field_description(loc: Sequence[Any]) -> str | None:
+def _field_description(loc: Sequence[Any], roots: Sequence[type[BaseModel]]) -> str | None:
     """The schema's description of the innermost field along ``loc`` (it says the field's
     unit, bounds and why), or None."""
-    info = _field_info(loc)
+    info = _field_info(loc, roots)
     return None if info is None else info.description
 
 
-def _field_info(loc: Sequence[Any]) -> Any:
-    """The pydantic FieldInfo of the innermost field along ``loc``, or None."""
-    models: list[type[BaseModel]] = [Mission]
+def _field_info(loc: Sequence[Any], roots: Sequence[type[BaseModel]]) -> Any:
+    """The pydantic FieldInfo of the innermost field along ``loc`` from ``roots``, or None."""
+    models: list[type[BaseModel]] = list(roots)
     found = None
     for item in loc:
         if not isinstance(item, str):

@@ -27,7 +27,7 @@ class CostmapWeights(BaseModel):
     def _sum_to_one(self) -> CostmapWeights:
         total = self.depth_accuracy + self.flatness + self.steepness + self.energy
         if abs(total - 1.0) > 1e-6:
-            raise ValueError(f"costmap weights must sum to 1, got {total:g}")
+            raise ValueError(f"flatness: the costmap weights must sum to 1, got {total:g}")
         return self
 
 
@@ -145,7 +145,7 @@ class DepthCostmapSettings(BaseModel):
     @model_validator(mode="after")
     def _ranges(self) -> DepthCostmapSettings:
         if self.d_max <= self.d_min:
-            raise ValueError(f"d_max ({self.d_max}) must exceed d_min ({self.d_min})")
+            raise ValueError(f"d_max: {self.d_max} must exceed d_min ({self.d_min})")
         return self
 
     @property

@@ -26,7 +26,7 @@ class SpotWeights(BaseModel):
     @model_validator(mode="after")
     def _not_all_zero(self) -> SpotWeights:
         if self.radius + self.slope + self.sigma + self.distance <= 0:
-            raise ValueError("at least one spot weight must be positive")
+            raise ValueError("radius: at least one spot weight must be positive")
         return self
 
 
@@ -121,7 +121,7 @@ class LidarPcaSettings(BaseModel):
     @model_validator(mode="after")
     def _radii(self) -> LidarPcaSettings:
         if self.r_max < self.r_min:
-            raise ValueError(f"r_max ({self.r_max}) must be >= r_min ({self.r_min})")
+            raise ValueError(f"r_max: {self.r_max} must be >= r_min ({self.r_min})")
         if (self.r_max - self.r_min) / self.r_step > 1000:
             raise ValueError(
                 f"r_step: {self.r_step:g} m makes more than 1000 radii from r_min to r_max"

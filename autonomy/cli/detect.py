@@ -40,12 +40,17 @@ def _settings(model: type, values: dict, flag_of: dict[str, str]):
     """Build a settings model from the flags that were given; a bad value names its flag."""
     from pydantic import ValidationError
 
+    from autonomy.config import describe_error
+
+    given = {k: v for k, v in values.items() if v is not None}
     try:
-        return model(**{k: v for k, v in values.items() if v is not None})
+        return model(**given)
     except ValidationError as exc:
         err = exc.errors()[0]
-        field = str(err["loc"][0]) if err["loc"] else ""
-        raise UserError(f"{flag_of.get(field, field)}: {err['msg']}") from None
+        field, reason = describe_error(err, given, model)
+        flag = flag_of.get(field.split(".")[0]) or flag_of.get(str(err["loc"][0])
+                                                              if err["loc"] else "")
+        raise UserError(f"{flag or field}: {reason}") from None
 
 
 def parse_pose(text: str | None) -> tuple[np.ndarray, np.ndarray]:

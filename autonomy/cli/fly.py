@@ -76,7 +76,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--quiet", action="store_true",
                         help="no per-phase lines, only the outcome and the report path")
     parser.add_argument("--on-interrupt", choices=("land", "hold"), default="land",
-                        help="live mode: what Ctrl-C does before exiting (default land)")
+                        help="live mode: what Ctrl-C does before exiting (default land); a "
+                        "lockstep flight stops where it is. Either writes its report, marked "
+                        "interrupted")
     parser.add_argument("--home-from", choices=("vehicle", "file"), default=None,
                         help="live mode, when the mission file's home and the vehicle's "
                         "differ by more than vehicle.home_tolerance (else the flight is "

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import sys
 import time
 from pathlib import Path
 
@@ -58,18 +59,31 @@ def parse_depth_at(text: str) -> tuple[float, float, float, float]:
 
 
 def build(kind: str, assignments: dict, seed: int):
-    from sitl.terrain import make_terrain, parse_terrain_settings
+    from autonomy.config import describe_error
+    from sitl.terrain import TerrainSettings, make_terrain, parse_terrain_settings
 
+    data = {"kind": kind, **assignments}
     try:
-        settings = parse_terrain_settings({"kind": kind, **assignments})
+        settings = parse_terrain_settings(data)
     except ValidationError as exc:
-        err = exc.errors()[0]
-        loc = ".".join(str(p) for p in err["loc"][1:]) or "kind"
-        raise UserError(f"--set {loc}: {err['msg']}") from None
+        field, reason = describe_error(exc.errors()[0], data, TerrainSettings)
+        raise UserError(f"--set {field}: {reason}") from None
+    cells = settings_cells(settings)
+    if cells is not None and cells > 4_000_000:
+        print(f"building the {kind} world ({cells / 1e6:.0f} million cells) and its safety map",
+              file=sys.stderr, flush=True)
     try:
         return make_terrain(settings, seed=seed)
     except (OSError, ValueError) as exc:
-        raise UserError(f"--set {exc}") from None
+        raise UserError(f"world: {exc}") from None
+
+
+def settings_cells(settings) -> float | None:
+    """Grid cells a procedural world will have (None for a file world)."""
+    size = getattr(settings, "size", None)
+    if size is None:
+        return None
+    return (size[0] / settings.cell_size + 1) * (size[1] / settings.cell_size + 1)
 
 
 def plot_terrain(terrain, mask: np.ndarray, path: Path, title: str) -> None:

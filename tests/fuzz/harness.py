@@ -97,7 +97,7 @@ class Result:
             found.append("a traceback was printed")
         if self.code not in self.allowed:
             found.append(f"exit code {self.code}")
-        lines = [line for line in self.err.splitlines() if line.strip()]
+        lines = [line for line in self.err.splitlines() if line.strip() and line != CUT]
         for line in lines:
             if WARNING_LINE.search(line):
                 found.append(f"library warning on stderr: {line[:200]}")
@@ -220,10 +220,16 @@ def _show_warning(stream: Any) -> Any:
     return show
 
 
+CUT = "[output cut by the fuzz harness]"
+
+
 def _text(buf: io.BytesIO) -> str:
+    """The output, its middle cut (at line ends) when it is long."""
     data = buf.getvalue()
     if len(data) > MAX_OUTPUT:
-        data = data[:2000] + b"\n...\n" + data[-(MAX_OUTPUT - 2000):]
+        head = data[:2000].rsplit(b"\n", 1)[0]
+        tail = data[-(MAX_OUTPUT - 2000):].split(b"\n", 1)[-1]
+        data = head + b"\n" + CUT.encode() + b"\n" + tail
     return data.decode("utf-8", errors="replace")
 
 
