@@ -727,7 +727,7 @@ def _describe(err: Mapping[str, Any], root: Any, children: Any, model: Any = Non
     if kind not in ("missing", "value_error", "extra_forbidden") and isinstance(
         value, (int, float, str, bool)
     ):
-        shown = repr(value)
+        shown = ("true" if value else "false") if isinstance(value, bool) else repr(value)
         msg = f"{msg} (got {shown if len(shown) <= 60 else shown[:57] + '...'})"
     if kind in _BOUND_ERRORS:
         about = _field_description(loc, roots)

@@ -43,7 +43,7 @@ class LandingSettings(BaseModel):
 
     verification_altitude: float = Field(
         2.5, gt=0, le=MAX_ALTITUDE, description="m above the site to hover at for "
-        "verification, up to MAX_ALTITUDE (10 km, a multicopter's ceiling)"
+        "verification, up to 10 km (a multicopter's ceiling)"
     )
     verify: bool = Field(
         True, description="re-detect the chosen site from the verification altitude before "
@@ -141,8 +141,8 @@ class MissionPlan(BaseModel):
 
     waypoints: list[Waypoint] = Field(
         ..., min_length=1, max_length=MAX_WAYPOINTS, description="ENU waypoints (x east, "
-        "y north, z above home), m: 1 to 1000 of them (MAX_WAYPOINTS), each within 50 km of "
-        "home (MAX_RANGE) and 0 < z <= 10 km (MAX_ALTITUDE)"
+        "y north, z above home), m: 1 to 1000 of them, each within 50 km of home (a "
+        "battery's range) and 0 < z <= 10 km (a multicopter's ceiling)"
     )
     takeoff_altitude: float | None = Field(
         None, gt=0, le=MAX_ALTITUDE, description="m above home, up to 10 km (a "

@@ -60,7 +60,8 @@ class _ProceduralSettings(_GridSettings):
         Annotated[float, Field(ge=10.0, le=MAX_EXTENT)],
     ] = Field(
         (400.0, 400.0), description="extent (m) along x (east) and y (north), each 10 m .. "
-        "100 km (twice a multicopter's range); at most MAX_CELLS cells of cell_size"
+        f"100 km (twice a multicopter's range); at most {MAX_CELLS:,} cells of cell_size "
+        "(memory)"
     )
     center: tuple[
         Annotated[float, Field(ge=-MAX_EXTENT / 2, le=MAX_EXTENT / 2)],
