@@ -1024,7 +1024,6 @@ def _keep_short(argv: list[str], files: Files, port: int) -> list[str]:
         argv = _replace_small(argv, "--runs", 2.0, "1")
         if not has("--runs"):
             argv += ["--runs", "1"]
-        argv = [a for a in argv if a != "--workers"]
         argv += ["--workers", "1", "--connect-timeout", "1"]
         argv = _drop_option(argv, "--workers", keep_last=True)
         argv = _drop_option(argv, "--connect-timeout", keep_last=True)
