@@ -668,7 +668,11 @@ class MavlinkVehicle:
         position = None
         if self._position_ned is not None:
             position = frames.ned_to_enu(*self._position_ned, self._home_ned)
-        if self._prearm_present:
+        # ArduPilot marks its pre-arm check present, enabled and healthy. PX4 (from 1.14, its
+        # health report) sets the bit in health alone, once it could arm in its current mode,
+        # and never in present: GPS and a position come seconds earlier, while it still says
+        # "Preflight Fail: no heading reference".
+        if self._prearm_present or self._autopilot == modes.PX4:
             prearm_ok = self._prearm_health
         else:
             prearm_ok = self._gps_fix >= 3 and position is not None

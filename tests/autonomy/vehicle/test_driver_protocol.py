@@ -389,6 +389,32 @@ def test_without_ekf_reports_a_home_and_a_position_make_the_estimate(rig):
     assert rig.tick().position_estimate
 
 
+
+def test_px4_is_ready_to_arm_only_when_its_prearm_health_bit_says_so(rig):
+    """PX4 sets MAV_SYS_STATUS_PREARM_CHECK in health alone (never in present) once it can
+    arm; a GPS fix, a position and a home come seconds earlier, while it still refuses
+    ("Preflight Fail: no heading reference")."""
+    peer = rig.peer
+    prearm = mavlink.MAV_SYS_STATUS_PREARM_CHECK
+    sensors = 0x0300402F  # what PX4 v1.17 SIH reports present once its health report is up
+    peer.heartbeat(custom_mode=PX4_LOITER, autopilot=PX4)
+    peer.send(peer.mav.gps_raw_int_encode(0, 3, 473977420, 85455940, 488000, 70, 110, 0, 0, 10))
+    peer.send(peer.mav.local_position_ned_encode(0, 0, 0, 0, 0, 0, 0))
+    peer.send(
+        peer.mav.home_position_encode(473977420, 85455940, 488000, 0, 0, 0, [1, 0, 0, 0], 0, 0, 0)
+    )
+    peer.send(peer.mav.sys_status_encode(sensors, sensors, sensors, 0, 16200, -1, 99, 0, 0, 0,
+                                         0, 0, 0))  # fmt: skip
+    s = rig.tick()
+    assert s.gps_fix == 3 and s.position is not None and s.home is not None
+    assert not s.prearm_ok, "PX4 has not passed its checks yet"
+    peer.send(peer.mav.sys_status_encode(sensors, sensors, sensors | prearm, 0, 16200, -1, 99,
+                                         0, 0, 0, 0, 0, 0))  # fmt: skip
+    assert rig.tick().prearm_ok
+    peer.send(peer.mav.sys_status_encode(sensors, sensors, sensors, 0, 16200, -1, 99, 0, 0, 0,
+                                         0, 0, 0))  # fmt: skip
+    assert not rig.tick().prearm_ok, "and not once it says it no longer can"
+
 def test_link_statistics_count_gaps_and_time_lost(make_rig):
     r = make_rig(link_timeout=2.0)
     r.run(3.0, heartbeat=dict(custom_mode=GUIDED))  # heartbeats at 0.05, 1.05, 2.05 s
