@@ -1,6 +1,6 @@
 """Fixtures of the conformance tests; the helpers live in support.py, importable as
 ``conformance_support`` (the suite uses --import-mode=importlib, which puts no test directory
-on sys.path). See support.py for how to run these against ArduPilot's own SITL."""
+on sys.path). See support.py for how to run these against ArduPilot's and PX4's own SITLs."""
 
 import importlib.util
 import sys
@@ -28,14 +28,15 @@ from conformance_support import start_vehicle as _start_vehicle  # noqa: E402
 
 @pytest.fixture
 def start_vehicle(tmp_path):
-    """start_vehicle("ardupilot"|"px4") -> Vehicle, in a temporary folder; stopped (its whole
-    process group) after the test."""
+    """start_vehicle("ardupilot"|"px4", px4_speedup=None) -> Vehicle, in a temporary folder;
+    stopped (its whole process group) after the test. ``px4_speedup`` caps the speed-up of a
+    real PX4 SITL (CONFORMANCE_PX4)."""
     started: list[Vehicle] = []
 
-    def start(autopilot: str) -> Vehicle:
+    def start(autopilot: str, px4_speedup: float | None = None) -> Vehicle:
         workdir = tmp_path / f"vehicle{len(started)}"
         workdir.mkdir()
-        vehicle = _start_vehicle(autopilot, workdir)
+        vehicle = _start_vehicle(autopilot, workdir, px4_speedup)
         started.append(vehicle)
         return vehicle
 

@@ -10,11 +10,23 @@ two free UDP ports, as PX4 SITL sends to 14540 and 14550), at ``CONFORMANCE_SPEE
 The same scenarios run against ArduPilot's own Copter SITL when ``CONFORMANCE_ARDUCOPTER``
 names an ``arducopter`` binary (built outside this repository), optionally with
 ``CONFORMANCE_ARDUCOPTER_DEFAULTS`` = its ``copter.parm``; then every ``ardupilot`` case
-flies the real autopilot (the ``px4`` cases still fly the embedded PX4 personality):
+flies the real autopilot (the ``px4`` cases fly the embedded PX4 personality unless
+CONFORMANCE_PX4, below, names PX4's):
 
     CONFORMANCE_ARDUCOPTER=.../build/sitl/bin/arducopter \\
     CONFORMANCE_ARDUCOPTER_DEFAULTS=.../Tools/autotest/default_params/copter.parm \\
         .venv/bin/python -m pytest tests/conformance -k ardupilot
+
+Likewise every ``px4`` case flies PX4's own SITL with its SIH quadrotor (airframe 10040) when
+``CONFORMANCE_PX4`` names a ``px4`` SITL binary (``make px4_sitl_default`` in a PX4-Autopilot
+checkout, outside this repository); ``CONFORMANCE_PX4_ETC`` is its ``etc`` folder (default:
+``build/px4_sitl_default/etc`` beside ``bin/px4``), ``CONFORMANCE_PX4_SPEEDUP`` its
+PX4_SIM_SPEED_FACTOR (default 5; SIH runs in lockstep at that factor). PX4 SITL has fixed
+ports: it sends to UDP 127.0.0.1:14540 (SDKs) and 14550 (ground stations) and serves no TCP,
+so these must be free and the cases run one at a time:
+
+    CONFORMANCE_PX4=.../build/px4_sitl_default/bin/px4 \\
+        .venv/bin/python -m pytest tests/conformance -k px4
 
 Timeouts are stated in simulated seconds and turned into generous wall-clock limits
 (``Vehicle.wall``); tests wait on conditions, never on fixed sleeps, and assert no timings.
@@ -38,6 +50,13 @@ SPEEDUP = float(os.environ.get("CONFORMANCE_SPEEDUP", "10"))
 ARDUCOPTER = os.environ.get("CONFORMANCE_ARDUCOPTER", "")
 ARDUCOPTER_DEFAULTS = os.environ.get("CONFORMANCE_ARDUCOPTER_DEFAULTS", "")
 ARDUCOPTER_SPEEDUP = float(os.environ.get("CONFORMANCE_ARDUCOPTER_SPEEDUP", "5"))
+PX4 = os.environ.get("CONFORMANCE_PX4", "")
+PX4_ETC = os.environ.get("CONFORMANCE_PX4_ETC", "")
+PX4_SPEEDUP = float(os.environ.get("CONFORMANCE_PX4_SPEEDUP", "5"))
+# PX4 SITL instance 0: UDP ports it binds (SDK link, GCS link, payload, gimbal, SIH display)
+# and the two it sends to unasked (an SDK's udpin, a ground station's).
+PX4_BOUND = (14580, 18570, 14280, 13030, 19450)
+PX4_SDK_PORT, PX4_GCS_PORT = 14540, 14550
 
 # Where every vehicle starts: lat, lon (degrees), altitude (m AMSL).
 HOME = (47.397742, 8.545594, 488.0)
@@ -128,10 +147,10 @@ class Vehicle:
     """A running vehicle under test."""
 
     autopilot: str  # "ardupilot" or "px4"
-    real: bool  # True: ArduPilot's own SITL binary; False: the embedded `lander sitl`
-    tcp_port: int  # where it listens for MAVLink TCP clients
-    # Embedded PX4 only: UDP ports of 127.0.0.1 it sends to unasked, as PX4 SITL sends to
-    # 14540 (an SDK's udpin) and 14550 (a ground station's).
+    real: bool  # True: the autopilot's own SITL binary; False: the embedded `lander sitl`
+    tcp_port: int | None  # where it listens for MAVLink TCP clients (real PX4: nowhere)
+    # PX4 only: UDP ports of 127.0.0.1 it sends to unasked, as PX4 SITL sends to 14540 (an
+    # SDK's udpin) and 14550 (a ground station's).
     sdk_port: int | None
     gcs_port: int | None
     speedup: float
@@ -149,6 +168,11 @@ class Vehicle:
 
     @property
     def name(self) -> str:
+        if self.real and self.autopilot == "px4":
+            return (
+                f"PX4's px4 SITL with SIH (udp 127.0.0.1:{self.sdk_port} and "
+                f"{self.gcs_port}, log {self.log})"
+            )
         if self.real:
             what = "ArduPilot's arducopter SITL"
         else:
@@ -207,13 +231,64 @@ def start_arducopter(workdir: Path) -> Vehicle:
     return vehicle
 
 
+def wait_for_line(log: Path, text: str, timeout: float, proc: subprocess.Popen) -> None:
+    """Wait until ``text`` appears in the log the process writes."""
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        if proc.poll() is not None:
+            raise AssertionError(f"exited with {proc.returncode}:\n{tail(log)}")
+        try:
+            if text in log.read_text(errors="replace"):
+                return
+        except OSError:
+            pass
+        time.sleep(0.1)
+    raise AssertionError(f"no {text!r} in {log} after {timeout} s:\n{tail(log)}")
 
 
-def start_vehicle(autopilot: str, workdir: Path) -> Vehicle:
-    """The vehicle under test: ArduPilot's own SITL if CONFORMANCE_ARDUCOPTER names it (for
-    the ardupilot personality), else the embedded SITL."""
+def start_px4(workdir: Path, speedup: float = PX4_SPEEDUP) -> Vehicle:
+    """PX4's SITL with the SIH quadrotor (instance 0), placed at HOME, in ``workdir``/rootfs
+    (its parameters, mission store and logs start empty), at PX4_SIM_SPEED_FACTOR
+    ``speedup``."""
+    udp = socket.SOCK_DGRAM
+    busy = [p for p in (*PX4_BOUND, PX4_SDK_PORT, PX4_GCS_PORT) if not port_is_free(p, udp)]
+    if busy:
+        raise AssertionError(f"PX4 SITL needs UDP ports {busy} of 127.0.0.1, which are in use")
+    binary = Path(PX4).expanduser().resolve()
+    etc = Path(PX4_ETC).expanduser() if PX4_ETC else binary.parent.parent / "etc"
+    rootfs = workdir / "rootfs"
+    rootfs.mkdir()
+    log = workdir / "px4.log"
+    env = {
+        "PX4_SYS_AUTOSTART": "10040",  # SIH quadrotor X
+        "PX4_SIMULATOR": "sihsim",
+        "PX4_SIM_MODEL": "sihsim_quadx",
+        "PX4_SIM_SPEED_FACTOR": f"{speedup:g}",
+        "PX4_HOME_LAT": str(HOME[0]),
+        "PX4_HOME_LON": str(HOME[1]),
+        "PX4_HOME_ALT": str(HOME[2]),
+        "HEADLESS": "1",
+    }
+    proc = start_process([str(binary), "-d", "-w", str(rootfs), str(etc)], rootfs, log, env=env)
+    vehicle = Vehicle(
+        "px4", True, None, PX4_SDK_PORT, PX4_GCS_PORT, speedup, workdir, log, proc
+    )
+    try:
+        wait_for_line(log, "Startup script returned successfully", 60, proc)
+    except AssertionError:
+        stop_process(proc)
+        raise
+    return vehicle
+
+
+def start_vehicle(autopilot: str, workdir: Path, px4_speedup: float | None = None) -> Vehicle:
+    """The vehicle under test: the autopilot's own SITL if CONFORMANCE_ARDUCOPTER or
+    CONFORMANCE_PX4 names it, else the embedded SITL in that personality. ``px4_speedup``
+    caps a real PX4's speed-up (the embedded SITL keeps ``CONFORMANCE_SPEEDUP``)."""
     if autopilot == "ardupilot" and ARDUCOPTER:
         return start_arducopter(workdir)
+    if autopilot == "px4" and PX4:
+        return start_px4(workdir, min(PX4_SPEEDUP, px4_speedup or PX4_SPEEDUP))
     return start_embedded(autopilot, workdir)
 
 
@@ -367,14 +442,16 @@ class Monitor:
 
     ``Monitor("udpin:127.0.0.1:PORT")`` listens for what MAVProxy forwards (``--out``) and
     never sends; ``Monitor("tcp:127.0.0.1:PORT", heartbeat=True)`` is a ground station of its
-    own that sends a GCS HEARTBEAT every second."""
+    own that sends a GCS HEARTBEAT every second. ``keep`` names message types of which every
+    one is kept (in ``kept``), not only the latest."""
 
-    def __init__(self, url: str, heartbeat: bool = False) -> None:
+    def __init__(self, url: str, heartbeat: bool = False, keep: tuple[str, ...] = ()) -> None:
         from pymavlink import mavutil
 
         self.mavutil = mavutil
         self.conn = mavutil.mavlink_connection(url, source_system=254, source_component=190)
         self.latest: dict[str, object] = {}
+        self.kept: dict[str, list] = {kind: [] for kind in keep}  # every one of these types
         self.counts: dict[str, int] = {}
         self.texts: list[str] = []
         self.positions: list[tuple[float, float, float]] = []  # lat, lon, relative alt (m)
@@ -410,6 +487,8 @@ class Monitor:
             with self._cond:
                 self.latest[kind] = msg
                 self.counts[kind] = self.counts.get(kind, 0) + 1
+                if kind in self.kept:
+                    self.kept[kind].append(msg)
                 if kind == "STATUSTEXT":
                     self.texts.append(msg.text)
                 elif kind == "GLOBAL_POSITION_INT":

@@ -8,7 +8,7 @@ state (logs, parameter and waypoint files) goes to a temporary folder.
 ArduPilot is flown end to end (GUIDED takeoff, two lat/lon targets, a mission in AUTO ending
 in a landing). MAVProxy does not fly PX4 (its takeoff, guided and waypoint commands follow
 ArduPilot's conventions), so against PX4 it connects, fetches, shows and sets parameters and
-must announce nothing false.
+must announce nothing false but the one thing it says of every PX4 (see PX4_FENCE below).
 """
 
 from __future__ import annotations
@@ -18,6 +18,7 @@ import time
 
 import pytest
 from conformance_support import HOME, Monitor, distance, free_port, mavproxy_master, offset
+from pymavlink import mavutil
 
 pytestmark = pytest.mark.timeout(600)
 
@@ -29,6 +30,16 @@ ALARMS = re.compile(
     r"|link \d+ down|no link",
     re.IGNORECASE,
 )
+# MAVProxy's fence module says "fence breach" whenever SYS_STATUS does not report the geofence
+# healthy. PX4 reports no geofence in SYS_STATUS at all (its present, enabled and health bits
+# clear), so MAVProxy says it on connecting to real PX4 SITL: against PX4 the evidence is
+# instead that no SYS_STATUS claims an enabled (or present) geofence.
+PX4_FENCE = re.compile(r"(?:^|>\s*)fence breach$", re.IGNORECASE)  # after a prompt, if any
+# Real PX4 SITL streams seven messages at 50 Hz of its own time on its ground-station link; at
+# PX4_SIM_SPEED_FACTOR 5 MAVProxy cannot read that fast, the kernel drops its datagrams and
+# the parameter download stalls (515 of 917 after 50 s): real PX4 meets MAVProxy at 1x. The
+# embedded SITL keeps CONFORMANCE_SPEEDUP.
+PX4_MAVPROXY_SPEEDUP = 1.0
 COPTER_MODE = {"AUTO": 3, "GUIDED": 4, "RTL": 6, "LAND": 9}
 MAV_CMD_NAV_WAYPOINT, MAV_CMD_NAV_LAND = 16, 21
 # *_INT frames mean the same as their float twins (ArduPilot answers with the latter).
@@ -37,8 +48,11 @@ SAME_FRAME = {5: 0, 6: 3, 11: 10}
 NUMBER = r"\b{}\s+(-?\d[\d.eE+-]*)"
 
 
-def alarms(lines: list[str]) -> list[str]:
-    return [line for line in lines if ALARMS.search(line)]
+def alarms(lines: list[str], autopilot: str = "ardupilot") -> list[str]:
+    said = [line for line in lines if ALARMS.search(line)]
+    if autopilot == "px4":
+        said = [line for line in said if not PX4_FENCE.search(line.strip())]
+    return said
 
 
 def check_parameters(mp, vehicle, autopilot: str) -> None:
@@ -69,10 +83,10 @@ def check_parameters(mp, vehicle, autopilot: str) -> None:
 
 @pytest.mark.parametrize("autopilot", ["ardupilot", "px4"])
 def test_mavproxy_parameters_and_no_false_alarms(start_vehicle, mavproxy, autopilot):
-    vehicle = start_vehicle(autopilot)
+    vehicle = start_vehicle(autopilot, px4_speedup=PX4_MAVPROXY_SPEEDUP)
     out = free_port()
     mp = mavproxy(mavproxy_master(vehicle), "--out", f"udp:127.0.0.1:{out}")
-    monitor = Monitor(f"udpin:127.0.0.1:{out}")
+    monitor = Monitor(f"udpin:127.0.0.1:{out}", keep=("SYS_STATUS",))
     try:
         check_parameters(mp, vehicle, autopilot)
         # Give the ground station 20 s of the vehicle's own time on the ground to complain.
@@ -84,7 +98,15 @@ def test_mavproxy_parameters_and_no_false_alarms(start_vehicle, mavproxy, autopi
         )
     finally:
         monitor.close()
-    assert not alarms(mp.output()), f"MAVProxy announced: {alarms(mp.output())}"
+    said = alarms(mp.output(), autopilot)
+    assert not said, f"MAVProxy announced: {said}"
+    if autopilot == "px4":
+        fence = mavutil.mavlink.MAV_SYS_STATUS_GEOFENCE
+        claimed = [
+            s for s in monitor.kept["SYS_STATUS"]
+            if (s.onboard_control_sensors_present | s.onboard_control_sensors_enabled) & fence
+        ]  # fmt: skip
+        assert not claimed, f"a geofence reported present or enabled: {claimed[:1]}"
     vehicle.alive()
 
 
