@@ -267,11 +267,8 @@ class Px4Copter(Autopilot):
 
     @property
     def base_mode(self) -> int:
-        flags = (
-            mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
-            | mavlink.MAV_MODE_FLAG_STABILIZE_ENABLED
-            | mavlink.MAV_MODE_FLAG_MANUAL_INPUT_ENABLED
-        )
+        # PX4 without an RC receiver sets no MANUAL_INPUT flag (29 in Hold, as PX4 SITL).
+        flags = mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | mavlink.MAV_MODE_FLAG_STABILIZE_ENABLED
         if self.mode.startswith("AUTO"):
             flags |= mavlink.MAV_MODE_FLAG_AUTO_ENABLED | mavlink.MAV_MODE_FLAG_GUIDED_ENABLED
         if self.mode == "OFFBOARD":
@@ -330,9 +327,6 @@ class Px4Copter(Autopilot):
             self.mode = "OFFBOARD"
             self.takeoff_target = None
             return ACCEPTED
-        if name == self.auto_mode and not self.mission.has_mission():
-            self.text(_CRITICAL, "Mission rejected: no mission uploaded")
-            return TEMPORARILY_REJECTED
         if name == "AUTO.TAKEOFF":
             return self.takeoff(math.nan)
         if name != self.mode:

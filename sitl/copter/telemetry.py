@@ -105,8 +105,10 @@ class Telemetry:
             0, 0, 0, 0, mavlink.MAV_DISTANCE_SENSOR_LASER, 0,
             mavlink.MAV_SENSOR_ROTATION_PITCH_270, 0,
         )
+        # PX4 reports its pre-arm state in health only, never as present or enabled.
+        present = _SENSORS & ~_S.MAV_SYS_STATUS_PREARM_CHECK if ap.name == "px4" else _SENSORS
         self._sys_status_msg = mavlink.MAVLink_sys_status_message(
-            _SENSORS, _SENSORS, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0
+            present, present, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0
         )
         self._ess_msg = mavlink.MAVLink_extended_sys_state_message(
             mavlink.MAV_VTOL_STATE_UNDEFINED, mavlink.MAV_LANDED_STATE_ON_GROUND
@@ -285,6 +287,7 @@ class Telemetry:
         ap = self.autopilot
         store = ap.mission
         total = len(store.items) - store.first if store.has_mission() else _UINT16_MAX
+        # mission_mode: 1 in the mission mode, 2 suspended (any other mode).
         return mavlink.MAVLink_mission_current_message(
-            store.current, total, ap.auto.mission_state, int(ap.mode == ap.auto_mode)
+            store.current, total, ap.auto.mission_state, 1 if ap.mode == ap.auto_mode else 2
         )

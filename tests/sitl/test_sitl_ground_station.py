@@ -351,13 +351,17 @@ def test_px4_armed_in_mission_mode_takes_off_and_flies_it():
     assert [m.seq for m in gcs.of_type("MISSION_ITEM_REACHED")] == [0, 1, 2, 4]
 
 
-def test_px4_refuses_mission_mode_without_a_mission():
+def test_px4_takes_mission_mode_without_a_mission_and_stays_on_the_ground():
+    # As PX4 SITL does: the mode is accepted; MISSION_CURRENT says there is no mission.
     sim, gcs = connect("px4")
     settle(sim, gcs)
     gcs.set_mode(PX4_MISSION, px4=True)
-    run(sim, gcs, 0.2)
-    assert last_ack(gcs, C.MAV_CMD_DO_SET_MODE) == C.MAV_RESULT_TEMPORARILY_REJECTED
-    assert sim.truth.mode == "AUTO.LOITER"
+    gcs.arm()
+    run(sim, gcs, 2)
+    assert last_ack(gcs, C.MAV_CMD_DO_SET_MODE) == C.MAV_RESULT_ACCEPTED
+    assert sim.truth.mode == "AUTO.MISSION" and sim.truth.landed
+    current = gcs.last["MISSION_CURRENT"]
+    assert current.mission_state == C.MISSION_STATE_NO_MISSION and current.mission_mode == 1
 
 
 def test_mission_start_and_return_to_launch_item():
