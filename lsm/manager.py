@@ -34,6 +34,7 @@ from lsm.settings import LossWeights, LsmSettings
 REJECT_REASONS = (
     "malformed",  # not a SiteObservation, or fields that are not numbers
     "non_finite",  # NaN or inf in any numeric field
+    "position_out_of_range",  # x, y or z farther than 10,000 km from home
     "roughness_out_of_range",  # roughness outside [0, 1]
     "uncertainty_out_of_range",  # uncertainty outside [0, 1]
     "negative_size",
@@ -48,6 +49,7 @@ _OBS_FIELDS = attrgetter(
     "observation_altitude", "timestamp",
 )
 _BATCH = 1024  # observations processed per lock acquisition by the worker
+_MAX_COORDINATE = 1e7  # m: farther from home than any mission's local frame reaches
 _KEY_STRIDE = 1 << 32  # spatial-hash key = ix * stride + iy (|iy| < 2**31 cells)
 _TREE_K = 2  # nearest snapshot entries examined per observation
 _SNAPSHOT_MIN = 64  # changed sites tolerated in the hash before the k-d tree is rebuilt
@@ -655,6 +657,7 @@ class LandingSiteManager:
         finite = np.isfinite(vals).all(axis=1)
         checks = (
             ("non_finite", ~finite),
+            ("position_out_of_range", (np.abs(vals[:, :3]) > _MAX_COORDINATE).any(axis=1)),
             ("roughness_out_of_range", (vals[:, 3] < 0) | (vals[:, 3] > 1)),
             ("uncertainty_out_of_range", (vals[:, 4] < 0) | (vals[:, 4] > 1)),
             ("negative_size", vals[:, 5] < 0),

@@ -57,8 +57,9 @@ class LsmSettings(BaseModel):
         "them all on every ranking"
     )
     match_radius: float = Field(
-        2.0, gt=0, le=MAX_DISTANCE, description="an observation this close (horizontally, m) "
-        "is the same site; at most 50 km (a multicopter's range)"
+        2.0, ge=0.01, le=MAX_DISTANCE, description="an observation this close "
+        "(horizontally, m) is the same site: 1 cm (finer than any detector places a site; "
+        "sites are hashed in cells of twice this) .. 50 km (a multicopter's range)"
     )
     max_distance: float = Field(
         100.0, gt=0, le=MAX_DISTANCE, description="sites farther than this from the drone "

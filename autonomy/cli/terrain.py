@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import argparse
 import math
-import sys
 import time
 from pathlib import Path
 
@@ -71,7 +70,7 @@ def build(kind: str, assignments: dict, seed: int):
     cells = settings_cells(settings)
     if cells is not None and cells > 4_000_000:
         print(f"building the {kind} world ({cells / 1e6:.0f} million cells) and its safety map",
-              file=sys.stderr, flush=True)
+              flush=True)
     try:
         return make_terrain(settings, seed=seed)
     except (OSError, ValueError) as exc:

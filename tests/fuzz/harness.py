@@ -247,9 +247,8 @@ class Runner:
 
     def _start(self) -> None:
         parent, child = self._context.Pipe()
-        self._process = self._context.Process(
-            target=_serve, args=(child, str(self.workdir)), daemon=True
-        )
+        # Not a daemon: campaigns start process pools, which daemons may not.
+        self._process = self._context.Process(target=_serve, args=(child, str(self.workdir)))
         self._process.start()
         child.close()
         self._conn = parent
@@ -301,6 +300,10 @@ class Runner:
 
     def close(self) -> None:
         self._stop()
+
+    def __del__(self) -> None:  # a worker must not outlive its runner
+        if self._process is not None and self._process.is_alive():
+            self._process.kill()
 
 
 # --------------------------------------------------------------------------------------

@@ -226,3 +226,12 @@ def test_non_finite_weights_are_refused(field):
         LossWeights(**{field: math.nan})
     with pytest.raises(ValidationError, match=field):
         LossWeights(**{field: math.inf})
+
+
+def test_positions_beyond_any_mission_frame_are_rejected_before_the_drone_is_known():
+    lsm = LandingSiteManager(LsmSettings(match_radius=0.01), LossWeights())
+    far = SiteObservation(x=1e300, y=0.0, z=0.0, roughness=0.1, uncertainty=0.1, size=2.0,
+                          obstacle_altitude=0.0, observation_altitude=30.0)
+    lsm.submit(far)
+    lsm.process_pending()
+    assert len(lsm) == 0 and lsm.counters()["rejected_position_out_of_range"] == 1
