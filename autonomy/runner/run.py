@@ -93,7 +93,9 @@ def fly(
         out_dir: directory for summary.json, events.jsonl, flight.tlog and report.png
             (created); None writes nothing, which is fastest. They are written whatever ends
             the flight once it started: landing, failure, Ctrl-C (summary ``interrupted``:
-            true) or an internal error (which is raised again afterwards).
+            true) or an internal error (which is raised again afterwards). Once the tree is
+            built, tree.btlog (its transitions, for Groot2: :mod:`behaviors.btlog`) and
+            blackboard.jsonl (:mod:`behaviors.bblog`) are written beside them as it ticks.
         console: print a line per phase change, link and home notes, and a closing summary
             to stdout.
         on_interrupt: live mode only: what Ctrl-C does before returning. A lockstep flight
@@ -109,6 +111,7 @@ def fly(
             be built.
     """
     from autonomy.vehicle import connect
+    from behaviors.recording import TreeRecorder
     from behaviors.tree import build_mission_tree
 
     seed = mission.seed if seed is None else seed
@@ -151,6 +154,7 @@ def fly(
     refusal: HomeMismatch | None = None
     failure: BaseException | None = None
     data: FlightData | None = None
+    recorders: list[TreeRecorder] = []  # tree.btlog and blackboard.jsonl, when out is set
     try:
         vehicle = connect(
             mission.vehicle.connection, clock, sitl=sitl,
@@ -166,6 +170,8 @@ def fly(
                 plan, vehicle, lsm, clock, np.random.default_rng(seeds.tree)
             )
             tree.setup()
+            if out is not None:
+                recorders.append(TreeRecorder(tree, out, clock.now))
             return tree
 
         flight = Flight(
@@ -212,6 +218,8 @@ def fly(
         data.refused = refusal is not None
         data.interrupted = stop_reason.startswith("interrupted")
     finally:
+        for recorder in recorders:
+            recorder.close()
         if not lockstep:
             lsm.stop()
         if vehicle is not None:
