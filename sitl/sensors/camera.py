@@ -238,6 +238,10 @@ class DepthCamera:
         depth = self._pinhole_rays(yaw, rotation).cast(
             bounds, p, t_max=max_range, step=s.march_step, tolerance=5e-4 * 2**level
         )
+        if self.terrain.known is not None:  # an elevation model: no return off it or on nodata
+            rays = self._rays[1]
+            hit_x, hit_y = p[0] + depth * rays.dx, p[1] + depth * rays.dy
+            depth[~self.terrain.has_ground(hit_x, hit_y)] = np.nan
         sigma = depth_sigma(
             depth, np.float32(s.focal_px), np.float32(baseline), np.float32(s.disparity_sigma_px)
         )

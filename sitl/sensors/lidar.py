@@ -9,8 +9,9 @@ Two beam patterns:
 - ``downward``: a solid-state/flash LiDAR looking straight down with a square field of view of
   ``channels`` x ``azimuth_steps`` beams.
 
-Points are ENU metres; rays without a hit within ``max_range`` (sky, beyond range) or closer
-than ``min_range`` give no point.
+Points are ENU metres; rays without a hit within ``max_range`` (sky, beyond range), closer
+than ``min_range``, or ending where an elevation model has no ground (off its grid, nodata)
+give no point.
 """
 
 from __future__ import annotations
@@ -132,6 +133,9 @@ class LidarScanner:
             block_max=self._block_max,
         )
         hit = np.isfinite(r) & (r >= self.settings.min_range)
+        if self.terrain.known is not None:  # an elevation model: no return off it or on nodata
+            ends = p + dirs * np.where(hit, r, 0.0)[:, None]
+            hit &= self.terrain.has_ground(ends[:, 0], ends[:, 1])
         r = r[hit]
         if self.settings.range_noise_std > 0:
             r = r + self.settings.range_noise_std * self.rng.standard_normal(len(r))

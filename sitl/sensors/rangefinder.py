@@ -35,10 +35,13 @@ class RangeFinder:
 
     def measure(self, position, yaw: float = 0.0) -> float | None:
         """Measured AGL (m) at ``position`` (3,) ENU, or None when there is no valid
-        return: beyond ``max_range``, below ``min_range``, or a non-finite pose."""
+        return: beyond ``max_range``, below ``min_range``, a non-finite pose, or no ground
+        below (off an elevation model, or over its nodata cells)."""
         p = np.asarray(position, dtype=np.float64).reshape(-1)
         if p.size != 3 or not np.all(np.isfinite(p)) or not np.isfinite(yaw):
             return None
+        if not self.terrain.has_ground(p[0], p[1]):
+            return None  # off an elevation model or over its nodata: no return
         agl = self.true_agl(p)
         if self.settings.noise_std > 0:
             agl += self.settings.noise_std * float(self.rng.standard_normal())

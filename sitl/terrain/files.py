@@ -3,8 +3,13 @@ simulation grid.
 
 Formats: ``.npy`` (row i along +y, south to north; the cell size comes from the settings),
 ESRI ASCII grid ``.asc`` (north-up rows, header with ``cellsize`` and ``NODATA_value``), and
-GeoTIFF through rasterio (optional extra ``geotiff``; imported only when needed). Missing
-values (NODATA, NaN) take the nearest valid height.
+GeoTIFF through rasterio (optional extra ``geotiff``; imported only when needed).
+
+The model is taken as it is: outside its grid there is no ground, and missing values (ESRI
+``NODATA_value``, GeoTIFF nodata, NaN) stay unknown. The world's ``known`` mask carries
+both to the sensors (no return there, so no site is detected there); its height grid holds
+the nearest known height in unknown cells only so that rays march through a continuous
+surface.
 """
 
 from __future__ import annotations
@@ -70,26 +75,29 @@ def check_elevation(settings: FileTerrainSettings) -> None:
 
 def generate(
     settings: FileTerrainSettings, rng: np.random.Generator
-) -> tuple[np.ndarray, tuple[float, float]]:
-    """(grid, origin) of the elevation model, resampled to ``settings.cell_size`` and
-    placed so that home (0, 0) is at ``settings.home`` (default: the model's centre)."""
+) -> tuple[np.ndarray, tuple[float, float], np.ndarray]:
+    """(grid, origin, known) of the elevation model, resampled to ``settings.cell_size``
+    and placed so that home (0, 0) is at ``settings.home`` (default: the model's centre).
+    ``known`` is False in cells whose bilinear height needs an unknown source cell."""
     heights, source_cell = read_elevation(settings.path, settings.source_cell_size)
-    heights = heights * settings.vertical_scale
+    known_source = np.isfinite(heights)
+    heights = _nearest_known(heights, known_source) * settings.vertical_scale
     nx, ny, width, depth = _grid_shape(settings, heights.shape, source_cell)
     cs = settings.cell_size
     # Bilinear resampling at the simulation cell centres (source index units).
     rows = np.arange(ny) * (cs / source_cell)
     cols = np.arange(nx) * (cs / source_cell)
-    grid = ndimage.map_coordinates(
-        heights, np.meshgrid(rows, cols, indexing="ij"), order=1, mode="nearest"
-    ).astype(np.float32)
+    at = np.meshgrid(rows, cols, indexing="ij")
+    grid = ndimage.map_coordinates(heights, at, order=1, mode="nearest").astype(np.float32)
+    known = ndimage.map_coordinates(known_source.astype(np.float64), at, order=1, mode="nearest")
     hx, hy = settings.home if settings.home is not None else (width / 2, depth / 2)
-    return grid, (-hx, -hy)
+    return grid, (-hx, -hy), known >= 1.0 - 1e-6
 
 
 def read_elevation(path: Path, source_cell_size: float | None = None) -> tuple[np.ndarray, float]:
-    """Heights (ny, nx) float64 with row i along +y (south to north), and the cell size
-    in metres. Raises ValueError("path: ...") on an unreadable or malformed file.
+    """Heights (ny, nx) float64 with row i along +y (south to north), NaN where unknown
+    (nodata), and the cell size in metres. Raises ValueError("path: ...") on an unreadable
+    or malformed file, or one without a single known height.
 
     The last model read is kept (keyed by the file's path, size and modification time), so
     validating a mission and then flying it reads the file once.
@@ -137,20 +145,25 @@ def _read_elevation_quietly(path: Path, source_cell_size: float | None
         raise ValueError(f"path: {path}: no positive cell size")
     if heights.ndim != 2 or min(heights.shape) < 2:
         raise ValueError(f"path: {path}: need a 2-D grid of at least 2 x 2, got {heights.shape}")
-    return _fill_missing(heights, nodata, path), float(cell)
+    return _mark_missing(heights, nodata, path), float(cell)
 
 
-def _fill_missing(heights: np.ndarray, nodata: float | None, path: Path) -> np.ndarray:
+def _mark_missing(heights: np.ndarray, nodata: float | None, path: Path) -> np.ndarray:
+    """Heights with NaN in the nodata cells."""
     missing = ~np.isfinite(heights)
     if nodata is not None:
         missing |= heights == nodata
     if missing.all():
-        raise ValueError(f"path: {path}: no valid heights")
-    if missing.any():
-        # nearest valid cell, via the Euclidean distance transform's indices
-        idx = ndimage.distance_transform_edt(missing, return_distances=False, return_indices=True)
-        heights = heights[tuple(idx)]
-    return heights
+        raise ValueError(f"path: {path}: no valid heights (every cell is nodata)")
+    return np.where(missing, np.nan, heights)
+
+
+def _nearest_known(heights: np.ndarray, known: np.ndarray) -> np.ndarray:
+    """Heights with each unknown cell given its nearest known cell's height."""
+    if known.all():
+        return heights
+    idx = ndimage.distance_transform_edt(~known, return_distances=False, return_indices=True)
+    return heights[tuple(idx)]
 
 
 def _load_npy(path: Path) -> np.ndarray:

@@ -13,11 +13,18 @@ class Terrain:
     Between cell centres the surface is bilinear; outside the grid it continues with the edge
     value. Home (0, 0) is at ground level z = 0 in the worlds :func:`make_terrain` builds.
 
+    A terrain with a ``known`` mask is an elevation model read from a file: it has ground
+    only on its grid where ``known`` is True (:meth:`has_ground`). Sensors get no return
+    elsewhere (off the model, nodata cells); :attr:`grid` holds the nearest known height
+    there only so that rays march through a continuous surface.
+
     Args:
         grid: (ny, nx) heights in metres (stored as float32).
         cell_size: grid spacing in metres.
         origin: (x0, y0) ENU metres of the centre of cell ``grid[0, 0]``.
         kind: name of the world kind that produced it ("flat", "mars", ...).
+        known: (ny, nx) bool, True where the model has a height; None: ground everywhere
+            (a procedural world, continued with its edge values beyond the grid).
     """
 
     def __init__(
@@ -26,6 +33,7 @@ class Terrain:
         cell_size: float,
         origin: tuple[float, float] = (0.0, 0.0),
         kind: str = "custom",
+        known: np.ndarray | None = None,
     ) -> None:
         grid = np.ascontiguousarray(grid, dtype=np.float32)
         if grid.ndim != 2 or min(grid.shape) < 2:
@@ -39,6 +47,24 @@ class Terrain:
         self.origin = (float(origin[0]), float(origin[1]))
         self.kind = kind
         self._flat = grid.ravel()
+        if known is not None:
+            known = np.asarray(known, dtype=bool)
+            if known.shape != grid.shape:
+                raise ValueError(f"known: shape {known.shape} differs from the grid's")
+        self.known = known
+
+    def has_ground(self, x, y) -> np.ndarray | bool:
+        """True where (x, y) has ground: everywhere on a procedural world; on an elevation
+        model (``known`` given) only within :attr:`extent` on a known cell (nearest)."""
+        if self.known is None:
+            shape = np.broadcast_shapes(np.shape(x), np.shape(y))
+            return True if shape == () else np.ones(shape, dtype=bool)
+        x, y = np.broadcast_arrays(np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64))
+        inside = np.asarray(self.contains(x, y)) & np.isfinite(x) & np.isfinite(y)
+        x0, y0 = self.origin
+        row, col = self.index(np.where(inside, x, x0), np.where(inside, y, y0))
+        ground = inside & self.known[row, col]
+        return bool(ground) if ground.ndim == 0 else ground
 
     @property
     def shape(self) -> tuple[int, int]:

@@ -213,7 +213,7 @@ def is_safe(terrain: Terrain, x, y, settings: SafetySettings | None = None):
     Each point is evaluated on a small patch of the grid around it (all patches at once), or,
     when that is less work, all on one map of the window around them: either way with the
     same verdict as :func:`safety_map` at that cell. Points outside the terrain are unsafe
-    (no ground truth there).
+    (no ground truth there), and so are an elevation model's nodata cells.
     """
     settings = settings or SafetySettings()
     x, y = np.broadcast_arrays(np.asarray(x, dtype=np.float64), np.asarray(y, dtype=np.float64))
@@ -223,6 +223,7 @@ def is_safe(terrain: Terrain, x, y, settings: SafetySettings | None = None):
     row, col = terrain.index(np.where(finite, xf, 0.0), np.where(finite, yf, 0.0))
     pad = _reach_cells(terrain.cell_size, settings)
     inside = finite & np.asarray(terrain.contains(xf, yf))
+    inside &= terrain.has_ground(np.where(finite, xf, np.nan), np.where(finite, yf, np.nan))
     safe = np.zeros(xf.shape, dtype=bool)
     if inside.any():
         # Many close points: one map over the window around them costs less than a patch

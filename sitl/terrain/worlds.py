@@ -33,9 +33,10 @@ def make_terrain(settings: TerrainSettings | dict[str, Any], seed: int = 0) -> T
     settings = parse_terrain_settings(settings)
     rng = np.random.default_rng(seed)
     module = importlib.import_module(_GENERATORS[settings.kind])
-    grid, origin = module.generate(settings, rng)
+    grid, origin, *known = module.generate(settings, rng)  # elevation models: + known mask
     grid = clear_home(grid, origin, settings.cell_size, settings.home_clear_radius)
-    return Terrain(grid, settings.cell_size, origin, kind=settings.kind)
+    known = known[0] if known else None
+    return Terrain(grid, settings.cell_size, origin, kind=settings.kind, known=known)
 
 
 def procedural_frame(settings) -> tuple[tuple[int, int], tuple[float, float]]:
