@@ -101,6 +101,35 @@ class VehiclePort(Protocol):
 
     def set_velocity(self, vx: float, vy: float, vz: float) -> CommandHandle: ...
 
+    def follow(
+        self, x: float, y: float, z: float, vx: float, vy: float, vz: float
+    ) -> CommandHandle:
+        """Track a trajectory: call on every tick with its next ENU position (m) and
+        velocity (m/s, a feed-forward); later calls while following return the same handle."""
+        ...
+
     def hold(self) -> CommandHandle: ...
 
     def land(self) -> CommandHandle: ...
+
+
+class Trajectory(Protocol):
+    """A planned flight in time: ENU positions (m) and velocities (m/s) from t = 0 s."""
+
+    @property
+    def duration(self) -> float: ...
+
+    def state_at(self, t: float) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
+        """(position, velocity) at ``t`` seconds from the start (held at the end)."""
+        ...
+
+
+class ApproachPlanner(Protocol):
+    """Plans the approach to a site over what the vehicle knows of the terrain."""
+
+    def plan(
+        self, start: tuple[float, float, float], goal: tuple[float, float, float]
+    ) -> Trajectory | str:
+        """A collision-free trajectory from ``start`` to ``goal`` (ENU m), or why there is
+        none (the caller then flies the climb, traverse and descent instead)."""
+        ...

@@ -8,7 +8,7 @@ needs no degree conversion for these models.
 from __future__ import annotations
 
 import math
-from typing import Annotated
+from typing import Annotated, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
@@ -34,6 +34,46 @@ Altitude = Annotated[float, Field(gt=0, le=MAX_ALTITUDE)]
 """m above home, (0, MAX_ALTITUDE]."""
 Horizontal = Annotated[float, Field(ge=-MAX_RANGE, le=MAX_RANGE)]
 """ENU x or y, m from home, within MAX_RANGE."""
+
+
+class ApproachSettings(BaseModel):
+    """How the vehicle reaches the chosen site: the thesis's climb to the clear altitude,
+    traverse and descent (eq. 3.4-3.5), or a minimum-snap trajectory planned over the
+    terrain the vehicle has mapped (Mittal et al. III-D), with the thesis's as fallback."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+
+    method: Literal["clear_altitude", "trajectory"] = Field(
+        "clear_altitude", description="clear_altitude: climb, traverse, descend (thesis); "
+        "trajectory: a minimum-snap trajectory around what stands above the flight altitude "
+        "(needs a mapping detector: detector elevation; else the thesis's approach is flown)"
+    )
+    vehicle_radius: float = Field(
+        1.5, gt=0, le=100, description="m: the vehicle's radius plus a lateral margin; "
+        "every mapped obstacle within it counts, up to 100 m"
+    )
+    vertical_margin: float = Field(
+        2.0, ge=0, le=MAX_ALTITUDE, description="m kept between the vehicle and the top of "
+        "every obstacle (raised by k_sigma standard deviations of the map), up to 10 km"
+    )
+    k_sigma: float = Field(
+        2.0, ge=0, le=10, description="standard deviations of a cell's height uncertainty "
+        "added to its top, 0 to 10"
+    )
+    min_height: float = Field(
+        10.0, gt=0, le=MAX_ALTITUDE, description="m above the site where the trajectory ends "
+        "at least (the vehicle then descends vertically), up to 10 km"
+    )
+    max_speed: float = Field(
+        5.0, gt=0, le=50, description="m/s peak speed of the trajectory, up to 50 m/s"
+    )
+    max_acceleration: float = Field(
+        2.0, gt=0, le=20, description="m/s^2 peak acceleration of the trajectory, up to 20"
+    )
+    max_tracking_error: float = Field(
+        5.0, gt=0, le=1000, description="m the vehicle may stray from the trajectory before "
+        "the approach falls back to the thesis's, up to 1 km"
+    )
 
 
 class LandingSettings(BaseModel):
@@ -115,6 +155,9 @@ class LandingSettings(BaseModel):
     gps_loss_timeout: float = Field(
         5.0, gt=0, le=MAX_WAIT, description="s without a 3D GPS fix in flight after which "
         "the vehicle lands where it is, up to an hour"
+    )
+    approach: ApproachSettings = Field(
+        default_factory=ApproachSettings, description="how the vehicle reaches the site"
     )
 
     @model_validator(mode="after")

@@ -50,6 +50,7 @@ _EKF_CONST_POS = mavlink.EKF_CONST_POS_MODE
 _ARMED_FLAG = mavlink.MAV_MODE_FLAG_SAFETY_ARMED
 _POSITION_ONLY = 0x0DF8  # ignore velocity, acceleration, yaw, yaw rate
 _VELOCITY_ONLY = 0x0DC7  # ignore position, acceleration, yaw, yaw rate
+_POSITION_VELOCITY = 0x0DC0  # a trajectory's setpoint: ignore acceleration, yaw, yaw rate
 _DOWNWARD = mavlink.MAV_SENSOR_ROTATION_PITCH_270
 _LANDED = {
     mavlink.MAV_LANDED_STATE_UNDEFINED: LandedState.UNDEFINED,
@@ -122,8 +123,9 @@ class ModeChange:
 
 @dataclass
 class _Setpoint:
-    kind: str  # "position" or "velocity"
+    kind: str  # "position", "velocity" or "trajectory" (position with velocity feed-forward)
     ned: tuple[float, float, float]
+    velocity_ned: tuple[float, float, float] = (0.0, 0.0, 0.0)  # feed-forward, "trajectory"
 
 
 class MavlinkVehicle:
@@ -232,6 +234,7 @@ class MavlinkVehicle:
         self._requested_modes: dict[str, float] = {}
 
         self._setpoint: _Setpoint | None = None
+        self._following: Handle | None = None  # the handle of the trajectory being tracked
         self._setpoint_since: float | None = None  # clock s when the current stream began
         self._last_setpoint_sent = -math.inf
         self._last_heartbeat_sent = -math.inf
@@ -379,6 +382,31 @@ class MavlinkVehicle:
             return finished_handle(name, self.clock.now(), CommandStatus.DENIED, "not finite")
         self._set_setpoint("velocity", frames.enu_to_ned_velocity(vx, vy, vz))
         return self._procedure(name, self._enter_guided_steps(), kind="guided")
+
+    def follow(self, x: float, y: float, z: float, vx: float, vy: float, vz: float) -> Handle:
+        """Track a trajectory: the ENU position (m from home) with the ENU velocity (m/s) as a
+        feed-forward, one sample of a moving target. Call it on every tick with the next
+        sample; the setpoint is replaced and streamed at the setpoint rate. The first call
+        enters GUIDED/OFFBOARD; later calls while following return the same handle."""
+        name = "follow trajectory"
+        refused = self._start(name)
+        if refused:
+            return refused
+        if not all(math.isfinite(v) for v in (x, y, z, vx, vy, vz)):
+            return finished_handle(name, self.clock.now(), CommandStatus.DENIED, "not finite")
+        position = frames.enu_to_ned(x, y, z, self._home_ned)
+        velocity = frames.enu_to_ned_velocity(vx, vy, vz)
+        following = self._setpoint is not None and self._setpoint.kind == "trajectory"
+        handle = self._following
+        if following and handle is not None and handle.status not in (
+            CommandStatus.DENIED, CommandStatus.TIMED_OUT
+        ):
+            # Same stream, next sample: sent at the setpoint rate, not on every call.
+            self._setpoint = _Setpoint("trajectory", position, velocity)
+            return handle
+        self._set_setpoint("trajectory", position, velocity)
+        self._following = self._procedure(name, self._enter_guided_steps(), kind="guided")
+        return self._following
 
     def hold(self) -> Handle:
         """Stop and hover: PX4 AUTO.LOITER; ArduPilot GUIDED at the current position."""
@@ -741,10 +769,15 @@ class MavlinkVehicle:
         )
 
     # ------------------------------------------------------------------ setpoints
-    def _set_setpoint(self, kind: str, ned: tuple[float, float, float]) -> None:
+    def _set_setpoint(
+        self,
+        kind: str,
+        ned: tuple[float, float, float],
+        velocity_ned: tuple[float, float, float] = (0.0, 0.0, 0.0),
+    ) -> None:
         if self._setpoint is None:
             self._setpoint_since = self.clock.now()
-        self._setpoint = _Setpoint(kind, ned)
+        self._setpoint = _Setpoint(kind, ned, velocity_ned)
         self._last_setpoint_sent = -math.inf
         self._stream_setpoint(self.clock.now())
 
@@ -787,6 +820,8 @@ class MavlinkVehicle:
         x, y, z = sp.ned
         if sp.kind == "position":
             mask, pos, vel = _POSITION_ONLY, (x, y, z), (0.0, 0.0, 0.0)
+        elif sp.kind == "trajectory":
+            mask, pos, vel = _POSITION_VELOCITY, (x, y, z), sp.velocity_ned
         else:
             mask, pos, vel = _VELOCITY_ONLY, (0.0, 0.0, 0.0), (x, y, z)
         self._mav.set_position_target_local_ned_send(

@@ -143,6 +143,16 @@ class FakeVehicle:
         self.target = (x, y, z)
         return FakeHandle("goto")
 
+    def follow(self, x: float, y: float, z: float, vx: float, vy: float, vz: float):
+        refused = self._answer("follow", x, y, z, vx, vy, vz)
+        if refused:
+            return refused
+        if not self.armed:
+            return FakeHandle("follow", CommandStatus.DENIED, "not armed")
+        self.mode, self.landing = "GUIDED", False
+        self.target = (x, y, z)
+        return FakeHandle("follow")
+
     def set_velocity(self, vx: float, vy: float, vz: float) -> FakeHandle:
         return self._answer("set_velocity", vx, vy, vz) or FakeHandle("set_velocity")
 

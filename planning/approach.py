@@ -1,0 +1,132 @@
+"""The approach to a landing site: grid path, line of sight, minimum snap, checked against the map.
+
+:func:`plan_approach` is the whole of section III-D for a 2.5D map: a path over the cells the
+vehicle can pass at its altitude, its line-of-sight waypoints, and a minimum-snap trajectory
+through them within the speed and acceleration limits. A smooth trajectory can cut a corner
+that the straight segments did not; each sample is therefore checked against the map, and a
+segment that grazes an obstacle gets the path's middle cell as an extra waypoint (Richter et
+al.'s remedy), a few times at most. When no path or no clean trajectory exists the answer says
+why, and the caller keeps the thesis's climb, traverse and descent.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from planning.grid_path import GridPath, _cell_of, clearance_grid, free_cells, plan_path
+from planning.min_snap import SAMPLES_PER_SEGMENT, Trajectory, min_snap_trajectory
+
+
+@dataclass(frozen=True, slots=True)
+class ApproachPlan:
+    """The outcome of :func:`plan_approach`.
+
+    Attributes:
+        trajectory: the trajectory (ENU m, from the start to above the site), or None.
+        path: the grid path it follows, or None.
+        waypoints: (K, 3) ENU waypoints the trajectory passes through, or None.
+        reason: '' when planned; otherwise why not, in one line.
+    """
+
+    trajectory: Trajectory | None
+    path: GridPath | None
+    waypoints: np.ndarray | None
+    reason: str = ""
+
+    @property
+    def ok(self) -> bool:
+        return self.trajectory is not None
+
+
+def _with_altitudes(xy: np.ndarray, z0: float, z1: float) -> np.ndarray:
+    """Waypoints in 3D, the altitude changing in proportion to the distance flown."""
+    along = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))])
+    share = along / along[-1] if along[-1] > 0 else np.zeros_like(along)
+    return np.column_stack([xy, z0 + (z1 - z0) * share])
+
+
+def _first_collision(
+    trajectory: Trajectory, clearance: np.ndarray, origin: np.ndarray, resolution: float,
+    margin: float, start_cell: np.ndarray,
+) -> int | None:
+    """The segment of the first sample below the clearance (+ margin), or None."""
+    t = np.linspace(0.0, trajectory.duration, SAMPLES_PER_SEGMENT * len(trajectory.durations))
+    p = trajectory.sample(t)
+    cells = _cell_of(p[:, :2], origin, resolution)
+    n0, n1 = clearance.shape
+    inside = (cells[:, 0] >= 0) & (cells[:, 0] < n0) & (cells[:, 1] >= 0) & (cells[:, 1] < n1)
+    needed = np.full(len(p), np.inf)
+    needed[inside] = clearance[cells[inside, 0], cells[inside, 1]] + margin
+    # The start column is where the vehicle already is: it is not an obstacle to itself.
+    at_start = np.all(cells == start_cell, axis=1)
+    hit = (p[:, 2] <= needed) & ~at_start
+    if not hit.any():
+        return None
+    first = int(np.flatnonzero(hit)[0])
+    return int(np.searchsorted(trajectory.knots, t[first], side="right") - 1)
+
+
+def plan_approach(
+    start: np.ndarray,
+    goal: np.ndarray,
+    top: np.ndarray,
+    variance: np.ndarray,
+    origin: np.ndarray,
+    resolution: float,
+    radius: float,
+    margin: float,
+    max_speed: float,
+    max_acceleration: float,
+    k_sigma: float = 2.0,
+    refinements: int = 6,
+) -> ApproachPlan:
+    """Plan a trajectory from ``start`` to ``goal`` over the known terrain.
+
+    Args:
+        start: (3,) ENU m, the vehicle.
+        goal: (3,) ENU m, the point above the site to reach.
+        top, variance: (n0, n1) obstacle top (ENU z, NaN unknown) and its variance (m^2)
+            per cell of the vehicle's map.
+        origin: (2,) world x, y of the corner of cell [0, 0], m.
+        resolution: cell size, m.
+        radius: vehicle radius plus lateral margin, m.
+        margin: vertical margin over every obstacle, m.
+        max_speed, max_acceleration: limits, m/s and m/s^2.
+        k_sigma: standard deviations of each cell's uncertainty added to its top.
+        refinements: how many extra waypoints may be inserted where the smooth trajectory
+            cuts a corner.
+
+    Returns:
+        An :class:`ApproachPlan`; ``reason`` says why when there is no trajectory.
+    """
+    start = np.asarray(start, dtype=np.float64)
+    goal = np.asarray(goal, dtype=np.float64)
+    origin = np.asarray(origin, dtype=np.float64)
+    clearance = clearance_grid(top, variance, resolution, radius, k_sigma)
+    # The path is planned at the lower end's altitude, so it holds anywhere in between.
+    altitude = min(start[2], goal[2])
+    free = free_cells(clearance, altitude, margin)
+    path = plan_path(free, origin, resolution, start[:2], goal[:2])
+    if path is None:
+        return ApproachPlan(None, None, None, f"no path over the known terrain at "
+                            f"{altitude:.1f} m (radius {radius:g} m, margin {margin:g} m)")
+    index = list(path.waypoint_cells)
+    centres = origin + (path.cells + 0.5) * resolution
+    centres[0], centres[-1] = start[:2], goal[:2]
+    start_cell = _cell_of(start[:2], origin, resolution)
+    for _ in range(refinements + 1):
+        waypoints = _with_altitudes(centres[index], start[2], goal[2])
+        if len(waypoints) < 2 or np.allclose(waypoints[0], waypoints[-1]):
+            return ApproachPlan(None, path, None, "already above the site")
+        trajectory = min_snap_trajectory(waypoints, max_speed, max_acceleration)
+        segment = _first_collision(trajectory, clearance, origin, resolution, margin, start_cell)
+        if segment is None:
+            return ApproachPlan(trajectory, path, waypoints)
+        lo, hi = index[segment], index[segment + 1]
+        if hi - lo < 2:
+            break
+        index.insert(segment + 1, (lo + hi) // 2)
+    return ApproachPlan(None, path, None, "the smooth trajectory cuts an obstacle the "
+                        "path avoids, even with extra waypoints")
