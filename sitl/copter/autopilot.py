@@ -143,6 +143,9 @@ class Autopilot:
         self.rtl_altitude = 0.0
         self.texts: list[tuple[int, str]] = []
         self.home_changed = False
+        # A scheduled GPS loss (sitl.copter.gps.GpsOutage), set by the simulator; None in an
+        # ordinary flight.
+        self.gps = None
 
     # ----------------------------------------------------------------- queries
     @property
@@ -155,7 +158,50 @@ class Autopilot:
         """The EKF has an absolute position: home is set, position modes may be entered."""
         s = self.settings
         settle = s.arming_settle_time if s.position_settle_time is None else s.position_settle_time
+        if self.gps is not None and self.gps.position_failed(self.time):
+            return False
         return self.time >= settle
+
+    @property
+    def gps_lost(self) -> bool:
+        """GPS gives no fix now (a scheduled loss)."""
+        return self.gps is not None and self.gps.lost
+
+    def estimated_xy(self) -> tuple[float, float]:
+        """The EKF's horizontal position (ENU m): the truth, plus the drift while GPS is lost."""
+        m = self.model
+        if self.gps is None or not self.gps.lost:
+            return m.x, m.y
+        dx, dy = self.gps.drift
+        return m.x + dx, m.y + dy
+
+    def estimate_to_truth(
+        self, position: tuple[float, float, float]
+    ) -> tuple[float, float, float]:
+        """Where an absolute position target (in the EKF's frame) really is."""
+        if self.gps is None or not self.gps.lost:
+            return position
+        dx, dy = self.gps.drift
+        return position[0] - dx, position[1] - dy, position[2]
+
+    def update_gps(self, dt: float) -> None:
+        """Advance the GPS outage over a physics step; announce and act on changes."""
+        gps = self.gps
+        failed_before = gps.position_failed(self.time - dt)
+        change = gps.advance(self.time, dt, (self.model.vx, self.model.vy))
+        if change == "lost":
+            self.on_gps_lost()
+        elif change == "regained":
+            self.text(mavlink.MAV_SEVERITY_INFO, "GPS 1: fix regained")
+        elif gps.position_failed(self.time) and not failed_before:
+            self.on_position_failed()
+
+    def on_gps_lost(self) -> None:
+        """GPS just dropped its fix (the personalities word it)."""
+        self.text(mavlink.MAV_SEVERITY_INFO, "GPS 1: fix lost")
+
+    def on_position_failed(self) -> None:
+        """No horizontal position any more: the personality's failsafe."""
 
     @property
     def custom_mode(self) -> int:

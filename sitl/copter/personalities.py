@@ -213,6 +213,19 @@ class ArduCopter(Autopilot):
             return self._rtl_setpoint(agl, self.settings.land_speed)
         return Setpoint(position=self.hold, hold_ground=not self.flying)
 
+    def on_gps_lost(self) -> None:
+        # EKF3 falls back to optical flow when it has it (EK3_SRC1_VELXY), else stops aiding.
+        aided = self.gps is not None and self.gps.settings.velocity_aiding
+        self.text(_INFO, "EKF3 IMU0 is using optical flow" if aided else "EKF3 IMU0 stopped aiding")
+
+    def on_position_failed(self) -> None:
+        # ekf_check: bad position variance for 1 s -> EKF failsafe, FS_EKF_ACTION 1 (Land) in a
+        # mode that needs a position; other modes keep flying (nothing to fly without one).
+        self.text(_CRITICAL, "EKF variance")
+        if self.mode in self._needs_position and self.armed:
+            self._enter("LAND")
+            self.text(_CRITICAL, "EKF Failsafe: changed to LAND Mode")
+
     def disarm_delay(self) -> float:
         landing = self.mode in self.land_modes or self.mode in self.rtl_modes
         if landing and self.took_off:
@@ -419,6 +432,17 @@ class Px4Copter(Autopilot):
             return self._rtl_setpoint(agl, s.px4_land_speed)
         return Setpoint(position=self.hold, yaw=self.hold_yaw, max_speed=self.speed_limit,
                         hold_ground=not self.flying)
+
+    def on_gps_lost(self) -> None:
+        self.text(_INFO, "GNSS data lost")
+
+    def on_position_failed(self) -> None:
+        # COM_POS_FS_DELAY after the local position became invalid: a mode that needs it
+        # fails over to Land (descend on altitude alone).
+        needs = self.mode in self._needs_position or self.mode == self.auto_mode
+        if needs and self.armed and self.flying:
+            self.text(_CRITICAL, "Failsafe activated: no local position, landing")
+            self._enter("AUTO.LAND")
 
     def disarm_delay(self) -> float:
         # COM_DISARM_LAND after a landing, COM_DISARM_PRFLT if it never took off.

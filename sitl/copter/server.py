@@ -341,7 +341,9 @@ class MavlinkServer:
             if frame in _OFFSET_FRAMES:
                 position = (m.x + east, m.y + north, m.z - msg.z)
             else:
-                position = (east, north, self.autopilot.home_z - msg.z)
+                # In the EKF's frame: it drifts from the truth while GPS is lost.
+                ap = self.autopilot
+                position = ap.estimate_to_truth((east, north, ap.home_z - msg.z))
         if not mask & _IGNORE_VELOCITY:
             vn, ve = turn(msg.vx, msg.vy)
             velocity = (ve, vn, -msg.vz)
@@ -357,6 +359,7 @@ class MavlinkServer:
             if position is None:
                 self.ignored_setpoints += 1
                 return
+            position = self.autopilot.estimate_to_truth(position)
         if not mask & _IGNORE_VELOCITY:
             velocity = (msg.vy, msg.vx, -msg.vz)
         self._target(msg, position, velocity)
@@ -458,6 +461,15 @@ class MavlinkServer:
             self._mission_now = now
             if ap.announces_mission_current:
                 self.send_mission_current()
+
+    def send_named_value_int(self, name: str, value: int, now: float) -> None:
+        """NAMED_VALUE_INT ``name`` = ``value`` at sim time ``now`` to every open link (a
+        companion's sensor)."""
+        ms = int(now * 1000.0) & 0xFFFFFFFF
+        msg = mavlink.MAVLink_named_value_int_message(ms, name.encode(), int(value))
+        for link in self.links:
+            if link.open:
+                link.mav.send(msg)
 
     def emit(self, now: float) -> None:
         """Send the STATUSTEXTs and every telemetry message due at ``now``; flush links."""

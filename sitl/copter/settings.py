@@ -9,6 +9,8 @@ from __future__ import annotations
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
+from sitl.sensors.laser import LaserSettings
+
 
 class HomeSettings(BaseModel):
     """Geodetic position of home (the origin of the local ENU frame, on the ground)."""
@@ -60,6 +62,46 @@ class BatterySettings(BaseModel):
     )
     speed_current: float = Field(
         0.3, ge=0, le=1000, description="extra draw per m/s of ground speed, A, up to 1000"
+    )
+
+
+class GpsLossSettings(BaseModel):
+    """A scheduled loss of GPS (jamming, an urban canyon) and how the estimator copes.
+
+    From ``at`` on, GPS_RAW_INT reports no fix and the EKF dead-reckons: the position it
+    reports (and flies position targets by) drifts from the truth by a velocity error, a
+    constant bias plus a scale error of the speed flown plus a random walk, all seeded.
+    With ``velocity_aiding`` (an optical-flow sensor: ArduPilot EK3_SRC1_VELXY, PX4
+    EKF2_OF_CTRL) the EKF keeps a relative position, so GUIDED/OFFBOARD and velocity targets
+    still work. Without it the position is lost ``failsafe_delay`` s later and the autopilot
+    does what its documentation says: ArduPilot's EKF failsafe (FS_EKF_ACTION 1) switches a
+    mode that needs a position to LAND, PX4's position-loss failsafe (COM_POS_FS_DELAY) to
+    AUTO.LAND; both refuse the position modes from then on.
+    """
+
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+
+    at: float = Field(
+        ..., ge=0, le=86_400, description="sim seconds after boot when GPS is lost, up to a day"
+    )
+    duration: float | None = Field(
+        None, gt=0, le=86_400, description="s until the fix returns (None: lost for good)"
+    )
+    velocity_aiding: bool = Field(
+        True, description="an optical-flow sensor keeps the velocity (and a relative position)"
+    )
+    drift_bias: float = Field(
+        0.05, ge=0, le=10, description="1-sigma per axis of the dead-reckoning velocity bias, m/s"
+    )
+    drift_scale: float = Field(
+        0.03, ge=0, le=1, description="1-sigma scale error of the speed flown (0.03 = 3 %)"
+    )
+    drift_walk: float = Field(
+        0.02, ge=0, le=10, description="random walk of the velocity error, m/s per sqrt(s)"
+    )
+    failsafe_delay: float = Field(
+        1.0, ge=0, le=60, description="s of bad position before the failsafe without "
+        "velocity aiding (ArduPilot's EKF check: 1 s; PX4 COM_POS_FS_DELAY: 1 s)"
     )
 
 
@@ -217,6 +259,12 @@ class SitlSettings(BaseModel):
     )
     rangefinder_max: float = Field(
         40.0, gt=0, le=327, description="m, up to 327 (RNGFND1_MAX_CM is an int16 of cm)"
+    )
+
+    # GPS-denied flight (docs/gps-denied.md): both None in an ordinary flight.
+    gps_loss: GpsLossSettings | None = Field(None, description="a scheduled loss of GPS")
+    laser: LaserSettings | None = Field(
+        None, description="a ground laser and the vehicle's ring of light sensors"
     )
 
     # Link.

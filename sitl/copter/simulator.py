@@ -8,13 +8,21 @@ from typing import NamedTuple
 
 import numpy as np
 
+from sitl.sensors.laser import MESSAGE_NAME, LightSensorRing
+
 from .battery import Battery
 from .geo import GeoFrame, heading_to_enu_yaw
+from .gps import GpsOutage
 from .kinematics import Multicopter
 from .personalities import PERSONALITIES
 from .server import MavlinkServer
 from .settings import SitlSettings
 from .wind import Wind
+
+# Stream keys of the generators of the optional GPS drift and light sensors (mixed with the
+# seed, so they never share draws with the wind).
+_GPS_STREAM = 0x6770
+_LASER_STREAM = 0x1A5E
 
 
 class Touchdown(NamedTuple):
@@ -61,7 +69,8 @@ class Sitl:
         terrain: any object with ``height(x, y) -> ndarray`` (vectorised, ENU metres);
             None = flat ground at z = 0.
         autopilot: personality, ``"ardupilot"`` or ``"px4"``.
-        seed: seeds the wind gusts.
+        seed: seeds the wind gusts (and, when configured, the GPS drift and light sensors,
+            from generators of their own so an ordinary flight draws exactly as before).
         signing_key: 32-byte MAVLink 2 signing key in force from boot: packets are signed and
             unsigned ones refused (None: unsigned until a SETUP_SIGNING sets a key).
 
@@ -107,6 +116,17 @@ class Sitl:
             s, self.model, self.battery, self.slope, ground_z=home_z, geo=geo
         )
         self._ground = self._ground_now = home_z
+        # GPS-denied flight (docs/gps-denied.md): nothing is built, nothing drawn, unless the
+        # settings ask for it.
+        if s.gps_loss is not None:
+            self.autopilot.gps = GpsOutage(s.gps_loss, np.random.default_rng([seed, _GPS_STREAM]))
+        self.light_sensors: LightSensorRing | None = None
+        self.light_sensor_mask = 0  # the last reading (bit mask, sitl.sensors.laser)
+        self._light_due = 0.0
+        if s.laser is not None and s.laser.emitter is not None:
+            self.light_sensors = LightSensorRing(
+                s.laser, self._heights, np.random.default_rng([seed, _LASER_STREAM])
+            )
         self._ground_xy = (0.0, 0.0)
         self.server = MavlinkServer(
             self.autopilot,
@@ -127,6 +147,12 @@ class Sitl:
         h = float(np.asarray(self.terrain.height(np.array([x]), np.array([y]))).ravel()[0])
         # A terrain without data here (NaN) keeps the last known ground under the vehicle.
         return h if math.isfinite(h) else getattr(self, "_ground", 0.0)
+
+    def _heights(self, x, y) -> np.ndarray:
+        """Vectorised terrain height (flat ground: zeros)."""
+        if self.terrain is None:
+            return np.zeros(np.broadcast(np.asarray(x), np.asarray(y)).shape)
+        return np.asarray(self.terrain.height(x, y), dtype=np.float64)
 
     def slope(self, x: float, y: float) -> float:
         """Terrain slope at (x, y) in degrees, by central differences over
@@ -198,12 +224,25 @@ class Sitl:
                 self._time = ap.time = round(t0 + i * h, 9)
                 if contact is not None:
                     ap.on_contact(contact)
+                if ap.gps is not None:
+                    ap.update_gps(h)
                 flying = model.motors_on and not model.on_ground
                 battery.drain(
                     h, flying=flying, climb_rate=model.vz, speed=math.hypot(model.vx, model.vy)
                 )
                 ap.after_step()
+        if self.light_sensors is not None and self._time + 1e-9 >= self._light_due:
+            self._read_light_sensors()
         self.server.emit(self._time)
+
+    def _read_light_sensors(self) -> None:
+        """One reading of the light-sensor ring, sent as NAMED_VALUE_INT."""
+        ring = self.light_sensors
+        m = self.model
+        period = 1.0 / ring.settings.rate
+        self._light_due = max(self._light_due + period, self._time)
+        self.light_sensor_mask = ring.read(m.position, m.heading)
+        self.server.send_named_value_int(MESSAGE_NAME, self.light_sensor_mask, self._time)
 
     @property
     def truth(self) -> TruthState:

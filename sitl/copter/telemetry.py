@@ -171,7 +171,7 @@ class Telemetry:
         ap = self.autopilot
         m = ap.model
         msg = self._gpi_msg
-        lat, lon = ap.geo.to_global(m.x, m.y)
+        lat, lon = ap.geo.to_global(*ap.estimated_xy())
         rel = m.z - ap.home_z
         msg.time_boot_ms = self._time_ms()
         msg.lat = int(round(lat * 1e7))
@@ -189,7 +189,8 @@ class Telemetry:
         m = ap.model
         msg = self._lpn_msg
         msg.time_boot_ms = self._time_ms()
-        msg.x, msg.y, msg.z = m.y, m.x, -(m.z - ap.home_z)
+        east, north = ap.estimated_xy()
+        msg.x, msg.y, msg.z = north, east, -(m.z - ap.home_z)
         msg.vx, msg.vy, msg.vz = m.vy, m.vx, -m.vz
         return msg
 
@@ -214,6 +215,8 @@ class Telemetry:
         b = ap.battery
         msg = self._sys_status_msg
         health = _SENSORS if ap.settled else _SENSORS & ~_NEEDS_SETTLING
+        if ap.gps_lost:
+            health &= ~_S.MAV_SYS_STATUS_SENSOR_GPS
         msg.onboard_control_sensors_health = health | _HEALTHY_ABSENT
         msg.load = 200
         msg.voltage_battery = int(b.voltage * 1000.0)
@@ -246,8 +249,15 @@ class Telemetry:
         ap = self.autopilot
         m = ap.model
         msg = self._gps_msg
-        lat, lon = ap.geo.to_global(m.x, m.y)
         msg.time_usec = int(self.server.time * 1e6)
+        if ap.gps_lost:
+            # No fix: the receiver keeps its last solution and says it is worthless.
+            msg.fix_type = mavlink.GPS_FIX_TYPE_NO_FIX
+            msg.satellites_visible = 0
+            msg.eph = msg.epv = _UINT16_MAX
+            return msg
+        msg.eph, msg.epv = 121, 200
+        lat, lon = ap.geo.to_global(m.x, m.y)
         msg.fix_type = mavlink.GPS_FIX_TYPE_3D_FIX if ap.settled else mavlink.GPS_FIX_TYPE_NO_FIX
         msg.satellites_visible = 12 if ap.settled else 3
         msg.lat = int(round(lat * 1e7))
@@ -275,7 +285,10 @@ class Telemetry:
 
     def _ekf_status_report(self):
         ap = self.autopilot
-        if ap.position_known:
+        if ap.gps_lost:
+            # Dead reckoning: a relative position while velocity aiding lasts, none after.
+            flags = _EKF_SETTLED if ap.position_known else _S.EKF_ATTITUDE | _S.EKF_POS_VERT_ABS
+        elif ap.position_known:
             flags = _EKF_SETTLED | _EKF_POSITION
         elif ap.settled:
             flags = _EKF_SETTLED | _S.EKF_CONST_POS_MODE

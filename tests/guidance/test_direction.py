@@ -159,3 +159,17 @@ def test_guidance_is_a_leaf_package():
             else:
                 continue
             assert not {n.split(".")[0] for n in names} & ours, path.name
+
+
+def test_the_detector_returns_the_middle_of_the_lit_sectors():
+    from guidance.detector import ring_bearing
+
+    assert ring_bearing(0) is None
+    assert ring_bearing(0xFFF) is None
+    assert ring_bearing(1 << 3) == pytest.approx(math.radians(90))
+    # Neighbours lit at range, across the nose: 330, 0, 30 deg -> 0.
+    assert ring_bearing((1 << 11) | 1 | (1 << 1)) == pytest.approx(0.0)
+    assert ring_bearing((1 << 4) | (1 << 5)) == pytest.approx(math.radians(135))
+    # A reflection two sensors away widens the arc (the paper adds the ranges up).
+    assert ring_bearing((1 << 6) | (1 << 8)) == pytest.approx(math.radians(210))
+    assert ring_bearing(1 << 12) is None  # the downward sensor is not on the ring
