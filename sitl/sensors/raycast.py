@@ -242,7 +242,7 @@ class HeightBounds:
         lo = np.minimum.reduce(corners)
         his, los = [hi], [lo]
         while max(hi.shape) > 1:
-            hi, lo = _pool(hi, np.max), _pool(lo, np.min)
+            hi, lo = _pool_extreme(hi, np.maximum), _pool_extreme(lo, np.minimum)
             his.append(hi)
             los.append(lo)
         self.levels = len(his)
@@ -308,6 +308,18 @@ def coarse_terrain(terrain: Terrain, level: int) -> Terrain:
     shift = (n - 1) / 2 * terrain.cell_size
     origin = (terrain.origin[0] + shift, terrain.origin[1] + shift)
     return Terrain(grid, n * terrain.cell_size, origin=origin, kind=terrain.kind)
+
+
+def _pool_extreme(a: np.ndarray, pick) -> np.ndarray:
+    """2 x 2 pooling by ``pick`` (np.maximum or np.minimum; edge-padded to even sides):
+    the four strided quarters compared, several times faster than a reduction over the
+    reshaped axes, and the same values."""
+    ny, nx = a.shape
+    if ny % 2 or nx % 2:
+        a = np.pad(a, ((0, ny % 2), (0, nx % 2)), mode="edge")
+    out = pick(a[0::2, 0::2], a[1::2, 0::2])
+    pick(out, a[0::2, 1::2], out=out)
+    return pick(out, a[1::2, 1::2], out=out)
 
 
 def _pool(a: np.ndarray, reduce) -> np.ndarray:

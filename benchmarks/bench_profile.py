@@ -1,0 +1,152 @@
+"""Where a simulated second of a lockstep flight goes, part by part.
+
+Flies whole missions end to end with :func:`autonomy.runner.fly` (no report files) and times
+each part of the loop by wrapping its entry point: world generation, the depth render, the
+elevation-map update (fusion), the detection (map analysis), the Landing Site Manager, the
+behaviour tree (its tick, including the commands it sends), the MAVLink driver (poll and
+decode) and the embedded SITL (physics and telemetry). "other" is what is left of the
+flight (event log, trace, setup). Each part is timed in this thread's CPU time
+(``time.thread_time``), which other processes on a shared machine do not inflate; the wall
+time is printed beside it.
+
+Prints, per mission, milliseconds of CPU per simulated second for every part and how many
+times faster than real time the flight runs per core (simulated time / CPU time).
+
+Run: .venv/bin/python benchmarks/bench_profile.py [--mission missions/mars_science.yaml]
+     [--seeds 0 1] [--repeat 1]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+from collections import defaultdict
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+PARTS = ("world", "render", "map update", "detection", "LSM", "tree", "driver", "SITL")
+
+
+def _targets() -> list[tuple[str, object, str]]:
+    """(part, owner, attribute) of every timed entry point."""
+    from autonomy.runner import run as run_module
+    from autonomy.vehicle.driver import MavlinkVehicle
+    from lsd.elevation import ElevationDetector
+    from lsm import LandingSiteManager
+    from sitl.copter.simulator import Sitl
+    from sitl.sensors.camera import DepthCamera
+
+    return [
+        ("world", run_module, "build_terrain"),
+        ("render", DepthCamera, "render"),
+        ("map update", ElevationDetector, "integrate"),
+        ("detection", ElevationDetector, "detect"),
+        ("LSM", LandingSiteManager, "submit"),
+        ("LSM", LandingSiteManager, "process_pending"),
+        ("LSM", LandingSiteManager, "set_drone_position"),
+        ("driver", MavlinkVehicle, "poll"),
+        ("SITL", Sitl, "step"),
+    ]
+
+
+@contextmanager
+def timed_parts() -> Iterator[dict[str, float]]:
+    """Wrap every entry point of :func:`_targets`; yields the CPU seconds per part
+    (accumulating), restores the originals on exit. Nested calls of timed parts count
+    only in the outermost."""
+    cpu: dict[str, float] = defaultdict(float)
+    depth = [0]
+    saved = []
+
+    def wrap(part: str, fn: Callable) -> Callable:
+        def timed(*args, **kwargs):
+            if depth[0]:
+                return fn(*args, **kwargs)
+            depth[0] += 1
+            start = time.thread_time()
+            try:
+                return fn(*args, **kwargs)
+            finally:
+                cpu[part] += time.thread_time() - start
+                depth[0] -= 1
+
+        return timed
+
+    from autonomy.runner.flight import Flight
+
+    attach = Flight.__dict__["attach_tree"]
+
+    def attach_timed(flight, tree):
+        # Whatever class the mission tree is, time the tick of the one flown.
+        tree.tick = wrap("tree", tree.tick)
+        return attach(flight, tree)
+
+    saved.append((Flight, "attach_tree", attach))
+    Flight.attach_tree = attach_timed
+    for part, owner, name in _targets():
+        original = owner.__dict__[name] if isinstance(owner, type) else getattr(owner, name)
+        saved.append((owner, name, original))
+        setattr(owner, name, wrap(part, original))
+    try:
+        yield cpu
+    finally:
+        for owner, name, original in reversed(saved):
+            setattr(owner, name, original)
+
+
+def profile_flight(mission, seed: int) -> tuple[dict[str, float], float, float, float, str]:
+    """Fly one seed with every part timed: (CPU s per part incl. "other", total CPU s,
+    wall s, simulated s, outcome)."""
+    from autonomy.runner import fly
+
+    with timed_parts() as cpu:
+        w0, c0 = time.perf_counter(), time.thread_time()
+        result = fly(mission, seed=seed)
+        total = time.thread_time() - c0
+        wall = time.perf_counter() - w0
+    parts = {part: cpu.get(part, 0.0) for part in PARTS}
+    parts["other"] = total - sum(parts.values())
+    return parts, total, wall, float(result.summary["mission_time"]), result.outcome
+
+
+def main(argv: list[str] | None = None) -> int:
+    from autonomy.config import load_mission
+
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--mission", action="append", default=None,
+                        help="mission file (repeatable; default mars_science and demo)")
+    parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1])
+    args = parser.parse_args(argv)
+    missions = args.mission or [str(ROOT / "missions" / "mars_science.yaml"),
+                                str(ROOT / "missions" / "demo.yaml")]
+    print(f"machine: {os.cpu_count()} cores, load average "
+          f"{' '.join(f'{v:.2f}' for v in os.getloadavg())}")
+    for path in missions:
+        mission = load_mission(path)
+        sums: dict[str, float] = defaultdict(float)
+        sim = cpu = wall = 0.0
+        outcomes = []
+        for seed in args.seeds:
+            parts, total, w, s, outcome = profile_flight(mission, seed)
+            for part, value in parts.items():
+                sums[part] += value
+            sim, cpu, wall = sim + s, cpu + total, wall + w
+            outcomes.append(f"{seed}:{outcome}")
+        print(f"== {Path(path).name}: seeds {' '.join(map(str, args.seeds))}, "
+              f"{sim:.0f} simulated s, {cpu:.2f} s CPU, {wall:.2f} s wall "
+              f"({', '.join(outcomes)})")
+        print(f"  {'part':<12} {'ms CPU per sim s':>17} {'share':>7}")
+        for part in (*PARTS, "other"):
+            print(f"  {part:<12} {sums[part] / sim * 1e3:>17.2f} {sums[part] / cpu:>7.1%}")
+        print(f"  {'total':<12} {cpu / sim * 1e3:>17.2f}")
+        print(f"  {sim / cpu:.1f}x real time per core (CPU), {sim / wall:.1f}x in wall time")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,115 @@
+"""What a flight's outcome is, for the before/after comparison of the speed work (issue 21):
+everything in summary.json but the wall-clock figures, every event but the tree's own
+status changes (those belong to the tree's structure, which may be rewritten while flights
+stay tick-identical), and the Landing Site Manager's final sites with all their fields.
+
+``python tests/speed/golden.py --write`` records the flights listed in GOLDEN_FLIGHTS with
+the code checked out into tests/speed/data/golden_flights.json; without ``--write`` it flies
+them again and reports any difference (what tests/speed/test_outcome_equality.py does for a
+short subset).
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import hashlib
+import json
+import sys
+from pathlib import Path
+from typing import Any
+
+ROOT = Path(__file__).resolve().parents[2]
+DATA = Path(__file__).resolve().parent / "data" / "golden_flights.json"
+
+# (mission file under missions/, seed) of every recorded flight.
+GOLDEN_FLIGHTS = [
+    ("mars_science.yaml", 0),
+    ("mars_science.yaml", 1),
+    ("mars_science.yaml", 2),
+    ("mars_science.yaml", 7),
+    ("demo.yaml", 0),
+    ("demo.yaml", 1),
+]
+
+# Summary fields that measure the computer, not the flight.
+WALL_FIELDS = ("wall_time", "realtime_factor")
+
+
+def _digest(value: Any) -> str:
+    text = json.dumps(value, sort_keys=True, separators=(",", ":"), default=repr)
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def flight_record(result: Any) -> dict[str, Any]:
+    """The outcome of a :class:`autonomy.runner.FlightResult` as a JSON-able dict."""
+    summary = {k: v for k, v in result.summary.items() if k not in WALL_FIELDS}
+    events = [e for e in result.events if e.get("kind") != "tree"]
+    sites = json.loads(json.dumps([dataclasses.asdict(site) for site in result.data.sites]))
+    return {
+        "summary": summary,
+        "events": len(events),
+        "events_sha256": _digest(events),
+        "sites": len(sites),
+        "sites_sha256": _digest(sites),
+        "best_sites": sites[:3],  # to see what changed when the digest differs
+    }
+
+
+def fly_record(mission_file: str, seed: int) -> dict[str, Any]:
+    from autonomy.config import load_mission
+    from autonomy.runner import fly
+
+    return flight_record(fly(load_mission(ROOT / "missions" / mission_file), seed=seed))
+
+
+def load() -> dict[str, dict[str, Any]]:
+    return json.loads(DATA.read_text())
+
+
+def key(mission_file: str, seed: int) -> str:
+    return f"{mission_file}:{seed}"
+
+
+def differences(expected: dict[str, Any], got: dict[str, Any]) -> list[str]:
+    """Human-readable differences between two flight records (empty when equal)."""
+    out = []
+    for name in sorted(set(expected["summary"]) | set(got["summary"])):
+        a, b = expected["summary"].get(name), got["summary"].get(name)
+        if a != b:
+            out.append(f"summary.{name}: {a!r} -> {b!r}")
+    for name in ("events", "events_sha256", "sites", "sites_sha256"):
+        if expected[name] != got[name]:
+            out.append(f"{name}: {expected[name]} -> {got[name]}")
+    if json.dumps(expected["best_sites"]) != json.dumps(got["best_sites"]):  # NaN-safe
+        out.append(f"best sites: {expected['best_sites']} -> {got['best_sites']}")
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--write", action="store_true", help="record instead of compare")
+    parser.add_argument("--only", default=None, help="mission file to restrict to")
+    args = parser.parse_args(argv)
+    flights = [f for f in GOLDEN_FLIGHTS if args.only in (None, f[0])]
+    if args.write:
+        records = {key(m, s): fly_record(m, s) for m, s in flights}
+        DATA.parent.mkdir(parents=True, exist_ok=True)
+        old = load() if DATA.exists() else {}
+        old.update(records)
+        DATA.write_text(json.dumps(old, indent=1, sort_keys=True) + "\n")
+        print(f"recorded {len(records)} flights in {DATA}")
+        return 0
+    golden = load()
+    bad = 0
+    for mission_file, seed in flights:
+        diff = differences(golden[key(mission_file, seed)], fly_record(mission_file, seed))
+        print(f"{mission_file} seed {seed}: {'same' if not diff else 'DIFFERENT'}", flush=True)
+        for line in diff:
+            print(f"  {line}")
+        bad += bool(diff)
+    return 1 if bad else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
