@@ -81,7 +81,9 @@ def differences(expected: dict[str, Any], got: dict[str, Any]) -> list[str]:
     for name in ("events", "events_sha256", "sites", "sites_sha256"):
         if expected[name] != got[name]:
             out.append(f"{name}: {expected[name]} -> {got[name]}")
-    if json.dumps(expected["best_sites"]) != json.dumps(got["best_sites"]):  # NaN-safe
+    if json.dumps(expected["best_sites"], sort_keys=True) != json.dumps(
+        got["best_sites"], sort_keys=True
+    ):  # NaN-safe
         out.append(f"best sites: {expected['best_sites']} -> {got['best_sites']}")
     return out
 
