@@ -30,6 +30,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "autonomy.cli.validate",
     "autonomy.cli.tree",
     "autonomy.cli.campaign",
+    "autonomy.cli.replay",
     "autonomy.cli.sitl",
     "autonomy.cli.detect",
     "autonomy.cli.link",

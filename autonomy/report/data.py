@@ -104,4 +104,6 @@ class FlightData:
     home: dict[str, Any] | None = None  # live: the homes compared and the one flown by
     refused: bool = False  # live: refused before takeoff (the homes disagree)
     interrupted: bool = False  # Ctrl-C ended the flight (its outcome is then aborted)
+    weights: Any = None  # lsm.settings.LossWeights of the mission (report.html's loss terms)
+    verified_ids: list[int] = field(default_factory=list)  # retained sites counted verified
     extra: dict[str, Any] = field(default_factory=dict)

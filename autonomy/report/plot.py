@@ -21,7 +21,7 @@ _PHASE_COLOURS = plt.get_cmap("tab20").colors
 _GROUND = ListedColormap(plt.get_cmap("gist_earth")(np.linspace(0.35, 0.95, 256)))
 
 
-def _map_window(data: FlightData, xyz: np.ndarray) -> tuple[float, float, float, float]:
+def map_window(data: FlightData, xyz: np.ndarray) -> tuple[float, float, float, float]:
     """(xmin, xmax, ymin, ymax) around the trajectory and the sites, 20 m margin."""
     pts = [xyz[:, :2]] if len(xyz) else [np.zeros((1, 2))]
     pts.append(np.array([[s.x, s.y] for s in data.sites]).reshape(-1, 2))
@@ -33,17 +33,18 @@ def _map_window(data: FlightData, xyz: np.ndarray) -> tuple[float, float, float,
     return (mid[0] - side / 2, mid[0] + side / 2, mid[1] - side / 2, mid[1] + side / 2)
 
 
-def _draw_terrain(ax, terrain, window) -> None:
+def shaded_terrain(terrain, window, max_pixels: int = _MAX_PIXELS):
+    """The terrain inside ``window`` (xmin, xmax, ymin, ymax) hill-shaded: ((h, w, 4) RGBA
+    floats in [0, 1], row 0 south, (xmin, xmax, ymin, ymax) of the cell centres, the
+    strided height grid), or None when there is no terrain there."""
     if terrain is None:
-        ax.set_facecolor("#d9d2c3")
-        return
+        return None
     xs, ys = terrain.coordinates()
     j0, j1 = np.searchsorted(xs, [window[0], window[1]])
     i0, i1 = np.searchsorted(ys, [window[2], window[3]])
     if j1 - j0 < 2 or i1 - i0 < 2:
-        ax.set_facecolor("#d9d2c3")
-        return
-    step = max(1, int(max(i1 - i0, j1 - j0) // _MAX_PIXELS))
+        return None
+    step = max(1, int(max(i1 - i0, j1 - j0) // max_pixels))
     grid = np.asarray(terrain.grid[i0:i1:step, j0:j1:step], dtype=np.float64)
     lo, hi = float(grid.min()), float(grid.max())
     shaded = LightSource(azdeg=315, altdeg=45).shade(
@@ -51,7 +52,17 @@ def _draw_terrain(ax, terrain, window) -> None:
         vmin=lo - 0.5, vmax=max(hi, lo + 5.0),  # a flat world is a plain colour, not black
         vert_exag=1.0, dx=terrain.cell_size * step, dy=terrain.cell_size * step,
     )
-    extent = (xs[j0], xs[j1 - 1], ys[i0], ys[i1 - 1])
+    extent = (xs[j0], xs[j0 + (grid.shape[1] - 1) * step], ys[i0],
+              ys[i0 + (grid.shape[0] - 1) * step])
+    return shaded, tuple(float(v) for v in extent), grid
+
+
+def _draw_terrain(ax, terrain, window) -> None:
+    raster = shaded_terrain(terrain, window)
+    if raster is None:
+        ax.set_facecolor("#d9d2c3")
+        return
+    shaded, extent, grid = raster
     ax.imshow(shaded, origin="lower", extent=extent, interpolation="bilinear")
     ax.contour(
         np.linspace(extent[0], extent[1], grid.shape[1]),
@@ -66,7 +77,7 @@ def write_report_png(data: FlightData, path: Path, *, outcome: str = "") -> None
     fig, (ax_map, ax_alt) = plt.subplots(
         1, 2, figsize=(15, 6.5), gridspec_kw={"width_ratios": [1, 1.3]}
     )
-    window = _map_window(data, xyz)
+    window = map_window(data, xyz)
     _draw_terrain(ax_map, data.terrain, window)
     if len(xyz):
         ax_map.plot(xyz[:, 0], xyz[:, 1], "-", color="white", lw=2.2, alpha=0.8)

@@ -27,6 +27,7 @@ from autonomy.report import (
     FlightData,
     build_summary,
     format_summary,
+    write_flight_page,
     write_report_png,
     write_summary,
 )
@@ -46,7 +47,7 @@ from behaviors.settings import MissionPlan
 from lsm import LandingSiteManager
 
 Status = py_trees.common.Status
-REPORT_FILES = ("summary.json", "events.jsonl", "flight.tlog", "report.png")
+REPORT_FILES = ("summary.json", "events.jsonl", "flight.tlog", "report.png", "report.html")
 
 
 @dataclass
@@ -233,6 +234,7 @@ def fly(
         try:
             write_summary(summary, out / "summary.json")
             write_report_png(data, out / "report.png", outcome=summary["outcome"])
+            write_flight_page(data, summary, log.events, out)
         except OSError as exc:
             if failure is not None:
                 raise failure from None
@@ -248,6 +250,7 @@ def fly(
         if out is not None:
             print(f"report: {out / 'report.png'} (summary.json, events.jsonl, flight.tlog "
                   f"in {out})")
+            print(f"inspect in a browser: {out / 'report.html'} (lander replay {out})")
     return result
 
 
@@ -337,6 +340,8 @@ def _flight_data(mission: Mission, seed: int, flight: Flight, terrain: Any,
         verification_attempts=int(flight.read(bb.VERIFICATION_ATTEMPTS, 0) or 0),
         search_patterns=int(flight.read(bb.SEARCH_PATTERNS, 0) or 0),
         sites_verified=sum(1 for s in sites if lsm.is_verified(s)),
+        verified_ids=[s.id for s in sites if lsm.is_verified(s)],
+        weights=mission.weights,
         lsm_counters=dict(lsm.counters()),
         perception_counters=dict(getattr(flight.source, "counters", dict)()),
         energy_wh=energy,

@@ -17,6 +17,10 @@ DEFAULT_STREAMS: dict[str, float] = {
     "GPS_RAW_INT": 2.0,
     "HOME_POSITION": 0.5,
     "EKF_STATUS_REPORT": 1.0,  # ArduPilot: whether it has a position estimate
+    # Not read by the flight: what log viewers (MAVExplorer, UAV Log Viewer) draw from
+    # flight.tlog, the track on a map and the HUD, at the rates ground stations ask for.
+    "GLOBAL_POSITION_INT": 5.0,
+    "VFR_HUD": 4.0,
 }
 
 

@@ -132,6 +132,7 @@ class MessageRates(BaseModel):
     gps_raw_int: float = Field(2.0, ge=0, le=MAX_STREAM_RATE, description=_RATE)
     system_time: float = Field(1.0, ge=0, le=MAX_STREAM_RATE, description=_RATE)
     mission_current: float = Field(1.0, ge=0, le=MAX_STREAM_RATE, description=_RATE)
+    vfr_hud: float = Field(4.0, ge=0, le=MAX_STREAM_RATE, description=_RATE)
     ekf_status_report: float = Field(
         0.0, ge=0, le=MAX_STREAM_RATE, description="ArduPilot only, when asked; " + _RATE
     )

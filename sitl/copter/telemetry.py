@@ -30,6 +30,7 @@ STREAMS: dict[int, str] = {
     mavlink.MAVLINK_MSG_ID_SYSTEM_TIME: "system_time",
     mavlink.MAVLINK_MSG_ID_MISSION_CURRENT: "mission_current",
     mavlink.MAVLINK_MSG_ID_EKF_STATUS_REPORT: "ekf_status_report",
+    mavlink.MAVLINK_MSG_ID_VFR_HUD: "vfr_hud",
 }
 # Messages only one personality sends (EKF_STATUS_REPORT is ArduPilot's dialect).
 ONLY = {mavlink.MAVLINK_MSG_ID_EKF_STATUS_REPORT: "ardupilot"}
@@ -122,6 +123,7 @@ class Telemetry:
         )
         self._gps_msg = mavlink.MAVLink_gps_raw_int_message(0, 0, lat, lon, alt, 121, 200, 0, 0, 0)
         self._system_time_msg = mavlink.MAVLink_system_time_message(0, 0)
+        self._vfr_hud_msg = mavlink.MAVLink_vfr_hud_message(0.0, 0.0, 0, 0, home.alt, 0.0)
         self.builders: dict[int, Callable[[], object]] = {
             mavlink.MAVLINK_MSG_ID_HEARTBEAT: self.heartbeat,
             mavlink.MAVLINK_MSG_ID_ATTITUDE: self._attitude,
@@ -137,6 +139,7 @@ class Telemetry:
             mavlink.MAVLINK_MSG_ID_AUTOPILOT_VERSION: self._autopilot_version,
             mavlink.MAVLINK_MSG_ID_MISSION_CURRENT: self.mission_current,
             mavlink.MAVLINK_MSG_ID_EKF_STATUS_REPORT: self._ekf_status_report,
+            mavlink.MAVLINK_MSG_ID_VFR_HUD: self._vfr_hud,
         }
         for msgid, personality in ONLY.items():
             if ap.name != personality:
@@ -182,6 +185,21 @@ class Telemetry:
         msg.vy = int(round(m.vx * 100.0))
         msg.vz = int(round(-m.vz * 100.0))
         msg.hdg = int(round(math.degrees(m.heading) * 100.0)) % 36000
+        return msg
+
+    def _vfr_hud(self):
+        # What log viewers plot as the HUD. No airspeed sensor: airspeed is the ground speed,
+        # as a copter without one reports before it has a wind estimate. Throttle is a nominal
+        # 50 % hover (there are no motors here) plus 10 % per m/s of climb while armed.
+        ap = self.autopilot
+        m = ap.model
+        msg = self._vfr_hud_msg
+        speed = math.hypot(m.vx, m.vy)
+        msg.airspeed = msg.groundspeed = speed
+        msg.heading = int(round(math.degrees(m.heading))) % 360
+        msg.throttle = int(min(100.0, max(0.0, 50.0 + 10.0 * m.vz))) if ap.armed else 0
+        msg.alt = ap.settings.home.alt + m.z - ap.home_z
+        msg.climb = m.vz
         return msg
 
     def _local_position_ned(self):

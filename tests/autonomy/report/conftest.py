@@ -1,0 +1,36 @@
+"""Fixtures of the report tests: one demo flight with its report folder, headless Chromium."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import pytest
+
+HERE = str(Path(__file__).parent)
+if HERE not in sys.path:  # the `browser` helper module beside this file
+    sys.path.insert(0, HERE)
+
+
+@pytest.fixture(scope="session")
+def demo_flight(tmp_path_factory):
+    """The demo mission flown once (lockstep) into a report folder: the FlightResult."""
+    from autonomy.cli.demo import demo_mission_path
+    from autonomy.config import load_mission
+    from autonomy.runner import fly
+
+    out = tmp_path_factory.mktemp("demo-report")
+    return fly(load_mission(demo_mission_path()), out_dir=out)
+
+
+@pytest.fixture(scope="session")
+def chromium():
+    """Path of a headless Chromium: Debian's package, installed with apt-get when missing;
+    the test is skipped only when it cannot be installed here."""
+    import browser
+
+    path = browser.install_chromium()
+    if path is None:
+        pytest.skip("chromium is not installed and apt-get could not install it (needs root "
+                    "and the Debian archive); install Debian's 'chromium' package")
+    return path
