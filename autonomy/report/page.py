@@ -10,6 +10,7 @@ flight wrote one), the detector's and the LSM's events, and the map's terrain as
 from __future__ import annotations
 
 import base64
+import xml.etree.ElementTree as ET
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -17,12 +18,11 @@ from typing import Any
 import cv2
 import numpy as np
 
-from autonomy.errors import UserError
 from autonomy.report import timeline
-from autonomy.report.btlog import read_btlog
 from autonomy.report.data import FlightData
 from autonomy.report.events import _clean
 from autonomy.report.plot import map_window, shaded_terrain
+from behaviors.btlog import read_btlog
 
 MAX_SAMPLES = 4000  # trace samples kept: enough for a smooth slider, small enough to load
 MAX_EVENTS = 4000  # detector/LSM events kept (the rare kinds first)
@@ -103,11 +103,11 @@ def tree_timeline(events: Sequence[dict[str, Any]], end: float,
     if path is not None and path.is_file():
         try:
             log = read_btlog(path)
-        except UserError as exc:
-            return timeline.from_events(events, end).as_dict(), str(exc)
-        offset = timeline.btlog_offset(log, events)
-        end = max(end, float(log.time[-1]) + offset if log.time.size else end)
-        return timeline.from_btlog(log, offset, end).as_dict(), None
+        except (OSError, ValueError, ET.ParseError) as exc:  # BtlogError is a ValueError
+            note = f"{BTLOG} unreadable ({exc}); the timeline is from events.jsonl"
+            return timeline.from_events(events, end).as_dict(), note
+        last = log.transitions[-1].time + log.first_timestamp if log.transitions else end
+        return timeline.from_btlog(log, max(end, last)).as_dict(), None
     return timeline.from_events(events, end).as_dict(), None
 
 

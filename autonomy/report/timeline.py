@@ -1,7 +1,7 @@
 """The tree's timeline for report.html: which node ran when, with which status.
 
-Built from the flight's ``tree.btlog`` (BehaviorTree.CPP FileLogger2, see
-:mod:`autonomy.report.btlog`) when there is one, else from the ``tree`` events of
+Built from the flight's ``tree.btlog`` (BehaviorTree.CPP FileLogger2, read by
+:func:`behaviors.btlog.read_btlog`) when there is one, else from the ``tree`` events of
 events.jsonl. Either way the result is a list of lanes (one per node, parents before their
 children) and segments ``[lane, start, end, status]``: the node held ``status`` from
 ``start`` to ``end`` (clock seconds); idle/invalid time is no segment.
@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from autonomy.report.btlog import BtLog
+from behaviors.btlog import TickLog
 
 # Status codes of the segments, as BehaviorTree.CPP numbers them (0 = idle: no segment).
 CODES = {"IDLE": 0, "INVALID": 0, "RUNNING": 1, "SUCCESS": 2, "FAILURE": 3, "SKIPPED": 4}
@@ -36,8 +36,8 @@ class Timeline:
 
 
 def segments(lane: np.ndarray, time: np.ndarray, code: np.ndarray, end: float) -> list:
-    """Segments from transitions (any order): each transition of a lane lasts until the
-    lane's next transition, the last one until ``end``; idle spans are dropped."""
+    """Segments from transitions (any order; equal times keep their order): each transition
+    of a lane lasts until the lane's next transition, the last one until ``end``."""
     if lane.size == 0:
         return []
     order = np.lexsort((time, lane))  # by lane, then time (stable for equal times)
@@ -47,29 +47,39 @@ def segments(lane: np.ndarray, time: np.ndarray, code: np.ndarray, end: float) -
     last = np.ones(lane.size, bool)
     last[:-1] = lane[1:] != lane[:-1]
     until[last] = np.maximum(end, time[last])
-    keep = code != 0
+    # Idle is no bar; neither is a status replaced within the same tick (RUNNING then
+    # SUCCESS at one instant shows as the SUCCESS).
+    keep = (code != 0) & ((until > time) | last)
     return np.column_stack([lane[keep], np.round(time[keep], 4), np.round(until[keep], 4),
                             code[keep]]).tolist()
 
 
-def from_btlog(log: BtLog, offset: float, end: float) -> Timeline:
-    """The timeline of a read ``.btlog``; ``offset`` is the clock time of the log's first
-    timestamp."""
-    index = {n.uid: i for i, n in enumerate(log.nodes)}
-    lanes = [{"name": n.name, "path": n.path, "depth": n.depth, "tag": n.tag}
-             for n in log.nodes]
-    lane = np.array([index[int(u)] for u in log.uid], dtype=np.int64)
-    seg = segments(lane, log.time + offset, log.status.astype(np.int64), end)
-    return Timeline("tree.btlog", lanes, seg, truncated=log.truncated)
+def from_btlog(log: TickLog, end: float) -> Timeline:
+    """The timeline of a read ``.btlog`` (its first timestamp is the clock's time when it
+    was opened, so its times are clock times once added to it)."""
+    uids = sorted(log.nodes)
+    names: dict[int, str] = {}
 
+    def path(uid: int) -> str:
+        if uid not in names:
+            node = log.nodes[uid]
+            parent = node.parent if node.parent in log.nodes else None
+            names[uid] = node.name if parent is None else f"{path(parent)}/{node.name}"
+        return names[uid]
 
-def btlog_offset(log: BtLog, events: Sequence[dict[str, Any]]) -> float:
-    """Clock time of the log's time 0: aligned on the first ``tree`` event when the events
-    have one (both record the first tick), else 0."""
-    first_event = next((e["t"] for e in events if e.get("kind") == "tree"), None)
-    if first_event is None or log.time.size == 0:
-        return 0.0
-    return float(first_event) - float(log.time[0])
+    def depth(uid: int) -> int:
+        parent = log.nodes[uid].parent
+        return 0 if parent not in log.nodes else 1 + depth(parent)
+
+    index = {uid: i for i, uid in enumerate(uids)}
+    lanes = [{"name": log.nodes[u].name, "path": path(u), "depth": depth(u),
+              "tag": log.nodes[u].tag} for u in uids]
+    known = [t for t in log.transitions if t.uid in index]
+    lane = np.array([index[t.uid] for t in known], dtype=np.int64)
+    time = np.array([t.time for t in known], dtype=np.float64) + log.first_timestamp
+    code = np.array([int(t.status) for t in known], dtype=np.int64)
+    return Timeline("tree.btlog", lanes, segments(lane, time, code, end),
+                    truncated=log.truncated)
 
 
 def from_events(events: Sequence[dict[str, Any]], end: float) -> Timeline:

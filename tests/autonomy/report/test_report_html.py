@@ -5,7 +5,6 @@ from __future__ import annotations
 import json
 import re
 import shutil
-import struct
 
 import numpy as np
 import pytest
@@ -49,55 +48,34 @@ def test_the_page_holds_every_site_ban_phase_and_event_of_the_flight(demo_flight
     # The tree's timeline from the events: every node that changed status has a lane.
     paths = {e["path"] for e in demo_flight.events if e["kind"] == "tree"}
     assert paths <= {lane["path"] for lane in page["tree"]["lanes"]}
-    assert page["tree"]["source"] == "events.jsonl"
     assert page["map"] is not None and page["map"]["href"].startswith("data:image/png;base64,")
     assert page["end"] == pytest.approx(summary["mission_time"])
 
 
-def _btlog_from_events(events, path, cut=0):
-    """A FileLogger2 .btlog of the flight's tree events (uids in lane order), as a writer
-    following bt_file_logger_v2.h lays it out."""
-    paths = []
-    for e in events:
-        if e["kind"] == "tree" and e["path"] not in paths:
-            paths.append(e["path"])
-    xml = "<root BTCPP_format=\"4\"><BehaviorTree ID=\"Main\">" + "".join(
-        f"<Action name=\"{p.replace('&', '&amp;').replace('<', '&lt;')}\" _uid=\"{i + 1}\"/>"
-        for i, p in enumerate(paths)) + "</BehaviorTree></root>"
-    codes = {"INVALID": 0, "RUNNING": 1, "SUCCESS": 2, "FAILURE": 3}
-    first = next(e["t"] for e in events if e["kind"] == "tree")
-    out = bytearray(b"BTCPP4-FileLogger2\x01")
-    out += struct.pack("<I", len(xml.encode())) + xml.encode() + struct.pack("<q", 0)
-    for e in events:
-        if e["kind"] == "tree":
-            us = round((e["t"] - first) * 1e6)
-            out += us.to_bytes(6, "little") + struct.pack(
-                "<HB", paths.index(e["path"]) + 1, codes[e["new"]])
-    path.write_bytes(bytes(out[:len(out) - cut]))
-    return paths
+def test_the_tree_timeline_comes_from_the_flights_btlog_and_matches_its_events(
+        demo_flight, tmp_path):
+    page = embedded(demo_flight.out_dir / "report.html")
+    assert page["tree"]["source"] == "tree.btlog" and not page["tree"]["truncated"]
+    from_events = build_page(demo_flight.data, demo_flight.summary, demo_flight.events)
+    assert from_events["tree"]["source"] == "events.jsonl"
+    # The same bars whichever log they came from: both saw every status change.
+    def bars(tree):
+        return sorted([tree["lanes"][int(lane)]["path"], t0, t1, code]
+                      for lane, t0, t1, code in tree["segments"])
+    assert bars(page["tree"]) == bars(from_events["tree"])
+    assert len(page["tree"]["lanes"]) >= len(from_events["tree"]["lanes"])  # all nodes
 
-
-def test_a_btlog_beside_the_report_gives_the_tree_timeline(demo_flight, tmp_path):
+    # An interrupted flight's log, cut inside its last record: shown to the one before.
     out = tmp_path / "flight"
     shutil.copytree(demo_flight.out_dir, out)
-    paths = _btlog_from_events(demo_flight.events, out / "tree.btlog")
-    write_flight_page(demo_flight.data, demo_flight.summary, demo_flight.events, out)
-    page = embedded(out / "report.html")
-    from_events = build_page(demo_flight.data, demo_flight.summary, demo_flight.events)
-    assert page["tree"]["source"] == "tree.btlog" and not page["tree"]["truncated"]
-    assert [lane["name"] for lane in page["tree"]["lanes"]] == paths
-    # The same flight, the same bars, whichever log they came from (lanes ordered alike).
-    lane_of = {lane["path"]: i for i, lane in enumerate(from_events["tree"]["lanes"])}
-    expected = sorted([lane_of[paths[int(lane)]], t0, t1, code]
-                      for lane, t0, t1, code in page["tree"]["segments"])
-    assert expected == sorted(from_events["tree"]["segments"])
-
-    # Cut short inside its last transition: shown up to the one before, and said so.
-    _btlog_from_events(demo_flight.events, out / "tree.btlog", cut=5)
+    whole = (out / "tree.btlog").read_bytes()
+    (out / "tree.btlog").write_bytes(whole[:-5])
     write_flight_page(demo_flight.data, demo_flight.summary, demo_flight.events, out)
     cut = embedded(out / "report.html")
     assert cut["tree"]["truncated"]
-    assert len(cut["tree"]["segments"]) == len(page["tree"]["segments"]) - 1
+    assert len(cut["tree"]["segments"]) in (len(page["tree"]["segments"]) - 1,
+                                            len(page["tree"]["segments"]))
+    assert bars(cut["tree"]) != bars(page["tree"])
 
 
 def test_report_html_loads_in_chromium_without_errors_and_shows_the_loss_terms(
