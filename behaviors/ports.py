@@ -77,6 +77,10 @@ class VehicleState:
     position_estimate: bool = False  # the autopilot knows where it is (GUIDED needs it to arm)
     autopilot: str = "unknown"  # "ardupilot", "px4" or "unknown"
     last_status_text: str = ""
+    # The laser light sensors (docs/gps-denied.md): bit i = ring sensor i (i * 30 deg
+    # clockwise from the nose), bit 12 = downward sensor; None until a reading arrived.
+    light_sensors: int | None = None
+    light_sensors_time: float | None = None  # clock s the last reading arrived
 
 
 class VehiclePort(Protocol):

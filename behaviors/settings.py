@@ -12,6 +12,8 @@ from typing import Annotated, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
+from behaviors.laser_guidance import LaserGuidanceSettings
+
 # Bounds of what a mission may ask of a multicopter; each Field names the one it uses.
 MAX_ALTITUDE = 10_000.0
 """m above home: multicopters lose lift in thin air; their service ceilings are a few
@@ -158,6 +160,10 @@ class LandingSettings(BaseModel):
     )
     approach: ApproachSettings = Field(
         default_factory=ApproachSettings, description="how the vehicle reaches the site"
+    )
+    laser_guidance: LaserGuidanceSettings = Field(
+        default_factory=LaserGuidanceSettings, description="after a GPS loss: follow a ground "
+        "laser to land (docs/gps-denied.md)"
     )
 
     @model_validator(mode="after")

@@ -60,6 +60,7 @@ _LANDED = {
     mavlink.MAV_LANDED_STATE_LANDING: LandedState.LANDING,
 }
 _MAVLINK_EPOCH = 1420070400.0  # 2015-01-01, origin of MAVLink signing timestamps
+_LIGHT_SENSORS = "LASER_RING"  # NAMED_VALUE_INT of the laser light-sensor ring (bit mask)
 _SLACK = 1e-6  # s; periods are compared with this slack so float tick sums do not skip one
 
 
@@ -220,6 +221,8 @@ class MavlinkVehicle:
         self._global_position = False  # a GLOBAL_POSITION_INT with a position arrived
         self._ekf_flags: int | None = None  # EKF_STATUS_REPORT.flags, where the autopilot sends it
         self._velocity_ned = (0.0, 0.0, 0.0)
+        self._light_sensors: int | None = None  # NAMED_VALUE_INT LASER_RING (docs/gps-denied.md)
+        self._light_sensors_time: float | None = None
         self._yaw_ned = math.pi / 2.0
         self._rangefinder: float | None = None
         self._home: tuple[float, float, float] | None = None
@@ -252,6 +255,7 @@ class MavlinkVehicle:
             "HOME_POSITION": self._on_home_position,
             "GLOBAL_POSITION_INT": self._on_global_position_int,
             "EKF_STATUS_REPORT": self._on_ekf_status_report,
+            "NAMED_VALUE_INT": self._on_named_value_int,
             "STATUSTEXT": self._on_statustext,
             "COMMAND_ACK": self._on_command_ack,
         }
@@ -659,6 +663,18 @@ class MavlinkVehicle:
     def _on_ekf_status_report(self, msg: Any, now: float) -> None:
         self._ekf_flags = int(msg.flags)
 
+    def _on_named_value_int(self, msg: Any, now: float) -> None:
+        name = msg.name
+        if isinstance(name, (bytes, bytearray)):
+            name = name.decode("ascii", "replace")
+        if name.rstrip("\x00") != _LIGHT_SENSORS:
+            return
+        if not 0 <= msg.value < 1 << 13:
+            self.stats.dropped_sensor[_LIGHT_SENSORS] += 1
+            return
+        self._light_sensors = int(msg.value)
+        self._light_sensors_time = now
+
     def _on_statustext(self, msg: Any, now: float) -> None:
         text = msg.text
         if isinstance(text, (bytes, bytearray)):
@@ -722,6 +738,8 @@ class MavlinkVehicle:
             position_estimate=self._position_estimate() and not self._link_lost,
             autopilot=self._autopilot,
             last_status_text=self._status_text,
+            light_sensors=self._light_sensors,
+            light_sensors_time=self._light_sensors_time,
         )
 
     # ------------------------------------------------------------------ link upkeep
