@@ -15,6 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
+from lsd.georef import Georeference, GeoreferenceError, georeference
+
 # ASPRS LAS 1.4 standard classification codes (the ones a landing decision cares about).
 LAS_CLASSES: dict[int, str] = {
     0: "never classified",
@@ -54,12 +56,15 @@ class CloudData:
     """A point cloud read from a file.
 
     Attributes:
-        points: (N, 3) float64 x, y, z (file units, metres expected; rows may hold NaN).
-        classification: (N,) int64 class codes, or None when the file has none.
+        points: (N, 3) float64 x, y, z in metres (LAS/LAZ: converted from the file's units;
+            other formats: taken as metres; rows may hold NaN).
+        classification: (N,) int64 ASPRS class codes, or None when the file has none.
+        georef: the file's coordinate reference (CRS, units), or None (not a LAS/LAZ file).
     """
 
     points: np.ndarray
     classification: np.ndarray | None = None
+    georef: Georeference | None = None
 
 
 def class_name(code: int) -> str:
@@ -111,9 +116,19 @@ def load_npy(p: Path) -> np.ndarray:
 
 def _read_npy_cloud(p: Path) -> CloudData:
     arr = load_npy(p)
-    if arr.ndim != 2 or arr.shape[1] < 3:
-        raise DataFileError(f"{p}: expected an (N, 3) array of x, y, z, got shape {arr.shape}")
-    return CloudData(np.asarray(arr[:, :3], dtype=np.float64))
+    if arr.ndim != 2 or arr.shape[1] not in (3, 4):
+        raise DataFileError(
+            f"{p}: expected an (N, 3) array of x, y, z (or (N, 4) with an ASPRS class "
+            f"column), got shape {arr.shape}"
+        )
+    codes = None
+    if arr.shape[1] == 4:
+        codes = arr[:, 3]
+        if not (np.isfinite(codes).all() and (codes == np.round(codes)).all()
+                and (codes >= 0).all() and (codes <= 255).all()):
+            raise DataFileError(f"{p}: column 4 must hold ASPRS class codes 0..255")
+        codes = codes.astype(np.int64)
+    return CloudData(np.asarray(arr[:, :3], dtype=np.float64), codes)
 
 
 def read_ply(path: str | Path) -> CloudData:
@@ -221,17 +236,65 @@ def _int(word: str, p: Path) -> int:
 
 
 def read_las(path: str | Path) -> CloudData:
-    """Read a LAS/LAZ file with laspy (optional extra ``las``), scaled x, y, z and the
-    classification codes."""
+    """Read a LAS/LAZ file with laspy (optional extra ``las``, which brings the LAZ backend
+    lazrs and pyproj): x, y, z in metres and the classification codes, with the file's
+    :class:`Georeference`."""
     p = Path(path)
+    with open_las(p) as (reader, georef):
+        try:
+            las = reader.read()
+        except Exception as exc:  # noqa: BLE001 - laspy/lazrs raise several types
+            raise _not_readable(p, exc) from None
+        points, codes = _las_arrays(las.points, georef)
+    if len(points) != reader.header.point_count:
+        raise DataFileError(f"{p}: truncated LAS/LAZ file ({len(points)} of "
+                            f"{reader.header.point_count} points)")
+    return CloudData(points, codes, georef)
+
+
+def iter_las_chunks(
+    path: str | Path, chunk_points: int = 1_000_000
+) -> Iterator[tuple[np.ndarray, np.ndarray | None]]:
+    """Stream a LAS/LAZ file in chunks of ``chunk_points`` (laspy's chunk reader): yields
+    ``(points (n, 3) metres, classes (n,) or None)``; memory is bounded by the chunk, not the
+    file. Use :func:`open_las` first for the header and georeference. Raises DataFileError
+    on a file that ends before its header's point count."""
+    p = Path(path)
+    with open_las(p) as (reader, georef):
+        seen = 0
+        try:
+            for chunk in reader.chunk_iterator(chunk_points):
+                points, codes = _las_arrays(chunk, georef)
+                seen += len(points)
+                yield points, codes
+        except DataFileError:
+            raise
+        except Exception as exc:  # noqa: BLE001 - laspy/lazrs raise several types
+            raise _not_readable(p, exc) from None
+        if seen != reader.header.point_count:
+            raise DataFileError(f"{p}: truncated LAS/LAZ file ({seen} of "
+                                f"{reader.header.point_count} points)")
+
+
+@contextlib.contextmanager
+def open_las(path: str | Path):
+    """``with open_las(path) as (reader, georef)``: a laspy reader whose header was checked
+    (scales, point count against the file size) and the file's :class:`Georeference`."""
+    p = Path(path)
+    if not p.is_file():
+        raise DataFileError(f"{p}: no such file")
     try:
         import laspy  # optional: pip install 'landing-autonomy[las]'
     except ImportError:
         raise DataFileError(
             f"{p}: reading LAS/LAZ needs laspy: pip install 'landing-autonomy[las]'"
         ) from None
-    try:
-        with laspy.open(p) as reader:
+    with _quiet():
+        try:
+            reader = laspy.open(p)
+        except Exception as exc:  # noqa: BLE001 - laspy raises several types for a bad file
+            raise _not_readable(p, exc) from None
+        with reader:
             header = reader.header
             scales, offsets = np.asarray(header.scales), np.asarray(header.offsets)
             if not (np.isfinite(scales).all() and np.isfinite(offsets).all()) or (
@@ -239,24 +302,41 @@ def read_las(path: str | Path) -> CloudData:
             ).any():
                 raise DataFileError(f"{p}: LAS header has a zero or non-finite scale or offset")
             size = p.stat().st_size
-            ratio = 50 if p.suffix.lower() == ".laz" else 1  # LAZ compresses ~5-10 to 1
+            ratio = 50 if header.are_points_compressed else 1  # LAZ compresses ~5-10 to 1
             if header.point_count * header.point_format.size > ratio * size:
                 # A count beyond what the file can hold is a bad header: refused before
                 # laspy allocates arrays for it.
                 raise DataFileError(f"{p}: LAS header claims {header.point_count} points, "
                                     f"more than a {size}-byte file holds")
-        las = laspy.read(p)
-    except DataFileError:
-        raise
-    except Exception as exc:  # laspy raises several types for a bad file
-        reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-        raise DataFileError(f"{p}: not a readable LAS/LAZ file ({reason})") from None
-    points = np.stack([np.asarray(las.x), np.asarray(las.y), np.asarray(las.z)], axis=1)
+            if header.point_count == 0:
+                raise DataFileError(f"{p}: the LAS/LAZ file holds no points")
+            try:
+                georef = georeference(header, p)
+            except GeoreferenceError as exc:
+                raise DataFileError(str(exc)) from None
+            yield reader, georef
+
+
+def _not_readable(p: Path, exc: Exception) -> DataFileError:
+    reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+    if "LazBackend" in reason:
+        reason = "LAZ needs the lazrs backend: pip install 'landing-autonomy[las]'"
+    return DataFileError(f"{p}: not a readable LAS/LAZ file ({reason[:200]})")
+
+
+def _las_arrays(points, georef: Georeference) -> tuple[np.ndarray, np.ndarray | None]:
+    """(n, 3) metres and (n,) class codes of a laspy point record."""
+    xyz = np.empty((len(points), 3))
+    xyz[:, 0] = points.x
+    xyz[:, 1] = points.y
+    xyz[:, 2] = points.z
+    xyz[:, :2] *= georef.horizontal_unit
+    xyz[:, 2] *= georef.vertical_unit
     try:
-        cls = np.asarray(las.classification).astype(np.int64)
-    except Exception:  # pragma: no cover - a point format without classification
-        cls = None
-    return CloudData(points.astype(np.float64), cls)
+        codes = np.asarray(points.classification).astype(np.int64)
+    except Exception:  # noqa: BLE001 - a point format without classification
+        codes = None
+    return xyz, codes
 
 
 def read_depth_image(path: str | Path) -> np.ndarray:
@@ -319,6 +399,28 @@ def _png_size(p: Path) -> tuple[int, int]:
     return int.from_bytes(head[16:20], "big"), int.from_bytes(head[20:24], "big")
 
 
+def write_las(path: str | Path, points: np.ndarray, classification: np.ndarray | None = None,
+              crs=None, scale: float = 0.001) -> None:
+    """Write a cloud (coordinates in the CRS's units) as LAS 1.4 point format 6, or LAZ by
+    extension, with its classification and CRS (a pyproj CRS or anything
+    ``pyproj.CRS.from_user_input`` takes). Needs the ``las`` extra."""
+    import laspy
+
+    pts = np.asarray(points, dtype=np.float64)
+    header = laspy.LasHeader(point_format=6, version="1.4")
+    header.scales = np.full(3, scale)
+    header.offsets = np.floor(pts.min(axis=0)) if len(pts) else np.zeros(3)
+    if crs is not None:
+        from pyproj import CRS
+
+        header.add_crs(CRS.from_user_input(crs))
+    las = laspy.LasData(header)
+    las.x, las.y, las.z = pts[:, 0], pts[:, 1], pts[:, 2]
+    if classification is not None:
+        las.classification = np.asarray(classification, dtype=np.uint8)
+    las.write(str(path))
+
+
 def write_ply(path: str | Path, points: np.ndarray, binary: bool = True) -> None:
     """Write an (N, 3) cloud as a PLY file (float64 x, y, z), ascii or binary little endian."""
     pts = np.asarray(points, dtype=np.float64)
@@ -341,8 +443,11 @@ __all__ = [
     "DataFileError",
     "class_name",
     "read_depth_image",
+    "iter_las_chunks",
+    "open_las",
     "read_las",
     "read_ply",
     "read_point_cloud",
+    "write_las",
     "write_ply",
 ]

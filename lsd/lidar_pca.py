@@ -136,24 +136,35 @@ class PlaneSearch:
 
 
 def search_points(
-    cloud: np.ndarray, settings: LidarPcaSettings, rng: np.random.Generator
+    cloud: np.ndarray,
+    settings: LidarPcaSettings,
+    rng: np.random.Generator,
+    core: tuple[float, float, float, float] | None = None,
 ) -> np.ndarray:
     """Indices of the search points in ``cloud`` (``(N, 3)``).
 
     ``random``: ``n_points`` distinct random points (all if fewer). ``grid``: for every
-    occupied cell of a horizontal grid of ``grid_spacing`` (default ``r_max``) metres, the
-    cloud point nearest the cell centre, so every patch the size of a cell is searched.
+    occupied cell of a horizontal grid of ``grid_spacing`` (default ``r_max``) metres
+    (anchored at 0, so the same cells whatever part of a cloud is searched), the cloud
+    point nearest the cell centre, so every patch the size of a cell is searched.
+    ``core = (xmin, xmax, ymin, ymax)``: only the cells whose centre (random: only the
+    points) lie in ``[xmin, xmax) x [ymin, ymax)``; a tile searches its core this way.
     """
     n = len(cloud)
     if n == 0:
         return np.empty(0, dtype=np.int64)
     if settings.seeding == "random":
-        k = min(settings.n_points, n)
-        return np.sort(rng.choice(n, size=k, replace=False))
+        pool = np.arange(n) if core is None else np.flatnonzero(_in_box(cloud[:, :2], core))
+        k = min(settings.n_points, len(pool))
+        return np.sort(pool[rng.choice(len(pool), size=k, replace=False)])
     spacing = settings.grid_spacing or settings.r_max
     xy = cloud[:, :2]
     grid = np.floor(xy / spacing)
     centre = (grid + 0.5) * spacing
+    if core is not None:
+        inside = np.flatnonzero(_in_box(centre, core))
+        if len(inside) < n:
+            return inside[search_points(cloud[inside], settings, rng)]
     cell = (grid - grid.min(axis=0)).astype(np.int64)
     cell_id = cell[:, 0] * (int(cell[:, 1].max()) + 1) + cell[:, 1]  # one int key per cell
     offset = np.hypot(xy[:, 0] - centre[:, 0], xy[:, 1] - centre[:, 1])
@@ -161,6 +172,11 @@ def search_points(
     sorted_ids = cell_id[order]
     first = np.flatnonzero(np.r_[True, sorted_ids[1:] != sorted_ids[:-1]])
     return np.sort(order[first])
+
+
+def _in_box(xy: np.ndarray, box: tuple[float, float, float, float]) -> np.ndarray:
+    xmin, xmax, ymin, ymax = box
+    return (xy[:, 0] >= xmin) & (xy[:, 0] < xmax) & (xy[:, 1] >= ymin) & (xy[:, 1] < ymax)
 
 
 class _Pairs:
@@ -268,6 +284,14 @@ def _shell_pca(pairs: _Pairs, r: int):
     return count, mean, np.maximum(evals, 0.0), normal, zstd
 
 
+def _smooth(evals: np.ndarray, settings: LidarPcaSettings) -> np.ndarray:
+    """True where the RMS distance from the PCA plane (the square root of the smallest
+    eigenvalue) is within residual_max."""
+    if settings.residual_max is None:
+        return np.ones(evals.shape[:-1], dtype=bool)
+    return evals[..., 0] <= settings.residual_max**2
+
+
 def _max_plane_distance(pairs: _Pairs, mean, normal, need: np.ndarray) -> np.ndarray:
     """Largest distance of a sphere's points from its plane, (S, R), for the spheres marked
     in ``need`` (S, R) (0 elsewhere; ``need`` is a prefix of radii per search point).
@@ -319,7 +343,7 @@ def _grow(pairs: _Pairs, radii: np.ndarray, settings: LidarPcaSettings, max_step
     count, mean, evals, normal, zstd = _shell_pca(pairs, r)
     slope = np.arccos(np.minimum(normal[..., 2], 1.0))  # normal z >= 0
     enough = count >= settings.n_min
-    fit = enough & (slope <= settings.theta_max)  # a plane flat enough
+    fit = enough & (slope <= settings.theta_max) & _smooth(evals, settings)  # a flat plane
     lopsided = np.zeros_like(fit)
     if settings.max_offset is not None:  # centroid relative to the seed
         lopsided = np.hypot(mean[..., 0], mean[..., 1]) > settings.max_offset * radii
@@ -396,8 +420,9 @@ def _first_radius(
     m /= count[:, None]
     mean = m[:, 1:4]
     cov = m[:, 4:10][:, _COV_ENTRY] - mean[:, :, None] * mean[:, None, :]
-    normal = _pca_planes(cov)[1]
+    evals, normal = _pca_planes(cov)
     fit = enough & (np.arccos(np.minimum(normal[:, 2], 1.0)) <= settings.theta_max)
+    smooth = _smooth(evals, settings)
     lopsided = np.zeros(s, dtype=bool)
     if settings.max_offset is not None:  # centroid relative to the seed
         lopsided = np.hypot(mean[:, 0], mean[:, 1]) > settings.max_offset * r0
@@ -405,6 +430,7 @@ def _first_radius(
     if np.isfinite(max_step) and fit.any():
         dist = _plane_distance(rel.T, mean, normal, owner)
         off = fit & (np.maximum.reduceat(dist, starts) > max_step)
+    off |= fit & ~smooth  # points scattered off the plane: counted with the step
     first_fail[enough] = 2
     first_fail[fit] = 3
     first_fail[fit & ~off] = 4
@@ -418,6 +444,7 @@ def detect_planes(
     settings: LidarPcaSettings,
     rng: np.random.Generator,
     timestamp: float = 0.0,
+    core: tuple[float, float, float, float] | None = None,
 ) -> PlaneSearch:
     """Algorithm 1 (growing spherical neighbourhoods, PCA planes) on a downsampled cloud,
     followed by the sigma_max rejection of section 4.5.
@@ -429,6 +456,7 @@ def detect_planes(
         settings: detector settings.
         rng: source of the random search points.
         timestamp: clock seconds stamped on the spots.
+        core: search only this part of the cloud (see :func:`search_points`).
 
     A search point grows its sphere from r_min by r_step while the fit has at least n_min
     points, slope <= theta_max and (beyond the paper) no point farther than max_step from the
@@ -441,11 +469,11 @@ def detect_planes(
     """
     if isinstance(cloud, VoxelCloud):
         coords, index = cloud.coords, cloud.index
-        seeds = search_points(cloud.points, settings, rng)
+        seeds = search_points(cloud.points, settings, rng, core)
         work = seeds  # positions of the search points in coords
     else:
         cloud = np.asarray(cloud, dtype=np.float64)
-        seeds = search_points(cloud, settings, rng)
+        seeds = search_points(cloud, settings, rng, core)
         unsorted = np.ascontiguousarray(cloud.T)
         index, order = ColumnIndex.build(unsorted[0], unsorted[1], settings.r_min / 2.0)
         coords = unsorted[:, order]

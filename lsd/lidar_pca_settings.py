@@ -30,6 +30,25 @@ class SpotWeights(BaseModel):
         return self
 
 
+class ClassRules(BaseModel):
+    """What a classified cloud's ASPRS codes allow inside a site's disc and its clearance
+    ring. A cloud counts as classified when it holds ground (2) points; otherwise (all 0 or
+    1, or no classification) sites rest on geometry alone."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+
+    enabled: bool = Field(True, description="use the file's classification when it has one")
+    ground: list[int] = Field(
+        [2], description="classes a site may stand on and have in its clearance ring "
+        "(ASPRS 2: ground)"
+    )
+    roofs: bool = Field(
+        False, description="also allow sites on flat roofs: a disc and ring of building (6) "
+        "points only, with no building/non-building edge"
+    )
+    roof: list[int] = Field([6], description="building classes for roof sites (ASPRS 6)")
+
+
 class LidarPcaSettings(BaseModel):
     """Accumulation, downsampling, plane search (Algorithm 1) and grading parameters."""
 
@@ -83,10 +102,17 @@ class LidarPcaSettings(BaseModel):
     )
     theta_max_deg: float = Field(15.0, gt=0, lt=90, description="steepest plane accepted (deg)")
     sigma_max: float = Field(
-        0.2, gt=0, le=100, description="largest z standard deviation accepted (m)"
+        0.2, gt=0, le=100, description="largest z standard deviation accepted (m; the "
+        "paper's check, which a 15 deg slope over r_min already reaches: flatness is "
+        "judged by residual_max)"
+    )
+    residual_max: float | None = Field(
+        0.05, gt=0, le=100, description="beyond the paper: largest RMS distance of a "
+        "neighbourhood's points from its PCA plane (m): a few centimetres for a 1 m "
+        "footprint; None disables"
     )
     max_step: float | None = Field(
-        0.3,
+        0.15,
         gt=0,
         le=100,
         description="beyond the paper: stop growing when a point lies farther than this from "
@@ -107,16 +133,22 @@ class LidarPcaSettings(BaseModel):
     )
     merge_distance: float = Field(
         1.0, ge=0, le=1000, description="spots closer than this (m) are the same spot; the "
-        "better stays"
+        "better stays (and discs that overlap are never both reported)"
     )
     max_spots: int = Field(
         1000, ge=1, le=100_000, description="most registered spots kept (best grades), up to "
         "the LSM's largest capacity"
     )
     obstacle_margin: float = Field(
-        1.0, ge=0, le=1000, description="extra horizontal radius (m) searched for the "
-        "obstacle altitude"
+        1.0, ge=0, le=1000, description="clearance ring: extra horizontal radius (m) "
+        "around a site searched for the obstacle altitude, where no point may stand more "
+        "than obstacle_height above the site's plane"
     )
+    obstacle_height: float | None = Field(
+        0.5, ge=0, le=1000, description="highest point allowed in the clearance ring above "
+        "the site's plane (m); None: the ring only reports obstacle_altitude"
+    )
+    classes: ClassRules = ClassRules()
 
     @model_validator(mode="after")
     def _radii(self) -> LidarPcaSettings:

@@ -192,13 +192,15 @@ class VoxelCloud:
         return len(self.points)
 
 
-def voxel_grid(points: np.ndarray, voxel_size: float) -> VoxelCloud:
+def voxel_grid(points: np.ndarray, voxel_size: float, lattice: bool = False) -> VoxelCloud:
     """Voxel-grid filter: replace the points of each occupied voxel by their centroid
     (voxels of edge ``voxel_size`` anchored at the cloud's lowest corner).
 
     Args:
         points: ``(N, 3)`` finite world points, metres.
         voxel_size: voxel edge, metres (> 0).
+        lattice: anchor the voxels at multiples of ``voxel_size`` instead, so that any
+            part of a cloud (a tile) has the same voxels as the whole.
 
     Raises:
         ValueError: ``voxel_size`` not positive, or a cloud so wide for its voxel size that
@@ -226,9 +228,18 @@ def voxel_grid(points: np.ndarray, voxel_size: float) -> VoxelCloud:
     lo = xyz.min(axis=1)
     hi = xyz.max(axis=1).tolist()
     inv = 1.0 / voxel_size
+    if lattice:  # absolute voxel indices floor(x / voxel), shifted to start at 0
+        xyz *= inv
+        np.floor(xyz, out=xyz)
+        first = xyz.min(axis=1)
+        xyz -= first[:, None]
+        lo = first * voxel_size
+        hi = (xyz.max(axis=1) * voxel_size + lo).tolist()
     # Voxels per axis from the extremes (the same monotone expression as the indices below),
     # checked before any cast so an absurd extent cannot overflow silently.
     nx, ny, nz = (int((h - m) * inv) + 1 for h, m in zip(hi, lo.tolist(), strict=True))
+    if lattice:
+        nx, ny, nz = (int(v) + 1 for v in xyz.max(axis=1))
     z_bits = (nz - 1).bit_length()
     n_bits = (n - 1).bit_length()
     key_bits = (nx * ny - 1).bit_length() + z_bits
@@ -237,9 +248,9 @@ def voxel_grid(points: np.ndarray, voxel_size: float) -> VoxelCloud:
             f"voxel grid of {nx} x {ny} x {nz} voxels is too large for int64 keys "
             f"(cloud extent / voxel_size {voxel_size} m)"
         )
-    # Shifted to non-negative, truncation is floor: voxel indices from the cloud's corner.
-    xyz -= lo[:, None]
-    xyz *= inv
+    if not lattice:  # shifted to non-negative, truncation is floor: from the cloud's corner
+        xyz -= lo[:, None]
+        xyz *= inv
     packed = key_bits + n_bits <= _KEY_BITS
     if packed and nx * ny < 2**31 and z_bits + n_bits < 31:
         # The usual case, mostly in int32 (half the bytes per pass): the column kx * ny + ky,

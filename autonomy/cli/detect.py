@@ -1,10 +1,11 @@
 """``lander detect``: run a landing-site detector offline on recorded data.
 
-    lander detect --lidar CLOUD.{npy,ply,las,laz} [--seeding grid] [--out DIR]
+    lander detect --lidar CLOUD.{npy,ply,las,laz} [--judge] [--roofs] [--out DIR]
     lander detect --depth DEPTH.{npy,png} --fx F --fy F --cx C --cy C [--pose x,y,z,yaw]
 
 Prints a table of sites (best first) and writes ``sites.csv`` and ``overlay.png`` (points or
-depth coloured by height, sites drawn with their radii) into ``--out``.
+depth coloured by height, sites drawn with their radii) into ``--out``; a LAS/LAZ file with
+a CRS also gets ``sites.geojson`` (WGS84). See docs/lidar-and-elevation-models.md.
 """
 
 from __future__ import annotations
@@ -28,8 +29,8 @@ if TYPE_CHECKING:  # the detectors are imported when the command runs (fast `lan
 
 NADIR = np.array([[1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, -1.0]])
 CSV_FIELDS = (
-    "rank", "x", "y", "z", "size", "roughness", "uncertainty", "obstacle_altitude", "score",
-    "class",
+    "rank", "x", "y", "z", "lat", "lon", "size", "roughness", "uncertainty",
+    "obstacle_altitude", "score", "class",
 )  # fmt: skip
 MAX_PLOTTED_POINTS = 200_000
 DROPPED = "with NaN/inf or beyond 1e8 m dropped"
@@ -106,16 +107,28 @@ def _classes(raw: np.ndarray, codes: np.ndarray, obs: list[SiteObservation]) -> 
 
 
 def _write_outputs(
-    out_dir: Path, obs: list[SiteObservation], scores: np.ndarray, classes: list[str]
+    out_dir: Path, obs: list[SiteObservation], scores: np.ndarray, classes: list[str],
+    georef=None,
 ) -> list[dict]:
+    """sites.csv: x, y, z and obstacle_altitude in the file's CRS and units (metres
+    without one), lat/lon WGS84 when the CRS is known, size in metres."""
+    xyz = np.array([[o.x, o.y, o.z] for o in obs]).reshape(-1, 3)
+    obst = np.array([[o.x, o.y, o.obstacle_altitude] for o in obs]).reshape(-1, 3)
+    lonlat = None
+    if georef is not None:
+        lonlat = georef.to_lonlat(xyz[:, :2]) if len(xyz) else None
+        xyz, obst = georef.to_file(xyz), georef.to_file(obst)
     rows = []
     for i, (o, sc) in enumerate(zip(obs, scores, strict=True)):
         rows.append(
             {
-                "rank": i + 1, "x": round(o.x, 3), "y": round(o.y, 3), "z": round(o.z, 3),
+                "rank": i + 1, "x": round(xyz[i, 0], 3), "y": round(xyz[i, 1], 3),
+                "z": round(xyz[i, 2], 3),
+                "lat": "" if lonlat is None else round(float(lonlat[i, 1]), 8),
+                "lon": "" if lonlat is None else round(float(lonlat[i, 0]), 8),
                 "size": round(o.size, 3), "roughness": round(o.roughness, 4),
                 "uncertainty": round(o.uncertainty, 4),
-                "obstacle_altitude": round(o.obstacle_altitude, 3),
+                "obstacle_altitude": round(obst[i, 2], 3),
                 "score": round(float(sc), 4), "class": classes[i] if classes else "",
             }
         )  # fmt: skip
@@ -127,6 +140,8 @@ def _write_outputs(
 
 
 def _print_table(rows: list[dict], limit: int) -> None:
+    if not rows:
+        return
     with_class = any(r["class"] for r in rows)
     head = f"{'#':>4} {'x':>10} {'y':>10} {'z':>8} {'size':>6} {'rough':>6} {'unc':>6} "
     head += f"{'obst_z':>8} {'score':>6}" + ("  class" if with_class else "")
@@ -151,7 +166,10 @@ def _figure():
     return plt
 
 
-def _overlay_cloud(path: Path, cloud: np.ndarray, obs: list[SiteObservation], seed: int) -> None:
+def _overlay_cloud(path: Path, cloud: np.ndarray, obs: list[SiteObservation], seed: int,
+                   georef=None) -> None:
+    """Points coloured by height with the sites' discs, in metres (the file's CRS
+    coordinates converted to metres, named in the axis labels)."""
     plt = _figure()
     from matplotlib.patches import Circle
 
@@ -159,16 +177,22 @@ def _overlay_cloud(path: Path, cloud: np.ndarray, obs: list[SiteObservation], se
     if len(pts) > MAX_PLOTTED_POINTS:
         keep = np.random.default_rng(seed).choice(len(pts), MAX_PLOTTED_POINTS, replace=False)
         pts = pts[keep]
+    frame = "" if georef is None or georef.crs is None else f", {georef.label} in metres"
     fig, ax = plt.subplots(figsize=(8, 8))
-    sc = ax.scatter(pts[:, 0], pts[:, 1], c=pts[:, 2], s=0.5, cmap="terrain", linewidths=0)
-    fig.colorbar(sc, ax=ax, label="z (m)", shrink=0.8)
+    if len(pts):
+        sc = ax.scatter(pts[:, 0], pts[:, 1], c=pts[:, 2], s=0.5, cmap="terrain", linewidths=0)
+        fig.colorbar(sc, ax=ax, label="z (m)", shrink=0.8)
     for i, o in enumerate(obs[:MAX_DRAWN_SITES]):
         ax.add_patch(Circle((o.x, o.y), o.size, fill=False, ec="red", lw=1.2))
         if i < 20:
             ax.annotate(str(i + 1), (o.x, o.y), color="red", fontsize=7, ha="center")
+    if not len(pts) and obs:
+        xy = np.array([[o.x, o.y] for o in obs])
+        ax.set_xlim(xy[:, 0].min() - 5, xy[:, 0].max() + 5)
+        ax.set_ylim(xy[:, 1].min() - 5, xy[:, 1].max() + 5)
     ax.set_aspect("equal")
-    ax.set_xlabel("x (m)")
-    ax.set_ylabel("y (m)")
+    ax.set_xlabel(f"x (m{frame})")
+    ax.set_ylabel(f"y (m{frame})")
     ax.set_title(f"{len(obs)} landing sites (red: radius; best {MAX_DRAWN_SITES} drawn)")
     fig.savefig(path, dpi=110, bbox_inches="tight")
     plt.close(fig)
@@ -201,69 +225,169 @@ def _overlay_depth(path: Path, frame: DepthFrame, obs: list[SiteObservation]) ->
 
 
 def run_lidar(args: argparse.Namespace, out_dir: Path) -> int:
-    from lsd.io import DataFileError, read_point_cloud
+    from lsd.io import DataFileError, open_las, read_point_cloud
     from lsd.lidar_pca import LidarPcaDetector, LidarPcaSettings, spot_grades
+    from lsd.lidar_pca_sites import find_sites, finish_sites, is_classified
     from lsd.pointcloud import clean_points
 
     settings = _settings(
         LidarPcaSettings,
         {
-            "voxel_size": args.voxel, "seeding": args.seeding, "n_points": args.n_points,
-            "r_min": args.r_min, "r_max": args.r_max, "r_step": args.r_step,
-            "sigma_max": args.sigma_max, "theta_max_deg": args.theta_max,
+            "voxel_size": args.voxel, "seeding": args.seeding or "grid",
+            "n_points": args.n_points, "r_min": args.r_min, "r_max": args.r_max,
+            "r_step": args.r_step, "sigma_max": args.sigma_max,
+            "theta_max_deg": args.theta_max, "residual_max": args.residual_max,
+            "obstacle_height": args.obstacle_height,
+            "classes": {"enabled": not args.no_classes, "roofs": args.roofs},
         },
         {
             "voxel_size": "--voxel", "seeding": "--seeding", "n_points": "--n-points",
             "r_min": "--r-min", "r_max": "--r-max", "r_step": "--r-step",
             "sigma_max": "--sigma-max", "theta_max_deg": "--theta-max",
+            "residual_max": "--residual-max", "obstacle_height": "--obstacle-height",
         },
     )  # fmt: skip
+    if args.paper:  # the paper's Algorithm 1 only: no off-plane, off-data or obstacle cuts
+        settings = settings.model_copy(update={
+            "max_step": None, "max_offset": None, "residual_max": None,
+            "obstacle_height": None, "classes": settings.classes.model_copy(
+                update={"enabled": False})})
+    path = Path(args.lidar)
+    rng = np.random.default_rng(args.seed)
+    raw = codes = None
     try:
-        data = read_point_cloud(args.lidar)
+        tiled = False
+        if path.suffix.lower() in (".las", ".laz"):
+            with open_las(path) as (reader, georef):
+                count = int(reader.header.point_count)
+            tiled = args.tile_size is not None or count > args.in_memory_points
+        if tiled:
+            result = _run_tiled(args, path, settings, rng)
+            spots, counts, georef = result.spots, result.counts, result.georef
+            print(f"{path}: {result.points} points streamed through {result.tiles} tiles")
+            _print_georef(georef)
+        else:
+            data = read_point_cloud(path)
+            georef = data.georef
+            raw = np.asarray(data.points)
+            cloud, dropped = clean_points(raw)
+            print(f"{path}: {len(raw)} points ({dropped} {DROPPED})")
+            _print_georef(georef)
+            if len(cloud) < settings.n_min:
+                raise UserError(
+                    f"{path}: only {len(cloud)} valid points ({dropped} {DROPPED}); "
+                    f"need at least {settings.n_min}"
+                )
+            finite = (np.abs(raw) <= 1e8).all(axis=1)
+            codes = None if data.classification is None else data.classification[finite]
+            spots, counts = find_sites(cloud, codes, settings, rng)
+            spots = finish_sites(spots, settings, counts)
+            raw = cloud
     except DataFileError as exc:
         raise UserError(str(exc)) from None
-    raw = np.asarray(data.points)
-    cloud, dropped = clean_points(raw)
-    if len(cloud) < settings.n_min:
-        raise UserError(
-            f"{args.lidar}: only {len(cloud)} valid points ({dropped} {DROPPED}); "
-            f"need at least {settings.n_min}"
-        )
-    if args.paper:  # the paper's Algorithm 1 only: no off-plane, off-data or obstacle cuts
-        settings = settings.model_copy(update={"max_step": None, "max_offset": None})
-    det = LidarPcaDetector(settings, rng=args.seed)
-    try:
-        det.process(cloud)
     except ValueError as exc:  # e.g. more voxels than int64 keys hold: a cloud too wide
-        raise UserError(f"{args.lidar}: {exc}") from None
-    obs = det.observations()
-    scores = np.sort(spot_grades(det.spots, settings))[::-1]
-    classes = []
-    if data.classification is not None:
-        finite = np.isfinite(raw).all(axis=1)
-        classes = _classes(cloud, data.classification[finite], obs)
-    search = det.last_search
-    print(
-        f"{args.lidar}: {len(raw)} points ({dropped} {DROPPED}); voxel "
-        f"{settings.voxel_size:g} m; {settings.seeding} seeding, "
-        f"{len(search.seeds) if search else 0} search points: "
-        f"{search.n_accepted if search else 0} planes accepted, "
-        f"{search.n_rejected if search else 0} rejected"
-        + (
-            f" (slope {search.rejected_slope}, too few points {search.rejected_points}, "
-            f"off-plane {search.rejected_step}, off the data {search.rejected_edge}, "
-            f"obstacle {search.rejected_clearance}, "
-            f"sigma {search.rejected_sigma})"
-            if search
-            else ""
-        )
-    )
-    rows = _write_outputs(out_dir, obs, scores, classes)
-    _overlay_cloud(out_dir / "overlay.png", cloud, obs, args.seed)
-    print(f"{len(obs)} sites (score = spot grade, eq. 6)")
+        raise UserError(f"{path}: {exc}") from None
+    classified = is_classified(codes) if raw is not None else None
+    if classified is not None:
+        print("classification: " + (
+            "ASPRS classes used (sites on ground" + (" or roofs" if settings.classes.roofs
+                                                      else "") + " only)"
+            if classified and settings.classes.enabled else
+            "ignored (--no-classes)" if classified else
+            "none usable (no ground class): sites by geometry alone"))
+    print(f"voxel {settings.voxel_size:g} m, {settings.seeding} seeding: {counts.summary()}")
+    det = LidarPcaDetector(settings)
+    obs = det.to_observations(spots)
+    scores = spot_grades(spots, settings)
+    classes = _classes(raw, codes, obs) if raw is not None and codes is not None else []
+    rows = _write_outputs(out_dir, obs, scores, classes, georef)
+    wrote = [out_dir / "sites.csv"]
+    if georef is not None and georef.crs is not None:
+        _write_geojson(out_dir / "sites.geojson", rows, georef)
+        wrote.append(out_dir / "sites.geojson")
+    _overlay_cloud(out_dir / "overlay.png", raw if raw is not None else np.empty((0, 3)), obs,
+                   args.seed, georef)
+    wrote.append(out_dir / "overlay.png")
+    unit = "m" if georef is None or georef.crs is None else georef.unit_name
+    where = "" if georef is None else f"; x, y, z in {georef.label} ({unit})"
+    if obs:
+        print(f"{len(obs)} sites (score = spot grade, eq. 6{where}; size in m)")
+    else:
+        print(f"0 sites, because {_why_none(counts)}")
     _print_table(rows, args.limit)
-    print(f"wrote {out_dir / 'sites.csv'} and {out_dir / 'overlay.png'}")
+    if args.judge:
+        _judge(raw, codes, spots, settings, args.seed)
+    print("wrote " + ", ".join(str(w) for w in wrote))
     return 0
+
+
+def _run_tiled(args, path: Path, settings, rng):
+    from lsd.lidar_pca_tiles import detect_tiled, stderr_progress
+
+    if settings.seeding != "grid":
+        raise UserError("--seeding: a tiled (streamed) cloud needs grid seeding")
+    if args.judge:
+        raise UserError("--judge: judging needs the cloud in memory; raise "
+                        "--in-memory-points above the file's point count")
+    return detect_tiled(path, settings, rng, tile_size=args.tile_size or 200.0,
+                        progress=None if args.quiet else stderr_progress(str(path)))
+
+
+def _print_georef(georef) -> None:
+    if georef is None:
+        return
+    if georef.crs is not None:
+        conv = "" if georef.horizontal_unit == 1.0 else (
+            f", x and y converted from {georef.unit_name} to metres")
+        name = "" if georef.label == georef.crs.name else f": {georef.crs.name}"
+        print(f"CRS {georef.label}{name}{conv}")
+    if georef.note:
+        print(georef.note)
+
+
+def _why_none(counts) -> str:
+    """The honest reason a run found no site, from its counts."""
+    if counts.search_points == 0:
+        return "the cloud holds no searchable points"
+    if counts.planes == 0:
+        top = ", ".join(f"{k} {v}" for k, v in counts.rejected.most_common() if v)
+        return (f"no search point found a plane flat and large enough ({top}; "
+                f"see --theta-max, --residual-max, --r-min)")
+    if counts.dropped and sum(counts.dropped.values()) >= counts.planes:
+        top = ", ".join(f"{k} {v}" for k, v in counts.dropped.most_common() if v)
+        return f"the site rules dropped all {counts.planes} planes ({top})"
+    return "every plane was dropped"
+
+
+def _judge(points, codes, spots, settings, seed: int) -> None:
+    """Score the sites against the cloud's labels and a plane fit, with random discs of
+    r_min on the same cloud as the baseline."""
+    from lsd.lidar_pca_judge import Judge, JudgeRules, random_discs, score
+
+    judge = Judge(points, codes, JudgeRules.from_settings(settings))
+    safe, why = judge.judge(spots.centre[:, :2], spots.radius)
+    centres = random_discs(points, 500, settings.r_min, np.random.default_rng(seed + 1))
+    base, base_why = judge.judge(centres, settings.r_min)
+    print(f"judge: sites {score(safe, why)}")
+    print(f"judge: random {settings.r_min:g} m discs {score(base, base_why)}")
+
+
+def _write_geojson(path: Path, rows: list[dict], georef) -> None:
+    """The sites as GeoJSON points (WGS84 lon/lat, RFC 7946) with their properties."""
+    import json
+
+    label = georef.label
+    features = [
+        {
+            "type": "Feature",
+            "geometry": {"type": "Point", "coordinates": [r["lon"], r["lat"]]},
+            "properties": {k: r[k] for k in CSV_FIELDS if k not in ("lat", "lon")}
+            | {"crs": label},
+        }
+        for r in rows
+    ]
+    with open(path, "w") as f:
+        json.dump({"type": "FeatureCollection", "features": features}, f)
 
 
 def run_depth(args: argparse.Namespace, out_dir: Path) -> int:
@@ -367,13 +491,38 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--seed", type=types.seed, default=0, help="random seed (search points)")
     lidar = parser.add_argument_group("LiDAR PCA detector")
     lidar.add_argument("--voxel", type=float, help="voxel size (m), default 0.05")
-    lidar.add_argument("--seeding", choices=("random", "grid"), help="search points")
+    lidar.add_argument("--seeding", choices=("random", "grid"),
+                       help="search points: grid (default here: one per r_max cell, every "
+                       "patch searched) or random (--n-points, the paper's)")
     lidar.add_argument("--n-points", type=int, help="random search points, default 20")
     lidar.add_argument("--r-min", type=float, help="smallest spot radius (m), default 1.5")
     lidar.add_argument("--r-max", type=float, help="largest radius (m), default 3")
     lidar.add_argument("--r-step", type=float, help="radius step (m), default 0.5")
-    lidar.add_argument("--sigma-max", type=float, help="largest z std (m), default 0.2")
+    lidar.add_argument("--sigma-max", type=float,
+                       help="largest z std (m), default 0.2 (the paper's; flatness is "
+                       "--residual-max)")
     lidar.add_argument("--theta-max", type=float, help="steepest slope (deg), default 15")
+    lidar.add_argument("--residual-max", type=float,
+                       help="largest RMS distance from a site's plane (m), default 0.05")
+    lidar.add_argument("--obstacle-height", type=float,
+                       help="highest point allowed in the 1 m clearance ring above the site's "
+                       "plane (m), default 0.5")
+    lidar.add_argument("--roofs", action="store_true",
+                       help="classified clouds: also report sites on flat roofs (building "
+                       "points only in disc and ring)")
+    lidar.add_argument("--no-classes", action="store_true",
+                       help="ignore the file's ASPRS classification (geometry alone)")
+    lidar.add_argument("--judge", action="store_true",
+                       help="score the sites against the cloud's labels and a plane fit, "
+                       "beside random discs on the same cloud")
+    lidar.add_argument("--tile-size", type=types.number(10, 100_000), metavar="M",
+                       help="stream a LAS/LAZ file through square tiles of this edge (m); "
+                       "default: only files above --in-memory-points, 200 m tiles")
+    lidar.add_argument("--in-memory-points", type=types.integer(1, 1_000_000_000),
+                       default=5_000_000, metavar="N",
+                       help="LAS/LAZ files with more points are streamed through tiles "
+                       "(bounded memory), default %(default)s")
+    lidar.add_argument("--quiet", action="store_true", help="no progress bar")
     lidar.add_argument("--paper", action="store_true",
                        help="the paper's checks only (no off-plane, off-the-data or obstacle "
                        "cuts of the radius)")

@@ -56,7 +56,11 @@ def test_npy_cloud_prints_sites_and_writes_csv_and_overlay(tmp_path, capsys):
     text = capsys.readouterr().out
     assert "40000 points" in text and "sites.csv" in text
     rows = read_sites(out)
-    assert len(rows) >= 10
+    assert len(rows) >= 5
+    xy = np.array([[float(r["x"]), float(r["y"])] for r in rows])
+    size = np.array([float(r["size"]) for r in rows])
+    gap = np.hypot(*(xy[:, None] - xy[None]).transpose(2, 0, 1)) - size[:, None] - size[None]
+    assert (gap[~np.eye(len(rows), dtype=bool)] >= -1e-3).all()  # no two discs overlap
     assert int(rows[0]["rank"]) == 1
     scores = [float(r["score"]) for r in rows]
     assert scores == sorted(scores, reverse=True)

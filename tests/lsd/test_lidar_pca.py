@@ -135,7 +135,8 @@ def test_noise_raising_z_std_above_sigma_max_is_rejected():
     rng = np.random.default_rng(3)
     g = grid(-8, 8, -8, 8)
     noisy = np.c_[g, rng.normal(0.0, 0.3, len(g))]
-    settings = SETTINGS.model_copy(update={"max_step": None, "sigma_max": 0.2})
+    settings = SETTINGS.model_copy(update={"max_step": None, "sigma_max": 0.2,
+                                           "residual_max": None})
     det = LidarPcaDetector(settings, rng=0)
     assert det.process(noisy) == []
     assert det.last_search.rejected_sigma > 0
@@ -439,7 +440,9 @@ def algorithm1_reference(cloud, seeds, s):
             if math.acos(min(abs(normal[2]), 1.0)) > s.theta_max:
                 why = 2 if j == 0 else why
                 break
-            if np.abs((sphere - mean) @ normal).max() > s.max_step:
+            evals = np.linalg.eigvalsh(np.cov((sphere - mean).T, bias=True))
+            rough = s.residual_max is not None and evals[0] > s.residual_max**2
+            if np.abs((sphere - mean) @ normal).max() > s.max_step or rough:
                 why = 3 if j == 0 else why
                 break
             if np.hypot(*(mean - centre)[:2]) > s.max_offset * r:
@@ -459,7 +462,8 @@ def test_batched_growth_matches_algorithm_1_point_by_point(scene):
         "rough": np.c_[g, rng.normal(0.0, 0.08, len(g)) + (np.abs(g[:, 1]) < 1) * 0.5],
     }
     cloud = clouds[scene]
-    s = SETTINGS.model_copy(update={"seeding": "random", "n_points": 80, "r_min": 0.5})
+    s = SETTINGS.model_copy(update={"seeding": "random", "n_points": 80, "r_min": 0.5,
+                                    "residual_max": 0.1})
     search = detect_planes(cloud, s, np.random.default_rng(1))
     fails, fits = algorithm1_reference(cloud, search.seeds, s)
     assert search.rejected_points == (fails == 1).sum()

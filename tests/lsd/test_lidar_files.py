@@ -1,0 +1,140 @@
+"""``lander detect --lidar`` on LAS/LAZ files: LAZ out of the box, the file's CRS and units,
+sites in the file's CRS and as WGS84 lat/lon (sites.csv, sites.geojson), streamed tiles
+equal to the whole cloud, and one clear line for bad input (issue 16)."""
+
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import autonomy.cli as cli
+from lsd.io import read_point_cloud, write_las
+from lsd.lidar_pca_scenes import scene
+
+REAL = Path(__file__).resolve().parents[1] / "data" / "real"
+US_FOOT = 1200.0 / 3937.0  # metres
+# The same Lambert projection (North Carolina State Plane, NAD83) in metres and in US feet.
+NC_METRES, NC_FEET = "EPSG:32119", "EPSG:2264"
+NC_ORIGIN = np.array([600_000.0, 200_000.0, 100.0])  # metres, inside the state
+
+
+@pytest.fixture(autouse=True)
+def only_detect(monkeypatch):
+    monkeypatch.setattr(cli, "COMMAND_MODULES", ("autonomy.cli.detect",))
+
+
+def lander(*argv):
+    return cli.main(["detect", "--quiet", *map(str, argv)])
+
+
+def read_sites(out):
+    with open(out / "sites.csv") as f:
+        return list(csv.DictReader(f))
+
+
+def test_laz_reads_out_of_the_box_with_its_crs_and_feet_to_metres():
+    data = read_point_cloud(REAL / "autzen_suburban_ft.laz")
+    assert len(data.points) == 110_000
+    assert data.georef.unit_name == "foot" and data.georef.horizontal_unit == 0.3048
+    import laspy
+
+    header = laspy.open(REAL / "autzen_suburban_ft.laz").header
+    np.testing.assert_allclose(data.points.max(0) - data.points.min(0),
+                               (header.maxs - header.mins) * 0.3048, rtol=1e-9)
+
+
+def test_sites_in_the_files_crs_and_as_wgs84(tmp_path, capsys):
+    from pyproj import Transformer
+
+    out = tmp_path / "o"
+    assert lander("--lidar", REAL / "nebraska_urban_ftus.las", "--out", out) == 0
+    text = capsys.readouterr().out
+    assert "EPSG:6880" in text and "US survey foot to metres" in text
+    rows = read_sites(out)
+    assert rows
+    import laspy
+
+    header = laspy.open(REAL / "nebraska_urban_ftus.las").header
+    to_wgs84 = Transformer.from_crs("EPSG:6880", "EPSG:4326", always_xy=True)
+    features = json.loads((out / "sites.geojson").read_text())["features"]
+    assert len(features) == len(rows)
+    for row, feature in zip(rows, features, strict=True):
+        x, y = float(row["x"]), float(row["y"])  # US survey feet, the file's own frame
+        assert header.mins[0] <= x <= header.maxs[0] and header.mins[1] <= y <= header.maxs[1]
+        lon, lat = to_wgs84.transform(x, y)
+        assert float(row["lon"]) == pytest.approx(lon, abs=1e-7)
+        assert float(row["lat"]) == pytest.approx(lat, abs=1e-7)
+        assert feature["geometry"]["coordinates"] == pytest.approx([lon, lat], abs=1e-7)
+
+
+def test_a_feet_file_gives_the_sites_of_its_metre_conversion(tmp_path):
+    points, codes = scene("urban", size=40.0, seed=3)
+    feet = (points + NC_ORIGIN) / US_FOOT
+    write_las(tmp_path / "ft.laz", feet, codes, NC_FEET, scale=0.001)
+    # The metre conversion of exactly the points the feet file holds.
+    stored = read_point_cloud(tmp_path / "ft.laz").points
+    np.save(tmp_path / "m.npy", np.column_stack((stored, codes)))
+    assert lander("--lidar", tmp_path / "ft.laz", "--out", tmp_path / "a") == 0
+    assert lander("--lidar", tmp_path / "m.npy", "--out", tmp_path / "b") == 0
+    a, b = read_sites(tmp_path / "a"), read_sites(tmp_path / "b")
+    assert len(a) >= 3 and len(a) == len(b)
+    for ra, rb in zip(a, b, strict=True):
+        assert float(ra["x"]) * US_FOOT == pytest.approx(float(rb["x"]), abs=2e-3)
+        assert float(ra["y"]) * US_FOOT == pytest.approx(float(rb["y"]), abs=2e-3)
+        assert float(ra["z"]) * US_FOOT == pytest.approx(float(rb["z"]), abs=2e-3)
+        assert ra["size"] == rb["size"]  # metres in both
+
+
+def test_streamed_tiles_give_the_sites_of_the_whole_cloud(tmp_path, capsys):
+    points, codes = scene("urban", size=60.0, seed=4)
+    write_las(tmp_path / "c.laz", points + NC_ORIGIN, codes, NC_METRES)
+    assert lander("--lidar", tmp_path / "c.laz", "--out", tmp_path / "whole") == 0
+    assert lander("--lidar", tmp_path / "c.laz", "--tile-size", 15, "--out",
+                  tmp_path / "tiles") == 0
+    assert "tiles" in capsys.readouterr().out
+    whole, tiles = read_sites(tmp_path / "whole"), read_sites(tmp_path / "tiles")
+    assert len(whole) >= 5
+    # The same sites (the class column needs the whole cloud: filled only when it is read).
+    assert [{k: v for k, v in r.items() if k != "class"} for r in whole] == [
+        {k: v for k, v in r.items() if k != "class"} for r in tiles]
+
+
+def test_no_crs_is_said_in_one_line_and_taken_as_metres(tmp_path, capsys):
+    points, codes = scene("bare", size=20.0, seed=5)
+    write_las(tmp_path / "c.las", points, codes)
+    assert lander("--lidar", tmp_path / "c.las", "--out", tmp_path / "o") == 0
+    text = capsys.readouterr().out
+    assert "c.las: no CRS; coordinates taken as metres" in text
+    rows = read_sites(tmp_path / "o")
+    assert rows and rows[0]["lat"] == "" and not (tmp_path / "o" / "sites.geojson").exists()
+
+
+def bad_inputs(tmp_path):
+    points, codes = scene("bare", size=20.0, seed=6)
+    write_las(tmp_path / "good.laz", points, codes, NC_METRES)
+    data = (tmp_path / "good.laz").read_bytes()
+    (tmp_path / "truncated.laz").write_bytes(data[: len(data) // 2])
+    (tmp_path / "text.las").write_text("x y z\n1 2 3\n")
+    write_las(tmp_path / "empty.las", np.empty((0, 3)))
+    np.save(tmp_path / "image.npy", np.ones((256, 256), dtype=np.float32))
+    write_las(tmp_path / "degrees.las", np.c_[points[:, :2] * 1e-5 + [-97, 41], points[:, 2]],
+              codes, "EPSG:4326", scale=1e-7)
+    return {
+        "truncated.laz": "truncated.laz",
+        "text.las": "not a readable LAS/LAZ file",
+        "empty.las": "holds no points",
+        "image.npy": "expected an (N, 3) array",
+        "degrees.las": "geographic coordinates (degrees",
+    }
+
+
+def test_bad_files_give_one_clear_line_and_exit_2(tmp_path, capsys):
+    for name, words in bad_inputs(tmp_path).items():
+        assert lander("--lidar", tmp_path / name, "--out", tmp_path / "o") == 2, name
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1 and words in err, (name, err)
+        assert "Traceback" not in err
