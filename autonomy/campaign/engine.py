@@ -7,7 +7,9 @@
     print(result.table())
 
 Output directory: ``runs.jsonl`` (one record per finished run, appended as runs finish),
-``summary.json`` (per-variant table) and ``campaign.png``.
+``summary.json`` (per-variant table), ``campaign.png``, ``campaign.html`` (outcomes per
+variant, each run linked to its flight page) and ``runs/<run id>/`` (each run's report.html
+and logs).
 """
 
 from __future__ import annotations
@@ -16,11 +18,12 @@ import json
 import os
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, TextIO
 
 from autonomy.campaign.backends import Backend, make_backend
+from autonomy.campaign.page import PAGE_FILE, write_campaign_html
 from autonomy.campaign.plan import (
     FlightFunction,
     OverrideFunction,
@@ -42,6 +45,7 @@ from autonomy.errors import UserError
 
 SUMMARY_FILE = "summary.json"
 PLOT_FILE = "campaign.png"
+RUNS_DIR = "runs"  # runs/<run id>/: each run's report folder and flight page
 COMPARE_FILE = "compare.json"
 
 
@@ -100,9 +104,9 @@ def throughput(flown: Sequence[dict[str, Any]], wall_s: float, workers: int) -> 
 
 
 def _default_flight() -> FlightFunction:
-    from autonomy.runner import fly
+    from autonomy.campaign.worker import fly_with_page
 
-    return fly
+    return fly_with_page
 
 
 def _default_apply() -> OverrideFunction:
@@ -172,6 +176,7 @@ def run_campaign(
     progress: TextIO | None = None,
     quiet: bool = False,
     name: str = "",
+    pages: bool = True,
 ) -> CampaignResult:
     """Fly ``runs`` seeded flights of ``mission`` per variant and write the results.
 
@@ -191,6 +196,9 @@ def run_campaign(
         retry_errors: fly again the runs recorded as ``error`` (default: skip them too).
         progress: stream for the progress line (default stderr); ``quiet`` silences it.
         name: title of the plot.
+        pages: each run writes its report folder ``runs/<run id>/`` (report.html and its
+            logs) for campaign.html to link to; on a Dask cluster the workers must see
+            ``out_dir`` (a shared folder).
 
     Raises:
         UserError: bad options, an output directory holding another mission's runs, or an
@@ -202,6 +210,9 @@ def run_campaign(
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
         raise UserError(f"--out {out}: exists and is not a directory")
+    if pages:
+        runs_dir = out.resolve() / RUNS_DIR
+        tasks = [replace(t, out_dir=str(runs_dir / t.run_id)) for t in tasks]
     log = RunLog(out)
     log.check_mission(mission_digest(mission))
     recorded = log.latest()
@@ -254,7 +265,7 @@ def _varied(chosen: Sequence[Variant]) -> dict[str, list[Any]]:
 
 
 def write_outputs(result: CampaignResult, mission: Any) -> None:
-    """Write ``summary.json`` and ``campaign.png`` of a campaign."""
+    """Write ``summary.json``, ``campaign.png`` and ``campaign.html`` of a campaign."""
     summary = {**result.meta, "variants": result.rows}
     text = json.dumps(summary, indent=2, allow_nan=False)
     (result.out_dir / SUMMARY_FILE).write_text(text + "\n", encoding="utf-8")
@@ -266,6 +277,7 @@ def write_outputs(result: CampaignResult, mission: Any) -> None:
         terrain=representative_terrain(mission, seeds[0]),
         title=result.meta.get("name", ""),
     )
+    write_campaign_html(result, result.out_dir / PAGE_FILE, RUNS_DIR)
 
 
 @dataclass
@@ -296,6 +308,7 @@ def compare_campaigns(
     retry_errors: bool = False,
     progress: TextIO | None = None,
     quiet: bool = False,
+    pages: bool = True,
 ) -> ComparisonResult:
     """Fly the same seeds through each ``(name, mission)`` and compare success rates.
 
@@ -317,7 +330,7 @@ def compare_campaigns(
         campaigns = [
             run_campaign(mission, runs=runs, out_dir=out / name, seed=seed, backend=backend,
                          flight=flight, retry_errors=retry_errors, progress=progress,
-                         quiet=quiet, name=name)
+                         quiet=quiet, name=name, pages=pages)
             for name, mission in missions
         ]
     finally:

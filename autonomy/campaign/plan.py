@@ -53,7 +53,8 @@ class RunTask:
     """One flight of a campaign, picklable so that any worker process can fly it.
 
     ``mission`` already has the variant's overrides applied; ``flight`` is a top-level
-    function (pickled by reference) such as :func:`autonomy.runner.fly`.
+    function (pickled by reference) such as :func:`autonomy.runner.fly`, called with
+    ``out_dir``.
     """
 
     run_id: str
@@ -66,6 +67,7 @@ class RunTask:
     seed: int
     mission: Any
     flight: FlightFunction
+    out_dir: str | None = None  # the run's report folder (its flight page), or None
 
     @property
     def identity(self) -> tuple[str, str, int]:

@@ -113,12 +113,21 @@ def summary_record(task: RunTask, summary: Mapping[str, Any], wall_time: float) 
     return record
 
 
+def fly_with_page(mission: Any, seed: int, out_dir: Any = None) -> Any:
+    """:func:`autonomy.runner.fly` as a campaign flies it: the report files and report.html
+    in ``out_dir`` when given, without report.png (its page shows the same, 20 times
+    cheaper to write)."""
+    from autonomy.runner import fly
+
+    return fly(mission, seed=seed, out_dir=out_dir, report_png=False)
+
+
 def fly_run(task: RunTask) -> dict[str, Any]:
     """Fly one task and return its run record (an ``error`` record if the flight raised)."""
     with _ONE_FLIGHT_AT_A_TIME:
         start = time.perf_counter()
         try:
-            result = task.flight(task.mission, seed=task.seed, out_dir=None)
+            result = task.flight(task.mission, seed=task.seed, out_dir=task.out_dir)
             summary = getattr(result, "summary", result)
             if not isinstance(summary, Mapping) or "outcome" not in summary:
                 raise TypeError(f"the flight returned no summary with an outcome: {result!r}")

@@ -28,7 +28,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
             "Fly N lockstep flights of a mission per variant, each with its own seed derived "
             "from --seed, on a local process pool or a Dask cluster. Finished runs are "
             "appended to DIR/runs.jsonl at once; re-running the same command skips them. "
-            "Writes DIR/summary.json and DIR/campaign.png and prints the summary table."
+            "Writes DIR/summary.json, DIR/campaign.png and DIR/campaign.html (each run linked "
+            "to its flight page in DIR/runs/) and prints the summary table."
         ),
     )
     parser.add_argument("mission", nargs="?", metavar="MISSION.yaml", help="mission file")
@@ -56,6 +57,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                         help="fly again runs recorded as errors (default: skip every "
                         "recorded run)")
     parser.add_argument("--quiet", action="store_true", help="no progress line")
+    parser.add_argument("--no-pages", action="store_true",
+                        help="do not write each run's report folder (DIR/runs/RUN/report.html "
+                        "and its logs, which campaign.html links to)")
     parser.set_defaults(func=run)
 
 
@@ -89,7 +93,7 @@ def run(args: argparse.Namespace) -> int:
         result = compare_campaigns(
             missions, runs=args.runs, out_dir=out, seed=args.seed, workers=args.workers,
             scheduler=args.scheduler, connect_timeout=args.connect_timeout,
-            retry_errors=args.retry_errors, quiet=args.quiet,
+            retry_errors=args.retry_errors, quiet=args.quiet, pages=not args.no_pages,
         )
         for name, campaign in zip(names, result.campaigns, strict=True):
             print(f"{name}:")
@@ -107,8 +111,8 @@ def run(args: argparse.Namespace) -> int:
     result = run_campaign(
         mission, runs=args.runs, out_dir=out, seed=args.seed, vary=args.vary,
         workers=args.workers, scheduler=args.scheduler, connect_timeout=args.connect_timeout,
-            retry_errors=args.retry_errors,
-        quiet=args.quiet, name=Path(args.mission).stem,
+        retry_errors=args.retry_errors, quiet=args.quiet, name=Path(args.mission).stem,
+        pages=not args.no_pages,
     )
     print(result.table())
     errors = sum(row["error"] for row in result.rows)
@@ -116,5 +120,6 @@ def run(args: argparse.Namespace) -> int:
     print(f"flew {result.flown} run(s), {result.skipped} already recorded{note}")
     if result.throughput_line():
         print(result.throughput_line())
-    print(f"wrote {result.out_dir}/runs.jsonl, summary.json, campaign.png")
+    print(f"wrote {result.out_dir}/runs.jsonl, summary.json, campaign.png, campaign.html "
+          f"(lander replay {result.out_dir})")
     return 0

@@ -84,6 +84,7 @@ def fly(
     console: bool = False,
     on_interrupt: Literal["land", "hold"] = "land",
     progress: FlightProgress | bool | None = None,
+    report_png: bool = True,
 ) -> FlightResult:
     """Fly ``mission`` and report on it.
 
@@ -91,10 +92,10 @@ def fly(
         mission: the validated mission.
         seed: overrides ``mission.seed`` (terrain, sensor noise, wind, pattern centres),
             0 .. 2**32-1.
-        out_dir: directory for summary.json, events.jsonl, flight.tlog and report.png
-            (created); None writes nothing, which is fastest. They are written whatever ends
-            the flight once it started: landing, failure, Ctrl-C (summary ``interrupted``:
-            true) or an internal error (which is raised again afterwards). Once the tree is
+        out_dir: directory for summary.json, events.jsonl, flight.tlog, report.png and
+            report.html (created); None writes nothing, which is fastest. They are written
+            whatever ends the flight once it started: landing, failure, Ctrl-C (summary
+            ``interrupted``: true) or an internal error (raised again afterwards). Once the tree is
             built, tree.btlog (its transitions, for Groot2: :mod:`behaviors.btlog`) and
             blackboard.jsonl (:mod:`behaviors.bblog`) are written beside them as it ticks.
         console: print a line per phase change, link and home notes, and a closing summary
@@ -103,6 +104,8 @@ def fly(
             stops where it is on Ctrl-C (it is simulated: nothing needs bringing down).
         progress: lockstep only: a :class:`FlightProgress` line on stderr; True for the
             default one, None for one when ``console`` is set.
+        report_png: with ``out_dir``, draw report.png too (report.html, the page to
+            inspect the flight in a browser, is always written there).
 
     Raises:
         HomeMismatch: live only: the file's home and the vehicle's disagree and
@@ -233,7 +236,8 @@ def fly(
     if out is not None:
         try:
             write_summary(summary, out / "summary.json")
-            write_report_png(data, out / "report.png", outcome=summary["outcome"])
+            if report_png:  # matplotlib: ~20x the time of report.html (a campaign skips it)
+                write_report_png(data, out / "report.png", outcome=summary["outcome"])
             write_flight_page(data, summary, log.events, out)
         except OSError as exc:
             if failure is not None:
