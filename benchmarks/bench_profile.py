@@ -13,12 +13,14 @@ Prints, per mission, milliseconds of CPU per simulated second for every part and
 times faster than real time the flight runs per core (simulated time / CPU time).
 
 Run: .venv/bin/python benchmarks/bench_profile.py [--mission missions/mars_science.yaml]
-     [--seeds 0 1] [--repeat 1]
+     [--seeds 0 1] [--json]
+(benchmarks/bench_compare.py runs it against an older checkout in the same run.)
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import sys
 import time
@@ -121,11 +123,14 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--mission", action="append", default=None,
                         help="mission file (repeatable; default mars_science and demo)")
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1])
+    parser.add_argument("--json", action="store_true",
+                        help="one JSON line per mission instead of the table")
     args = parser.parse_args(argv)
     missions = args.mission or [str(ROOT / "missions" / "mars_science.yaml"),
                                 str(ROOT / "missions" / "demo.yaml")]
-    print(f"machine: {os.cpu_count()} cores, load average "
-          f"{' '.join(f'{v:.2f}' for v in os.getloadavg())}")
+    if not args.json:
+        print(f"machine: {os.cpu_count()} cores, load average "
+              f"{' '.join(f'{v:.2f}' for v in os.getloadavg())}")
     for path in missions:
         mission = load_mission(path)
         sums: dict[str, float] = defaultdict(float)
@@ -137,6 +142,10 @@ def main(argv: list[str] | None = None) -> int:
                 sums[part] += value
             sim, cpu, wall = sim + s, cpu + total, wall + w
             outcomes.append(f"{seed}:{outcome}")
+        if args.json:
+            print(json.dumps({"mission": Path(path).name, "seeds": args.seeds, "sim": sim,
+                              "cpu": cpu, "wall": wall, "parts": sums, "outcomes": outcomes}))
+            continue
         print(f"== {Path(path).name}: seeds {' '.join(map(str, args.seeds))}, "
               f"{sim:.0f} simulated s, {cpu:.2f} s CPU, {wall:.2f} s wall "
               f"({', '.join(outcomes)})")

@@ -144,7 +144,11 @@ class Sitl:
     def _height(self, x: float, y: float) -> float:
         if self.terrain is None:
             return 0.0
-        h = float(np.asarray(self.terrain.height(np.array([x]), np.array([y]))).ravel()[0])
+        at = getattr(self.terrain, "height_at", None)  # a Terrain's scalar lookup is faster
+        h = (
+            at(x, y) if at is not None
+            else float(np.asarray(self.terrain.height(np.array([x]), np.array([y]))).ravel()[0])
+        )
         # A terrain without data here (NaN) keeps the last known ground under the vehicle.
         return h if math.isfinite(h) else getattr(self, "_ground", 0.0)
 

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 
@@ -132,6 +134,28 @@ class Terrain:
         if bad.any():
             h = np.where(bad, np.nan, h)
         return h
+
+    def height_at(self, x: float, y: float) -> float:
+        """:meth:`height` at one point, as a float: the same arithmetic (the corner
+        differences in single precision, the rest in double) without building arrays, for
+        the simulator's per-step lookups."""
+        fx = (float(x) - self.origin[0]) / self.cell_size
+        fy = (float(y) - self.origin[1]) / self.cell_size
+        if not (math.isfinite(fx) and math.isfinite(fy)):
+            return math.nan
+        ny, nx = self.grid.shape
+        fx = min(max(fx, 0.0), float(nx - 1))
+        fy = min(max(fy, 0.0), float(ny - 1))
+        j = min(int(fx), nx - 2)
+        i = min(int(fy), ny - 2)
+        tx = fx - j
+        ty = fy - i
+        k = i * nx + j
+        g = self._flat
+        h00, h01, h10, h11 = g[k], g[k + 1], g[k + nx], g[k + nx + 1]
+        top = float(h00) + tx * float(h01 - h00)
+        bottom = float(h10) + tx * float(h11 - h10)
+        return top + ty * (bottom - top)
 
     def window(self, region: tuple[float, float, float, float]) -> tuple[slice, slice]:
         """(row slice, column slice) of the cells whose centres lie in
