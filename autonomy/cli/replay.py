@@ -2,11 +2,15 @@
 
     lander replay out/demo            # opens out/demo/report.html in the default browser
     lander replay out/demo --print    # prints its path instead (no browser, e.g. over ssh)
+
+A folder whose flight was killed before it wrote its report (events.jsonl, flight.tlog and
+tree.btlog are written as it flies) gets a report.html rebuilt from those logs.
 """
 
 from __future__ import annotations
 
 import argparse
+import sys
 import webbrowser
 from pathlib import Path
 
@@ -16,8 +20,9 @@ PAGES = ("report.html", "campaign.html")
 
 
 def find_page(folder: Path) -> Path:
-    """The report page of ``folder`` (a flight's report.html, else a campaign's
-    campaign.html); raises :class:`UserError` saying what is missing."""
+    """The report page of ``folder``: a flight's report.html, else a campaign's
+    campaign.html, else a report.html rebuilt from the logs of a flight that did not finish
+    (:mod:`autonomy.report.rebuild`); raises :class:`UserError` saying what is missing."""
     if not folder.exists():
         raise UserError(f"{folder}: no such folder")
     if not folder.is_dir():
@@ -26,12 +31,15 @@ def find_page(folder: Path) -> Path:
     for name in PAGES:
         if (folder / name).is_file():
             return folder / name
-    has_logs = [p for p in ("events.jsonl", "summary.json", "tree.btlog") if (folder / p).exists()]
-    why = (f"it holds {', '.join(has_logs)} but no report.html (the flight was written before "
-           "reports had pages, or did not finish)") if has_logs else (
-        "no report.html or campaign.html (not the output folder of lander fly, demo or "
-        "campaign)")
-    raise UserError(f"{folder}: {why}")
+    if (folder / "events.jsonl").is_file():  # a flight killed before it wrote its report
+        from autonomy.report.rebuild import rebuild_page
+
+        page = rebuild_page(folder)
+        print(f"{folder}: the flight did not write its report; {page.name} rebuilt from its "
+              "logs (track, phases, events, tree log to its last transition)", file=sys.stderr)
+        return page
+    raise UserError(f"{folder}: no report.html or campaign.html, nor events.jsonl to rebuild "
+                    "a page from (not the output folder of lander fly, demo or campaign)")
 
 
 def run(args: argparse.Namespace) -> int:

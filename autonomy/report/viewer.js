@@ -65,6 +65,7 @@
                ["touchdown error", fmt(S.touchdown_error, 2, " m")],
                ["seed", S.seed], ["world", S.world], ["detector", S.detector],
                ["autopilot", S.autopilot]];
+  if (S.outcome !== "landed" && S.stop_reason) facts.push(["stopped", S.stop_reason]);
   var factsEl = document.getElementById("facts");
   facts.forEach(function (f) {
     var s = document.createElement("span");
@@ -340,7 +341,7 @@
   function runningAt(t) {
     var deepest = -1, names = [];
     segs.forEach(function (s) {
-      if (s[3] === 1 && s[1] <= t && t < s[2]) {
+      if (s[3] === 1 && s[1] <= t && (t < s[2] || t >= END)) {  // at the end: still running
         var d = lanes[s[0]].depth;
         if (d > deepest) { deepest = d; names = [lanes[s[0]].name]; } else if (d === deepest) names.push(lanes[s[0]].name);
       }
