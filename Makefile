@@ -1,4 +1,5 @@
-# Two entry points for a new user: `make demo` and `make test`.
+# Two entry points for a new user: `make demo` and `make test`; `make docs` builds the
+# documentation site (docs/, mkdocs.yml) into site/.
 # Both create .venv on first use; re-running is fast because the install step
 # is redone only when pyproject.toml or this Makefile changes. The test install takes
 # the optional extras too (Dask distributed, laspy) so their code paths are tested.
@@ -7,7 +8,10 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test lint bench clean
+# Material for MkDocs prints a banner about its successor on every build otherwise.
+export NO_MKDOCS_2_WARNING := 1
+
+.PHONY: demo test lint docs bench clean
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -22,13 +26,18 @@ demo: $(STAMP)
 
 test: $(STAMP)
 	$(BIN)/ruff check .
+	$(BIN)/mkdocs build --strict --quiet
 	$(BIN)/python -m pytest -q
 
 lint: $(STAMP)
 	$(BIN)/ruff check .
 
+docs: $(STAMP)
+	$(BIN)/mkdocs build --strict
+	@echo "open site/index.html, or serve it with: $(BIN)/mkdocs serve"
+
 bench: $(STAMP)
 	for b in benchmarks/bench_*.py; do $(BIN)/python $$b || exit 1; done
 
 clean:
-	rm -rf $(VENV) build *.egg-info .pytest_cache .ruff_cache
+	rm -rf $(VENV) build site *.egg-info .pytest_cache .ruff_cache

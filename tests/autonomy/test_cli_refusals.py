@@ -18,12 +18,12 @@ import pytest
 import yaml
 
 from autonomy.cli import main
-from autonomy.cli.demo import demo_mission_path
+from autonomy.cli.demo import mission_path
 from autonomy.config import Mission
 from autonomy.runner import fly
 from autonomy.runner.progress import FlightProgress
 
-DEMO = demo_mission_path()
+DEMO = mission_path("demo.yaml")  # the quick rehearsal mission
 REPO = Path(__file__).resolve().parents[2]
 
 

@@ -174,7 +174,7 @@ def test_signing_key_hex_passphrase_and_environment(tmp_path, monkeypatch):
     assert Mission(waypoints=[(0, 10, 20)]).vehicle.signing_key_bytes() is None
 
 
-@pytest.mark.parametrize("name", ["demo.yaml", "mars_science.yaml"])
+@pytest.mark.parametrize("name", ["demo.yaml", "mars_demo.yaml", "mars_science.yaml"])
 def test_shipped_missions_validate(name):
     path = REPO / "missions" / name
     if not path.exists():
