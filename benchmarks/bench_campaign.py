@@ -8,8 +8,12 @@ shipping missions, appending runs.jsonl, the summary and the plot.
 
     flight-hours per wall-hour per core = (sum of simulated mission times / wall time) / cores
 
+It also prints the fixed cost every run pays before it flies (world generation and the
+depth camera's height bounds, both from the run's seed) and the wall time of
+``--extrapolate`` runs (default 200) at the measured rate.
+
 Run: .venv/bin/python benchmarks/bench_campaign.py [--runs 8] [--workers K]
-     [--mission missions/demo.yaml] [--scheduler tcp://HOST:PORT | local]
+     [--mission missions/demo.yaml] [--scheduler tcp://HOST:PORT | local] [--extrapolate 200]
 """
 
 from __future__ import annotations
@@ -38,6 +42,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, default=2024)
     parser.add_argument("--serial-runs", type=int, default=2,
                         help="flights for the in-process baseline")
+    parser.add_argument("--extrapolate", type=int, default=200,
+                        help="print the wall time of this many runs at the measured rate")
     args = parser.parse_args(argv)
 
     mission = load_mission(args.mission)
@@ -63,6 +69,7 @@ def main(argv: list[str] | None = None) -> int:
                               workers=args.workers, scheduler=args.scheduler, quiet=True)
         wall = time.perf_counter() - start
     flown = [r for r in result.records if r["outcome"] != "error"]
+    _fixed_cost(mission, args.seed)
     sim = sum(r["mission_time"] or 0.0 for r in flown)
     per_run = sorted(r["wall_time"] for r in flown if r.get("wall_time"))
     median = per_run[len(per_run) // 2] if per_run else float("nan")
@@ -72,7 +79,37 @@ def main(argv: list[str] | None = None) -> int:
           f"in {wall:.1f} s wall, {sim:.0f} sim s, median flight {median:.2f} s wall")
     print(f"  throughput: {rate:.1f} flight-h per wall-h, {rate / cores:.1f} per core "
           f"({cores} {'workers' if not args.scheduler else 'worker processes seen'})")
+    if args.extrapolate:
+        per_run = wall / len(result.records)
+        print(f"  {args.extrapolate} runs at this rate (extrapolated from {len(result.records)}): "
+              f"{args.extrapolate * per_run / 60:.1f} min wall on {cores} workers")
     return 0
+
+
+def _fixed_cost(mission, seed: int) -> None:
+    """What every run pays before it flies: the world (generated from the run's seed, so
+    it cannot be shared between runs), the depth camera's height bounds of it (built on
+    the first frame), and the rest of a flight's setup (a flight of one tick)."""
+    from autonomy.campaign import run_seed
+    from autonomy.runner import fly
+    from autonomy.runner.world import FlightSeeds, build_terrain
+
+    seeds = FlightSeeds.derive(run_seed(seed, 0))
+    start = time.thread_time()
+    terrain = build_terrain(mission, seeds.terrain)
+    world = time.thread_time() - start
+    bounds = 0.0
+    if mission.perception.detector in ("elevation_map", "depth_costmap"):
+        from sitl.sensors.raycast import HeightBounds
+
+        start = time.thread_time()
+        HeightBounds(terrain)
+        bounds = time.thread_time() - start
+    start = time.thread_time()
+    fly(mission.model_copy(update={"time_limit": 1.0 / mission.tick_rate}), seed=0)
+    setup = time.thread_time() - start
+    print(f"  fixed cost per run (CPU): world {world:.2f} s, height bounds {bounds:.2f} s, "
+          f"a one-tick flight with its world {setup:.2f} s")
 
 
 if __name__ == "__main__":

@@ -1,7 +1,8 @@
 """What a flight's outcome is, for the before/after comparison of the speed work (issue 21):
-everything in summary.json but the wall-clock figures, every event but the tree's own
-status changes (those belong to the tree's structure, which may be rewritten while flights
-stay tick-identical), and the Landing Site Manager's final sites with all their fields.
+everything in summary.json but the wall-clock figures and the link's message counts, every
+event but the tree's own status changes (those belong to the tree's structure, which may be
+rewritten while flights stay tick-identical), and the Landing Site Manager's final sites
+with all their fields.
 
 ``python tests/speed/golden.py --write`` records the flights listed in GOLDEN_FLIGHTS with
 the code checked out into tests/speed/data/golden_flights.json; without ``--write`` it flies
@@ -32,8 +33,10 @@ GOLDEN_FLIGHTS = [
     ("demo.yaml", 1),
 ]
 
-# Summary fields that measure the computer, not the flight.
-WALL_FIELDS = ("wall_time", "realtime_factor")
+# Summary fields that measure the computer, not the flight, and the link's message counts
+# (they change when the driver asks for another telemetry stream, e.g. for the log
+# viewers, while the flight stays the same).
+WALL_FIELDS = ("wall_time", "realtime_factor", "link")
 
 
 def _digest(value: Any) -> str:
