@@ -40,6 +40,7 @@ from pydantic import (
 )
 
 from autonomy.errors import UserError, one_line
+from autonomy.perception.descent_flow_settings import DescentFlowSettings
 from autonomy.perception.scripted import ScriptedSettings, ScriptedSite
 from autonomy.vehicle.connection import check_url, signing_key_from_text
 from autonomy.vehicle.settings import VehicleLinkSettings
@@ -268,6 +269,7 @@ class PerceptionConfig(BaseModel):
     lidar: LidarSettings = LidarSettings()
     lidar_pca: LidarPcaSettings = LidarPcaSettings()
     scripted: ScriptedSettings = ScriptedSettings()
+    descent_flow: DescentFlowSettings = DescentFlowSettings()
 
 
 class Mission(BaseModel):

@@ -137,3 +137,32 @@ class ApproachPlanner(Protocol):
         """A collision-free trajectory from ``start`` to ``goal`` (ENU m), or why there is
         none (the caller then flies the climb, traverse and descent instead)."""
         ...
+
+
+@dataclass(frozen=True, slots=True)
+class ObstacleSighting:
+    """What the descent camera's optical flow said about one pair of consecutive frames.
+
+    ``away`` is in image axes (x right, y up, the camera's top edge towards the vehicle's
+    nose) and ``yaw`` is the heading (rad, ENU) the newer frame was taken with; together
+    they give the ENU direction away from the obstacle.
+    """
+
+    time: float  # clock seconds of the newer frame
+    obstacle: bool  # some direction holds an obstacle (Algorithm 2)
+    away: tuple[float, float] = (0.0, 0.0)  # unit vector, image axes; zeros if none
+    yaw: float = 0.0  # rad, ENU
+    directions: tuple[str, ...] = ()  # the flagged directions, e.g. ("upper right",)
+
+
+class ObstacleWatch(Protocol):
+    """The optical-flow watch of the descent camera (seed 004)."""
+
+    def watch(self, on: bool) -> None:
+        """Start (True) or stop (False) comparing frames; frames from before a start are
+        never compared with frames after it."""
+        ...
+
+    def latest(self) -> ObstacleSighting | None:
+        """The newest sighting since watching started, or None."""
+        ...

@@ -78,6 +78,33 @@ class ApproachSettings(BaseModel):
     )
 
 
+class DescentWatchSettings(BaseModel):
+    """The optical-flow watch of the blind descent to the verification altitude (Lee et al.
+    2019, sections 3.3 and 4.2): when the descent camera's flow flags an obstacle, the
+    vehicle stops descending, steps away from it and resumes; the flow thresholds are
+    ``perception.descent_flow``'s."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+
+    enabled: bool = Field(
+        False, description="watch the descent (renders a greyscale camera during it); off: "
+        "the thesis's blind descent"
+    )
+    step: float = Field(
+        1.5, gt=0, le=100, description="m moved sideways away from a flagged obstacle per "
+        "sighting, up to 100 m"
+    )
+    max_offset: float = Field(
+        3.0, ge=0, le=1000, description="m the descent column may move from the site's, in "
+        "all, up to 1 km; with no room left to step away the vehicle climbs back to where "
+        "the descent began and the try fails (the site is tried again or another chosen)"
+    )
+    settle: float = Field(
+        1.0, ge=0, le=MAX_WAIT, description="s after resuming the descent before the flow "
+        "counts again (the vehicle's sideways motion dies down), up to an hour"
+    )
+
+
 class LandingSettings(BaseModel):
     """How the landing phase flies: altitudes, durations, search pattern, retries, battery."""
 
@@ -164,6 +191,10 @@ class LandingSettings(BaseModel):
     laser_guidance: LaserGuidanceSettings = Field(
         default_factory=LaserGuidanceSettings, description="after a GPS loss: follow a ground "
         "laser to land (docs/gps-denied.md)"
+    )
+    descent_watch: DescentWatchSettings = Field(
+        default_factory=DescentWatchSettings, description="optical-flow obstacle watch of "
+        "the descent to the verification altitude"
     )
 
     @model_validator(mode="after")
