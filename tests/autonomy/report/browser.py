@@ -97,26 +97,46 @@ class _Session:
         return out["result"].get("value")
 
 
-async def _inspect(chromium: str, url: str, steps: list, size: tuple[int, int]) -> PageReport:
-    profile = tempfile.mkdtemp(prefix="lander-chromium-")
-    proc = subprocess.Popen(
-        [chromium, "--headless", "--no-sandbox", "--disable-gpu", "--no-first-run",
-         "--remote-debugging-port=0", f"--user-data-dir={profile}", "about:blank"],
-        stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
-    )
-    try:
-        port = None
-        for line in proc.stderr:  # "DevTools listening on ws://127.0.0.1:PORT/devtools/..."
+class Chromium:
+    """One headless Chromium for all the tests of a session; each page gets its own tab."""
+
+    def __init__(self, executable: str) -> None:
+        self.profile = tempfile.mkdtemp(prefix="lander-chromium-")
+        self.proc = subprocess.Popen(
+            [executable, "--headless", "--no-sandbox", "--disable-gpu", "--no-first-run",
+             "--remote-debugging-port=0", f"--user-data-dir={self.profile}", "about:blank"],
+            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+        )
+        self.port = None
+        for line in self.proc.stderr:  # "DevTools listening on ws://127.0.0.1:PORT/devtools/..."
             match = re.search(r"ws://127\.0\.0\.1:(\d+)/", line)
             if match:
-                port = int(match.group(1))
+                self.port = int(match.group(1))
                 break
-        if port is None:
+        if self.port is None:
+            self.close()
             raise RuntimeError("chromium did not open its DevTools port")
-        with urllib.request.urlopen(f"http://127.0.0.1:{port}/json/list", timeout=10) as r:
-            targets = json.load(r)
-        page = next(t for t in targets if t.get("type") == "page")
-        ws = await websocket_connect(page["webSocketDebuggerUrl"], max_message_size=1 << 28)
+
+    def _http(self, path: str, method: str = "GET") -> Any:
+        request = urllib.request.Request(f"http://127.0.0.1:{self.port}{path}", method=method)
+        with urllib.request.urlopen(request, timeout=30) as r:
+            body = r.read()
+        return json.loads(body) if body.strip().startswith((b"{", b"[")) else body
+
+    def inspect(self, url: str, steps: list | None = None,
+                size: tuple[int, int] = (1600, 1300)) -> PageReport:
+        """Load ``url`` in a new tab, run ``steps`` (``("eval", JS)`` or ``("hover", CSS
+        selector)``), take a screenshot, and report what the page did."""
+        target = self._http("/json/new?about:blank", method="PUT")
+        try:
+            return asyncio.run(self._inspect(target["webSocketDebuggerUrl"], url,
+                                             list(steps or []), size))
+        finally:
+            self._http(f"/json/close/{target['id']}")
+
+    async def _inspect(self, ws_url: str, url: str, steps: list,
+                       size: tuple[int, int]) -> PageReport:
+        ws = await websocket_connect(ws_url, max_message_size=1 << 28)
         s = _Session(ws)
         for domain in ("Runtime", "Log", "Page", "Network"):
             await s.call(f"{domain}.enable")
@@ -125,11 +145,10 @@ async def _inspect(chromium: str, url: str, steps: list, size: tuple[int, int]) 
         await s.call("Page.navigate", url=url)
         await s.wait_for("Page.loadEventFired")
         report = PageReport()
-        for step in steps:
-            kind, arg = step
+        for kind, arg in steps:
             if kind == "eval":
                 report.results.append(await s.evaluate(arg))
-            elif kind == "hover":  # move the real mouse over the centre of a selector's element
+            elif kind == "hover":  # move the real mouse over the centre of an element
                 box = await s.evaluate(
                     f"(function(){{var r=document.querySelector({json.dumps(arg)})"
                     ".getBoundingClientRect();return [r.x+r.width/2,r.y+r.height/2];})()")
@@ -151,17 +170,13 @@ async def _inspect(chromium: str, url: str, steps: list, size: tuple[int, int]) 
                 report.requests.append(params["request"]["url"][:200])
         ws.close()
         return report
-    finally:
-        proc.terminate()
+
+    def close(self) -> None:
+        self.proc.terminate()
         try:
-            proc.wait(10)
+            self.proc.wait(10)
         except subprocess.TimeoutExpired:
-            proc.kill()
-        shutil.rmtree(profile, ignore_errors=True)
+            self.proc.kill()
+        shutil.rmtree(self.profile, ignore_errors=True)
 
 
-def inspect_page(chromium: str, url: str, steps: list | None = None,
-                 size: tuple[int, int] = (1600, 1300)) -> PageReport:
-    """Load ``url`` in headless Chromium, run ``steps`` (``("eval", JS)`` or ``("hover",
-    CSS selector)``), take a screenshot, and report what the page did."""
-    return asyncio.run(_inspect(chromium, url, list(steps or []), size))

@@ -25,12 +25,15 @@ def demo_flight(tmp_path_factory):
 
 @pytest.fixture(scope="session")
 def chromium():
-    """Path of a headless Chromium: Debian's package, installed with apt-get when missing;
-    the test is skipped only when it cannot be installed here."""
+    """A headless Chromium (:class:`browser.Chromium`, one for the session): Debian's
+    package, installed with apt-get when missing; the test is skipped only when it cannot be
+    installed here."""
     import browser
 
     path = browser.install_chromium()
     if path is None:
         pytest.skip("chromium is not installed and apt-get could not install it (needs root "
                     "and the Debian archive); install Debian's 'chromium' package")
-    return path
+    running = browser.Chromium(path)
+    yield running
+    running.close()

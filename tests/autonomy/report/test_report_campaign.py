@@ -23,8 +23,6 @@ class InProcess:
 
 
 def test_campaign_page_links_each_run_to_its_flight_page(tmp_path, capsys, chromium):
-    import browser
-
     out = tmp_path / "campaign"
     run_campaign(load_mission(demo_mission_path()), runs=1, out_dir=out, backend=InProcess(),
                  vary=["landing.verification_altitude=2.5,4"], quiet=True, name="demo")
@@ -38,7 +36,7 @@ def test_campaign_page_links_each_run_to_its_flight_page(tmp_path, capsys, chrom
     assert "verification_altitude=2.5" in page and "verification_altitude=4" in page
     assert re.findall(r"class=outcome[^>]*>([^<]+)</span>", page) == ["landed safe"] * 2
 
-    report = browser.inspect_page(chromium, (out / "campaign.html").resolve().as_uri(), [
+    report = chromium.inspect((out / "campaign.html").resolve().as_uri(), [
         ("eval", "document.querySelectorAll('a').length"),
         ("eval", "document.querySelector('img').naturalWidth"),
     ])

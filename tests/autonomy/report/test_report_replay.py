@@ -43,8 +43,6 @@ def test_a_killed_flight_replays_from_its_logs_to_their_last_record(demo_flight,
                                                                       capsys, chromium):
     """A flight killed mid-way leaves its logs cut short and no report: the page is rebuilt
     from them (track from flight.tlog, tree to the last whole transition of tree.btlog)."""
-    import browser
-
     out = tmp_path / "killed"
     shutil.copytree(demo_flight.out_dir, out)
     for name in ("report.html", "report.png", "summary.json"):
@@ -71,7 +69,7 @@ def test_a_killed_flight_replays_from_its_logs_to_their_last_record(demo_flight,
     assert abs(page["trace"]["z"][-1] - full.xyz[i][2]) < 1.0
     assert [p for _, p in page["phases"]] == [
         p for t, p in full.phases if t <= page["end"]]
-    report = browser.inspect_page(chromium, (out / "report.html").resolve().as_uri(),
+    report = chromium.inspect((out / "report.html").resolve().as_uri(),
                                   [("eval", "document.body.getAttribute('data-ready')")])
     assert report.exceptions == [] and report.console_errors == [] and report.results == ["1"]
     # Once rebuilt, the page is there: replay opens it as any other.
