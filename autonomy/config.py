@@ -348,6 +348,11 @@ class Mission(BaseModel):
                         f"waypoints.{i}: {distance:.0f} m from home, more than the "
                         f"{MAX_RANGE:.0f} m a multicopter flies"
                     )
+        if self.world.kind == "file":  # no ground off an elevation model: stay on it
+            from sitl.terrain.files import check_route
+
+            check_route(self.world, self.waypoints_enu(), self.landing.search_rectangle,
+                        self.landing.pattern_center_radius)
         for name in ("rate", "low_altitude_rate"):
             rate = getattr(self.perception, name)
             if rate is not None and rate > self.tick_rate:

@@ -42,7 +42,6 @@ from lsd.pointcloud import (
     ColumnIndex,
     VoxelCloud,
     clean_points,
-    thin_by_distance,
     voxel_grid,
 )
 from lsm.records import SiteObservation
@@ -609,12 +608,14 @@ def _finite_or_none(position: np.ndarray | None) -> np.ndarray | None:
 
 
 def _dedupe(spots: SpotTable, settings: LidarPcaSettings) -> SpotTable:
-    """Keep, among spots closer than merge_distance, the better-graded ones (greedy, best
-    first), so no two kept spots are that close."""
-    if len(spots) < 2 or settings.merge_distance <= 0:
+    """Keep, among spots closer than merge_distance or whose discs overlap, the
+    better-graded ones (greedy, best first)."""
+    if len(spots) < 2:
         return spots
+    from lsd.lidar_pca_sites import thin_discs
+
     ranked = spots.take(np.argsort(-spot_grades(spots, settings), kind="stable"))
-    return ranked.take(thin_by_distance(ranked.centre, settings.merge_distance))
+    return ranked.take(thin_discs(ranked.centre[:, :2], ranked.radius, settings.merge_distance))
 
 
 class LidarPcaDetector:
@@ -698,7 +699,10 @@ class LidarPcaDetector:
         self.last_search = search
         self.counters["planes_accepted"] += search.n_accepted
         self.counters["planes_rejected"] += search.n_rejected
-        found = _dedupe(search.spots, s)
+        # The site rules (geometry: step, residual, clearance ring) on the voxel centroids.
+        from lsd.lidar_pca_sites import apply_site_rules
+
+        found = _dedupe(apply_site_rules(search.spots, grid.points, None, s)[0], s)
         self.counters["spots_registered"] += len(self._register(found))
         # Every spot of this cloud is reported, re-detections included: the Landing Site
         # Manager matches them to its sites and lowers their verification altitude.

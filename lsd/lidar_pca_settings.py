@@ -6,7 +6,7 @@ Angles are degrees here (they come from YAML); the detector converts to radians.
 from __future__ import annotations
 
 import math
-from typing import Literal
+from typing import Annotated, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
@@ -38,15 +38,18 @@ class ClassRules(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
     enabled: bool = Field(True, description="use the file's classification when it has one")
-    ground: list[int] = Field(
-        [2], description="classes a site may stand on and have in its clearance ring "
-        "(ASPRS 2: ground)"
+    ground: list[Annotated[int, Field(ge=0, le=255)]] = Field(
+        [2], max_length=256, description="classes a site may stand on and have in its "
+        "clearance ring, ASPRS codes 0..255 (2: ground)"
     )
     roofs: bool = Field(
         False, description="also allow sites on flat roofs: a disc and ring of building (6) "
         "points only, with no building/non-building edge"
     )
-    roof: list[int] = Field([6], description="building classes for roof sites (ASPRS 6)")
+    roof: list[Annotated[int, Field(ge=0, le=255)]] = Field(
+        [6], max_length=256, description="building classes for roof sites, ASPRS codes "
+        "0..255 (6: building)"
+    )
 
 
 class LidarPcaSettings(BaseModel):

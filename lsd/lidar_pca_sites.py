@@ -26,11 +26,10 @@ from collections import Counter
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from lsd.lidar_pca import PlaneSearch, SpotTable, detect_planes, spot_grades
 from lsd.lidar_pca_settings import LidarPcaSettings
-from lsd.pointcloud import ColumnIndex, voxel_grid
+from lsd.pointcloud import ColumnIndex, thin_by_distance, voxel_grid
 
 # Pairs (spot, point) handled at once: bounds the temporaries of the rule checks.
 _PAIRS_PER_BATCH = 4_000_000
@@ -130,32 +129,8 @@ def finish_sites(spots: SpotTable, settings: LidarPcaSettings, counts: SiteCount
 
 def thin_discs(centres: np.ndarray, radii: np.ndarray, min_distance: float = 0.0) -> np.ndarray:
     """Greedy, in the given order (best first): keep a disc unless a kept one overlaps it
-    (centres closer than the sum of the radii, or than ``min_distance``). Returns the (N,)
-    bool mask; parallel rounds over the k-d tree's close pairs give exactly the
-    sequential greedy result."""
-    n = len(centres)
-    keep = np.ones(n, dtype=bool)
-    if n < 2:
-        return keep
-    reach = max(2.0 * float(radii.max()), min_distance)
-    pairs = cKDTree(centres).query_pairs(reach, output_type="ndarray")
-    if len(pairs):
-        gap = np.hypot(*(centres[pairs[:, 0]] - centres[pairs[:, 1]]).T)
-        pairs = pairs[(gap < radii[pairs[:, 0]] + radii[pairs[:, 1]]) | (gap < min_distance)]
-    if len(pairs) == 0:
-        return keep
-    a = np.concatenate((pairs[:, 0], pairs[:, 1]))
-    b = np.concatenate((pairs[:, 1], pairs[:, 0]))
-    state = np.zeros(n, dtype=np.int8)  # 0 undecided, 1 kept, 2 dropped
-    while (state == 0).any():
-        open_pair = (state[a] == 0) & (state[b] == 0)
-        best_nb = np.full(n, n, dtype=np.int64)
-        np.minimum.at(best_nb, a[open_pair], b[open_pair])
-        winners = (state == 0) & (np.arange(n) < best_nb)
-        state[winners] = 1
-        hit = winners[a] & (state[b] == 0)
-        state[b[hit]] = 2
-    return state == 1
+    (centres closer than the sum of the radii, or than ``min_distance``); (N,) bool."""
+    return thin_by_distance(centres, min_distance, np.asarray(radii, dtype=np.float64))
 
 
 def apply_site_rules(
@@ -209,6 +184,7 @@ def apply_site_rules(
                                index, settings) for i in range(0, len(final), batch)]
         rms = np.concatenate([f[0] for f in flat])
         count = np.concatenate([f[1] for f in flat])
+        final.obstacle_altitude = np.concatenate([f[2] for f in flat])
     else:
         rms = count = np.empty(0)
     too_rough = np.zeros(len(final), dtype=bool)
@@ -235,7 +211,7 @@ def _pairs(spots: SpotTable, x, y, z, index: ColumnIndex, reach: float):
     dz = z[idx] - spots.centre[owner, 2]
     n = spots.normal[owner]
     h = dx * n[:, 0] + dy * n[:, 1] + dz * n[:, 2]
-    return owner, idx, np.hypot(dx, dy), h
+    return owner, idx, np.hypot(dx, dy), h, dz
 
 
 def _limits(spots, x, y, z, codes, index, reach, settings) -> dict[str, np.ndarray]:
@@ -243,7 +219,7 @@ def _limits(spots, x, y, z, codes, index, reach, settings) -> dict[str, np.ndarr
     none): ``step`` (off the plane by more than max_step), ``obstacle`` (higher than
     obstacle_height above it), ``class`` (a class the site may not have)."""
     k = len(spots)
-    owner, idx, d, h = _pairs(spots, x, y, z, index, reach)
+    owner, idx, d, h, _ = _pairs(spots, x, y, z, index, reach)
     out = {}
     max_step = settings.max_step if settings.max_step is not None else np.inf
     high = settings.obstacle_height if settings.obstacle_height is not None else np.inf
@@ -267,14 +243,18 @@ def _limits(spots, x, y, z, codes, index, reach, settings) -> dict[str, np.ndarr
     return out
 
 
-def _disc_residual(spots, x, y, z, index, settings) -> tuple[np.ndarray, np.ndarray]:
-    """Per spot, the RMS distance of the disc's points from the spot plane and their
-    count."""
-    owner, _, d, h = _pairs(spots, x, y, z, index, float(spots.radius.max()))
+def _disc_residual(spots, x, y, z, index, settings) -> tuple[np.ndarray, ...]:
+    """Per spot, the RMS distance of the disc's points from the spot plane, their count,
+    and the obstacle altitude: the highest point within radius + obstacle_margin."""
+    ring = settings.obstacle_margin
+    owner, _, d, h, dz = _pairs(spots, x, y, z, index, float(spots.radius.max()) + ring)
     inside = d <= spots.radius[owner]
     count = np.bincount(owner[inside], minlength=len(spots))
     sq = np.bincount(owner[inside], h[inside] ** 2, minlength=len(spots))
-    return np.sqrt(sq / np.maximum(count, 1)), count
+    rise = np.zeros(len(spots))
+    near = d <= spots.radius[owner] + ring
+    np.maximum.at(rise, owner[near], dz[near])
+    return np.sqrt(sq / np.maximum(count, 1)), count, spots.centre[:, 2] + rise
 
 
 __all__ = [

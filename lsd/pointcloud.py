@@ -362,9 +362,13 @@ class CloudAccumulator:
         return out
 
 
-def thin_by_distance(positions: np.ndarray, distance: float) -> np.ndarray:
+def thin_by_distance(
+    positions: np.ndarray, distance: float, radii: np.ndarray | None = None
+) -> np.ndarray:
     """Greedy thinning: walk the points in the given order (best first) and keep each one
-    that has no kept point within ``distance``; returns the (N,) bool mask of kept points.
+    that has no kept point within ``distance`` (nor, with ``radii``, a kept disc
+    overlapping its own: centres closer than the sum of the radii); returns the (N,) bool
+    mask of kept points.
 
     Computed in parallel rounds over the k-d tree's close pairs (a point is decided once no
     undecided better neighbour remains), which gives exactly the sequential greedy result.
@@ -372,9 +376,13 @@ def thin_by_distance(positions: np.ndarray, distance: float) -> np.ndarray:
     pos = np.asarray(positions, dtype=np.float64)
     n = len(pos)
     keep = np.ones(n, dtype=bool)
-    if n < 2 or distance <= 0:
+    reach = distance if radii is None else max(distance, 2.0 * float(np.max(radii)))
+    if n < 2 or reach <= 0:
         return keep
-    pairs = cKDTree(pos).query_pairs(distance, output_type="ndarray")
+    pairs = cKDTree(pos).query_pairs(reach, output_type="ndarray")
+    if radii is not None and len(pairs):
+        gap = np.linalg.norm(pos[pairs[:, 0]] - pos[pairs[:, 1]], axis=1)
+        pairs = pairs[(gap < radii[pairs[:, 0]] + radii[pairs[:, 1]]) | (gap < distance)]
     if len(pairs) == 0:
         return keep
     a = np.concatenate((pairs[:, 0], pairs[:, 1]))

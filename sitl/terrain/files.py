@@ -73,6 +73,60 @@ def check_elevation(settings: FileTerrainSettings) -> None:
     _grid_shape(settings, heights.shape, source_cell)
 
 
+def model_extent(settings: FileTerrainSettings) -> tuple[float, float, float, float]:
+    """(xmin, xmax, ymin, ymax) ENU metres about home of the model's grid: where it has
+    ground at all."""
+    heights, source_cell = read_elevation(settings.path, settings.source_cell_size)
+    _, _, width, depth = _grid_shape(settings, heights.shape, source_cell)
+    hx, hy = settings.home if settings.home is not None else (width / 2, depth / 2)
+    return (-hx, width - hx, -hy, depth - hy)
+
+
+def check_route(
+    settings: FileTerrainSettings,
+    waypoints: list[tuple[float, float, float]],
+    search_rectangle: tuple[float, float],
+    pattern_center_radius: float,
+) -> None:
+    """Refuse a route that leaves the model, where there is no ground to see or land on:
+    a waypoint off it, a search pattern (``search_rectangle`` centred where the landing
+    phase may start: any waypoint, a failsafe can start it on the way) reaching off it, or
+    new pattern centres (within ``pattern_center_radius`` of the last waypoint) whose
+    patterns may. Raises ValueError naming the setting and the coordinates."""
+    xmin, xmax, ymin, ymax = model_extent(settings)
+    model = (f"off the elevation model (x {xmin:g} .. {xmax:g}, y {ymin:g} .. {ymax:g} m "
+             "about home)")
+
+    def off(x: float, y: float, hx: float = 0.0, hy: float = 0.0) -> tuple[float, float] | None:
+        """The corner of the box (x +- hx, y +- hy) farthest off the model, or None."""
+        cx = x - hx if x - hx < xmin else x + hx if x + hx > xmax else None
+        cy = y - hy if y - hy < ymin else y + hy if y + hy > ymax else None
+        if cx is None and cy is None:
+            return None
+        return (x if cx is None else cx, y if cy is None else cy)
+
+    for i, (x, y, _) in enumerate(waypoints):
+        if off(x, y):
+            raise ValueError(f"waypoints.{i}: ({x:g}, {y:g}) is {model}")
+    w, h = search_rectangle
+    for i, (x, y, _) in enumerate(waypoints):
+        corner = off(x, y, w / 2, h / 2)
+        if corner:
+            raise ValueError(
+                f"landing.search_rectangle: a {w:g} x {h:g} m search pattern around "
+                f"waypoints.{i} ({x:g}, {y:g}) reaches ({corner[0]:g}, {corner[1]:g}), {model}"
+            )
+    x, y, _ = waypoints[-1]
+    r = pattern_center_radius
+    corner = off(x, y, w / 2 + r, h / 2 + r)
+    if corner:
+        raise ValueError(
+            f"landing.pattern_center_radius: new {w:g} x {h:g} m search patterns centred "
+            f"within {r:g} m of the last waypoint ({x:g}, {y:g}) may reach "
+            f"({corner[0]:g}, {corner[1]:g}), {model}"
+        )
+
+
 def generate(
     settings: FileTerrainSettings, rng: np.random.Generator
 ) -> tuple[np.ndarray, tuple[float, float], np.ndarray]:

@@ -187,7 +187,8 @@ def test_file_world_path_is_relative_to_the_mission_file(tmp_path):
     import numpy as np
 
     (tmp_path / "maps").mkdir()
-    np.save(tmp_path / "maps" / "dem.npy", np.zeros((50, 50), dtype=np.float32))
+    # 400 m: the route and its search patterns stay on the model
+    np.save(tmp_path / "maps" / "dem.npy", np.zeros((401, 401), dtype=np.float32))
     path = write(tmp_path, GOOD + "world: {kind: file, path: maps/dem.npy, "
                  "source_cell_size: 1.0}\n")
     mission = load_mission(path)

@@ -65,9 +65,10 @@ SETTINGS = LidarPcaSettings(voxel_size=0.1, r_min=1.0, r_max=3.0, r_step=0.5, se
 
 
 def test_flat_square_with_box_spots_only_on_flat_ground_clear_of_the_box():
-    det = LidarPcaDetector(SETTINGS, rng=0)
+    # No obstacle_height: the clearance ring only reports the obstacle altitude here.
+    det = LidarPcaDetector(SETTINGS.model_copy(update={"obstacle_height": None}), rng=0)
     obs = det.process(box_scene(), vehicle_position=np.array([0.0, 0.0, 30.0]), now=5.0)
-    assert len(obs) >= 10
+    assert len(obs) >= 5
     xy = np.array([[o.x, o.y] for o in obs])
     z = np.array([o.z for o in obs])
     np.testing.assert_allclose(z, 0.0, atol=0.05)  # on the ground, not on the 2 m box top
@@ -85,6 +86,19 @@ def test_flat_square_with_box_spots_only_on_flat_ground_clear_of_the_box():
     reach = distance_to_box(xy) < np.array([o.size for o in obs]) + SETTINGS.obstacle_margin
     assert reach.any()
     assert all(o.obstacle_altitude == pytest.approx(1.5, abs=0.06) for o in np.array(obs)[reach])
+
+
+def test_no_site_has_an_obstacle_in_its_clearance_ring_nor_overlaps_another():
+    det = LidarPcaDetector(SETTINGS, rng=0)  # obstacle_height 0.5 m: the 1.5 m box is one
+    obs = det.process(box_scene(), vehicle_position=np.array([0.0, 0.0, 30.0]), now=5.0)
+    assert len(obs) >= 3
+    xy = np.array([[o.x, o.y] for o in obs])
+    size = np.array([o.size for o in obs])
+    ring = size + SETTINGS.obstacle_margin
+    assert (distance_to_box(xy) >= ring - SETTINGS.voxel_size).all()
+    assert all(o.obstacle_altitude == pytest.approx(o.z, abs=0.1) for o in obs)
+    gap = np.hypot(*(xy[:, None] - xy[None]).transpose(2, 0, 1)) - size[:, None] - size[None]
+    assert (gap[~np.eye(len(obs), dtype=bool)] >= -1e-9).all()
 
 
 def roof_scene(side):

@@ -57,7 +57,7 @@ def test_a_variant_with_a_corrupt_world_file_is_refused_before_any_flight(tmp_pa
     # The schema reads a file world when it validates it, so the bad variant is refused up
     # front (a flight that raises anyway is recorded as error: see test_engine.py).
     good, bad = tmp_path / "flat.npy", tmp_path / "corrupt.npy"
-    np.save(good, np.zeros((161, 161), dtype=np.float32))
+    np.save(good, np.zeros((301, 301), dtype=np.float32))  # the demo's route stays on it
     bad.write_bytes(b"this is not an elevation model")
     mission = yaml.safe_load(DEMO.read_text())
     mission["world"] = {"kind": "file", "path": str(good), "source_cell_size": 1.0}
