@@ -324,6 +324,11 @@ class Mission(BaseModel):
         1800.0, gt=0, le=MAX_TIME_LIMIT, description="s of mission time before aborting, up "
         "to 4 hours (longer than any multicopter battery lasts)"
     )
+    tree: str | None = Field(
+        None, min_length=1, max_length=4096, description="BehaviorTree.CPP v4 XML tree file "
+        "to fly instead of the built-in landing tree, relative to the mission file "
+        "(docs/trees.md); checked against the node registry and this mission when loaded"
+    )
 
     _source: dict[str, Any] = PrivateAttr(default_factory=dict)
 
@@ -584,11 +589,31 @@ def parse_mission(text: str, name: str = "<mission>", base_dir: Path | None = No
     if (base_dir is not None and isinstance(world, dict) and world.get("kind") == "file"
             and isinstance(world.get("path"), str) and not Path(world["path"]).is_absolute()):
         data["world"] = {**world, "path": str(base_dir / world["path"])}
+    tree = data.get("tree")
+    if base_dir is not None and isinstance(tree, str) and tree and not Path(tree).is_absolute():
+        data["tree"] = str(base_dir / tree)
     mission, errors = _validate(data)
     problems += [_locate(err, node, name) for err in errors]
+    if mission is not None and mission.tree is not None:
+        problems += _tree_problems(mission, node, name)
     if problems or mission is None:
         raise MissionFileError(sorted(dict.fromkeys(problems), key=_line_of))
     return mission
+
+
+def _tree_problems(mission: Mission, root: yaml.Node, name: str) -> list[str]:
+    """The problems of the mission's tree file, each at its own file and line."""
+    from behaviors.loader import TreeFileError, check_tree, read_tree
+    from behaviors.registry import mission_settings
+
+    if not Path(mission.tree).is_file():
+        reason = f"cannot read tree file {mission.tree}: no such file"
+        return [_locate({"type": "value_error", "loc": ("tree",), "msg": reason}, root, name)]
+    try:
+        document = read_tree(mission.tree)
+    except TreeFileError as exc:
+        return exc.problems
+    return check_tree(document, mission_settings(mission.plan(), mission.lsm.match_radius))
 
 
 def _validate(data: Any) -> tuple[Mission | None, list[dict[str, Any]]]:

@@ -80,6 +80,11 @@ means "where the vehicle is when the search starts"."""
 BANNED_SITES = "/landing/banned_sites"
 """int: sites banned after a failed verification."""
 
+LANDING_TRY_COST = "/landing/try_cost"
+"""float: battery (% points) the next landing try is expected to cost, written by the
+landing phase's RetryWhileBattery for the last resort's BatteryAllows. A tree entry (set by
+the tree that uses it), not one of the mission keys below."""
+
 DEFAULTS: types.MappingProxyType[str, object] = types.MappingProxyType(
     {
         PHASE: "preflight",

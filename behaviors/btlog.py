@@ -151,8 +151,8 @@ def parse_nodes(xml: str) -> dict[int, LoggedNode]:
         if uid_text is not None:
             here = int(uid_text)
             attributes = {k: v for k, v in element.attrib.items() if k != "_uid"}
-            nodes[here] = LoggedNode(here, element.tag, element.get("name", element.tag),
-                                     parent, attributes)
+            name = element.get("name") or element.get("ID") or element.tag
+            nodes[here] = LoggedNode(here, element.tag, name, parent, attributes)
             if element.tag == "SubTree" and element.get("_fullpath") is not None:
                 subtree_parent[element.get("_fullpath", "")] = here
         for child in element:

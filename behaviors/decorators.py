@@ -90,6 +90,9 @@ class RetryWhileBattery(py_trees.decorators.Retry):
         num_failures: maximum number of tries, >= 1
         critical: battery level (%) no new try may be expected to cross
         attempt_cost: battery (% points) a try is assumed to cost at least, >= 0
+        expected_cost_key: blackboard key to which :attr:`expected_cost` is written
+            whenever it changes (from construction on), e.g. for
+            :class:`behaviors.failsafe.BatteryAllows`; None writes nothing
     """
 
     def __init__(
@@ -100,6 +103,7 @@ class RetryWhileBattery(py_trees.decorators.Retry):
         num_failures: int,
         critical: float,
         attempt_cost: float,
+        expected_cost_key: str | None = None,
     ) -> None:
         if num_failures < 1:
             raise ValueError(f"num_failures must be >= 1, got {num_failures}")
@@ -114,6 +118,10 @@ class RetryWhileBattery(py_trees.decorators.Retry):
         self.try_start: float | None = None
         self.blackboard = self.attach_blackboard_client(self.name)
         self.blackboard.register_key(key=keys.FAILURE_REASON, access=Access.WRITE)
+        self.expected_cost_key = expected_cost_key
+        if expected_cost_key is not None:
+            self.blackboard.register_key(key=expected_cost_key, access=Access.WRITE)
+            self.blackboard.set(expected_cost_key, self.expected_cost)
 
     @property
     def expected_cost(self) -> float:
@@ -133,6 +141,8 @@ class RetryWhileBattery(py_trees.decorators.Retry):
         battery = self.vehicle.state.battery_percent
         if battery is not None and self.try_start is not None:
             self.largest_drop = max(self.largest_drop, self.try_start - battery)
+            if self.expected_cost_key is not None:
+                self.blackboard.set(self.expected_cost_key, self.expected_cost)
         status = super().update()
         if status != Status.RUNNING:
             return status

@@ -54,17 +54,23 @@ def battery_leaves_room(battery: float | None, cost: float, critical: float) -> 
 class BatteryAllows(MissionBehaviour):
     """Condition: the battery leaves room for a flight expected to cost ``cost()`` percentage
     points without reaching the ``critical`` level (``battery - cost() >= critical``).
+    ``cost`` may instead be a blackboard key holding the cost (None there counts as 0).
 
     * SUCCESS: the battery allows it, or its level is unknown (then nothing guards)
     * FAILURE: the flight could end below the critical level
     """
 
     def __init__(
-        self, name: str, vehicle: VehiclePort, critical: float, cost: Callable[[], float]
+        self, name: str, vehicle: VehiclePort, critical: float,
+        cost: Callable[[], float] | str,
     ) -> None:
         super().__init__(name)
         self.vehicle = vehicle
         self.critical = float(critical)
+        if isinstance(cost, str):
+            key = cost
+            self.blackboard.register_key(key=key, access=Access.READ)
+            cost = lambda: self.blackboard.get(key) or 0.0  # noqa: E731
         self.cost = cost
 
     def update(self) -> Status:

@@ -179,6 +179,8 @@ class NavigateToSite(NavigateToWaypoint):
         *,
         acceptance_radius: float = 1.0,
         command_timeout: float = 5.0,
+        site_key: str = keys.LANDING_SITE,
+        clear_altitude_key: str = keys.CLEAR_ALTITUDE,
     ) -> None:
         super().__init__(
             name,
@@ -188,12 +190,14 @@ class NavigateToSite(NavigateToWaypoint):
             command_timeout=command_timeout,
             phase="navigate_to_site",
         )
-        self.blackboard.register_key(key=keys.LANDING_SITE, access=Access.READ)
-        self.blackboard.register_key(key=keys.CLEAR_ALTITUDE, access=Access.READ)
+        self.site_key = site_key
+        self.clear_altitude_key = clear_altitude_key
+        self.blackboard.register_key(key=site_key, access=Access.READ)
+        self.blackboard.register_key(key=clear_altitude_key, access=Access.READ)
 
     def target(self) -> tuple[Point, float | None] | str:
-        site = self.blackboard.get(keys.LANDING_SITE)
-        clear = self.blackboard.get(keys.CLEAR_ALTITUDE)
+        site = self.blackboard.get(self.site_key)
+        clear = self.blackboard.get(self.clear_altitude_key)
         if site is None or clear is None:
             return "no landing site chosen"
         return (site.x, site.y, clear), clear
@@ -218,6 +222,7 @@ class ChangeAltitudeLS(RouteAction):
         acceptance_radius: float = 1.0,
         command_timeout: float = 5.0,
         phase: str = "descend",
+        site_key: str = keys.LANDING_SITE,
     ) -> None:
         super().__init__(
             name,
@@ -228,10 +233,11 @@ class ChangeAltitudeLS(RouteAction):
             phase=phase,
         )
         self.height = float(height)
-        self.blackboard.register_key(key=keys.LANDING_SITE, access=Access.READ)
+        self.site_key = site_key
+        self.blackboard.register_key(key=site_key, access=Access.READ)
 
     def plan_route(self, position: Point) -> list[Point] | str:
-        site = self.blackboard.get(keys.LANDING_SITE)
+        site = self.blackboard.get(self.site_key)
         if site is None:
             return "no landing site chosen"
         return [(site.x, site.y, site.z + self.height)]

@@ -65,24 +65,27 @@ class GetClearAltitude(MissionBehaviour):
     """
 
     def __init__(
-        self, name: str, vehicle: VehiclePort, *, buffer: float, failsafe_altitude: float
+        self, name: str, vehicle: VehiclePort, *, buffer: float, failsafe_altitude: float,
+        site_key: str = keys.LANDING_SITE, clear_altitude_key: str = keys.CLEAR_ALTITUDE,
     ) -> None:
         super().__init__(name)
         self.vehicle = vehicle
         self.buffer = float(buffer)
         self.failsafe_altitude = float(failsafe_altitude)
-        self.blackboard.register_key(key=keys.LANDING_SITE, access=Access.READ)
-        self.blackboard.register_key(key=keys.CLEAR_ALTITUDE, access=Access.WRITE)
+        self.site_key = site_key
+        self.clear_altitude_key = clear_altitude_key
+        self.blackboard.register_key(key=site_key, access=Access.READ)
+        self.blackboard.register_key(key=clear_altitude_key, access=Access.WRITE)
 
     def update(self) -> Status:
-        site = self.blackboard.get(keys.LANDING_SITE)
+        site = self.blackboard.get(self.site_key)
         position = self.vehicle.state.position
         if site is None:
             return self.fail("no landing site chosen")
         if position is None:
             return self.fail("vehicle position unknown")
         z_clear = clear_altitude(site, position, self.buffer, self.failsafe_altitude)
-        self.blackboard.set(keys.CLEAR_ALTITUDE, z_clear)
+        self.blackboard.set(self.clear_altitude_key, z_clear)
         self.feedback_message = f"clear altitude {z_clear:.1f} m"
         return Status.SUCCESS
 
@@ -108,6 +111,8 @@ class GetLandingSite(MissionBehaviour):
         buffer: float,
         failsafe_altitude: float,
         verified_only: bool = False,
+        site_key: str = keys.LANDING_SITE,
+        clear_altitude_key: str = keys.CLEAR_ALTITUDE,
     ) -> None:
         super().__init__(name, phase="landing_phase")
         self.vehicle = vehicle
@@ -115,8 +120,10 @@ class GetLandingSite(MissionBehaviour):
         self.buffer = float(buffer)
         self.failsafe_altitude = float(failsafe_altitude)
         self.verified_only = verified_only
-        self.blackboard.register_key(key=keys.LANDING_SITE, access=Access.WRITE)
-        self.blackboard.register_key(key=keys.CLEAR_ALTITUDE, access=Access.WRITE)
+        self.site_key = site_key
+        self.clear_altitude_key = clear_altitude_key
+        self.blackboard.register_key(key=site_key, access=Access.WRITE)
+        self.blackboard.register_key(key=clear_altitude_key, access=Access.WRITE)
 
     def update(self) -> Status:
         position = self.vehicle.state.position
@@ -127,8 +134,8 @@ class GetLandingSite(MissionBehaviour):
         if site is None:
             return self.fail(f"no {'verified ' if self.verified_only else ''}landing site known")
         z_clear = clear_altitude(site, position, self.buffer, self.failsafe_altitude)
-        self.blackboard.set(keys.LANDING_SITE, site)
-        self.blackboard.set(keys.CLEAR_ALTITUDE, z_clear)
+        self.blackboard.set(self.site_key, site)
+        self.blackboard.set(self.clear_altitude_key, z_clear)
         self.feedback_message = (
             f"site {site.id} at ({site.x:.1f}, {site.y:.1f}, {site.z:.1f}), "
             f"loss {site.loss:.3f}, clear altitude {z_clear:.1f} m"
@@ -168,6 +175,7 @@ class LandingSiteVerification(VehicleAction):
         height: float,
         recentre_distance: float = 0.5,
         command_timeout: float = 5.0,
+        site_key: str = keys.LANDING_SITE,
     ) -> None:
         super().__init__(
             name, vehicle, clock, command_timeout=command_timeout, phase="verification"
@@ -181,13 +189,14 @@ class LandingSiteVerification(VehicleAction):
         self.site: LandingSite | None = None
         self.hover: tuple[float, float, float] | None = None
         self.recentred = 0
-        self.blackboard.register_key(key=keys.LANDING_SITE, access=Access.WRITE)
+        self.site_key = site_key
+        self.blackboard.register_key(key=site_key, access=Access.WRITE)
         self.blackboard.register_key(key=keys.VERIFICATION_ATTEMPTS, access=Access.WRITE)
         self.blackboard.register_key(key=keys.BANNED_SITES, access=Access.WRITE)
 
     def initialise(self) -> None:
         super().initialise()
-        self.site = self.blackboard.get(keys.LANDING_SITE)
+        self.site = self.blackboard.get(self.site_key)
         self.deadline = self.clock.now() + self.duration
         # The descent flew to this point above the site as chosen.
         self.hover = None if self.site is None else self._above(self.site)
@@ -234,7 +243,7 @@ class LandingSiteVerification(VehicleAction):
             return self.fail(problem)
         record = self.current_record()
         if record is not None and self.lsm.is_verified(record):
-            self.blackboard.set(keys.LANDING_SITE, record)
+            self.blackboard.set(self.site_key, record)
             self.feedback_message = (
                 f"site {record.id} verified (seen from {record.verification_altitude:.1f} m)"
             )

@@ -12,6 +12,7 @@ import py_trees
 from behaviors import blackboard as keys
 from behaviors.bblog import BlackboardLogger
 from behaviors.btlog import TickLogger
+from behaviors.registry import models_element
 from behaviors.treexml import instance_xml
 
 TICK_LOG = "tree.btlog"
@@ -34,7 +35,7 @@ class TreeRecorder:
     def __init__(self, tree: py_trees.trees.BehaviourTree, directory: str | os.PathLike[str],
                  now: Callable[[], float], extra_keys: Iterable[str] = ()) -> None:
         directory = Path(directory)
-        xml = instance_xml(tree)
+        xml = instance_xml(tree, models=models_element())
         self.ticks = TickLogger(directory / TICK_LOG, tree.root, xml, now).attach(tree)
         followed = list(dict.fromkeys([*keys.KEYS, *extra_keys,
                                        *getattr(tree, "blackboard_keys", ())]))

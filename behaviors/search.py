@@ -98,6 +98,7 @@ class LandingSiteSearch(RouteAction):
         battery_reserve: float | None = None,
         acceptance_radius: float = 1.0,
         command_timeout: float = 5.0,
+        pattern_center_key: str = keys.PATTERN_CENTER,
     ) -> None:
         super().__init__(
             name,
@@ -112,8 +113,9 @@ class LandingSiteSearch(RouteAction):
         self.altitude = float(altitude)
         self.use_pattern_center = use_pattern_center
         self.battery_reserve = battery_reserve
+        self.pattern_center_key = pattern_center_key
         self.blackboard.register_key(key=keys.SEARCH_PATTERNS, access=Access.WRITE)
-        self.blackboard.register_key(key=keys.PATTERN_CENTER, access=Access.READ)
+        self.blackboard.register_key(key=pattern_center_key, access=Access.READ)
 
     def check(self, position: Point) -> Status | None:
         if len(self.lsm):
@@ -126,7 +128,7 @@ class LandingSiteSearch(RouteAction):
 
     def plan_route(self, position: Point) -> list[Point] | str:
         self.blackboard.set(keys.SEARCH_PATTERNS, self.blackboard.get(keys.SEARCH_PATTERNS) + 1)
-        center = self.blackboard.get(keys.PATTERN_CENTER) if self.use_pattern_center else None
+        center = self.blackboard.get(self.pattern_center_key) if self.use_pattern_center else None
         if center is None:
             center = (position[0], position[1])
         corners = rectangle_pattern(center, self.size, self.altitude, start_near=position[:2])
@@ -162,6 +164,7 @@ class GetNextPatternCenterWP(RouteAction):
         battery_reserve: float | None = None,
         acceptance_radius: float = 1.0,
         command_timeout: float = 5.0,
+        pattern_center_key: str = keys.PATTERN_CENTER,
     ) -> None:
         super().__init__(
             name,
@@ -177,12 +180,13 @@ class GetNextPatternCenterWP(RouteAction):
         self.altitude = float(altitude)
         self.battery_reserve = battery_reserve
         self.center: tuple[float, float] | None = None
-        self.blackboard.register_key(key=keys.PATTERN_CENTER, access=Access.WRITE)
+        self.pattern_center_key = pattern_center_key
+        self.blackboard.register_key(key=pattern_center_key, access=Access.WRITE)
 
     def initialise(self) -> None:
         super().initialise()
         self.center = random_point_in_disc(self.rng, self.anchor, self.radius)
-        self.blackboard.set(keys.PATTERN_CENTER, self.center)
+        self.blackboard.set(self.pattern_center_key, self.center)
 
     def check(self, position: Point) -> Status | None:
         problem = _battery_problem(self.vehicle, self.battery_reserve)

@@ -68,7 +68,8 @@ def instance_xml(
         uid += 1
         subtree = getattr(node, "bt_subtree", None)
         if subtree is not None:
-            path = f"{prefix}{node.name}"
+            # BT.CPP's path of a subtree instance: its name, or ID::uid when unnamed
+            path = prefix + (f"{subtree}::{uid}" if node.name == subtree else node.name)
             element = ET.SubElement(parent, "SubTree",
                                     {"ID": subtree, "_fullpath": path, "_uid": str(uid)})
             block = ET.Element("BehaviorTree", {"ID": subtree, "_fullpath": path})
@@ -105,3 +106,20 @@ def preorder(root: py_trees.behaviour.Behaviour) -> Iterable[py_trees.behaviour.
         node = stack.pop()
         yield node
         stack.extend(reversed(node.children))
+
+
+def source_xml(document, models: ET.Element | None = None) -> str:
+    """A tree file's text as read (:class:`behaviors.loader.TreeDocument`), written back
+    in the canonical layout with ``models`` (default: every registered node) as its
+    ``<TreeNodesModel>``: what ``lander tree --xml`` writes and Groot2 opens."""
+    from behaviors.registry import models_element
+
+    def element(node) -> ET.Element:
+        out = ET.Element(node.tag, dict(node.attrib))
+        out.extend(element(child) for child in node.children)
+        return out
+
+    root = ET.Element("root", {"BTCPP_format": "4", "main_tree_to_execute": document.main})
+    root.extend(element(tree) for tree in document.trees.values())
+    root.append(models if models is not None else models_element())
+    return to_text(root)

@@ -1,4 +1,5 @@
-"""``lander tree MISSION.yaml``: print the mission's behaviour tree, optionally as dot."""
+"""``lander tree MISSION.yaml``: print the mission's behaviour tree, optionally as dot or as
+BehaviorTree.CPP v4 XML for Groot2."""
 
 from __future__ import annotations
 
@@ -25,17 +26,26 @@ class _OfflineVehicle:
 def run(args: argparse.Namespace) -> int:
     from autonomy.cli.validate import load_or_explain
     from behaviors.display import render_ascii, write_dot
-    from behaviors.tree import build_mission_tree
+    from behaviors.tree import build_mission_tree, load_tree_file
+    from behaviors.treexml import source_xml
     from lsm import LandingSiteManager
 
     mission = load_or_explain("tree", args.mission)
     if mission is None:
         return 2
+    document = load_tree_file(mission.tree)
     tree = build_mission_tree(
         mission.plan(), _OfflineVehicle(), LandingSiteManager(mission.lsm, mission.weights),
-        SimClock(), np.random.default_rng(mission.seed),
+        SimClock(), np.random.default_rng(mission.seed), document,
     )
     print(render_ascii(tree))
+    if args.xml:
+        try:
+            with open(args.xml, "w", encoding="utf-8") as handle:
+                handle.write(source_xml(document))
+        except OSError as exc:
+            raise UserError(f"--xml {args.xml}: {exc.strerror or exc}") from None
+        print(f"xml: {args.xml}")
     if args.dot:
         try:
             write_dot(tree, args.dot)
@@ -49,8 +59,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser(
         "tree", help="print the mission's behaviour tree",
         description="Print the behaviour tree a mission file builds (ASCII) and optionally "
-        "write it as a Graphviz dot file.",
+        "write it as a Graphviz dot file, or as the BehaviorTree.CPP v4 XML tree file it is "
+        "built from (the mission's tree: or the built-in landing tree) with a TreeNodesModel "
+        "of every registered node, which Groot2 opens.",
     )
     parser.add_argument("mission", metavar="MISSION.yaml", help="mission file")
     parser.add_argument("--dot", metavar="FILE", help="write the tree as Graphviz dot source")
+    parser.add_argument("--xml", metavar="FILE", help="write the tree file (BehaviorTree.CPP "
+                        "v4 XML with the node models) for Groot2")
     parser.set_defaults(func=run)

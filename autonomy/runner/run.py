@@ -171,7 +171,7 @@ def fly(
         def build_tree(plan: MissionPlan) -> py_trees.trees.BehaviourTree:
             bb.reset()
             tree = build_mission_tree(
-                plan, vehicle, lsm, clock, np.random.default_rng(seeds.tree)
+                plan, vehicle, lsm, clock, np.random.default_rng(seeds.tree), mission.tree
             )
             tree.setup()
             if out is not None:

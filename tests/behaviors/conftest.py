@@ -1,5 +1,6 @@
-"""Makes the behaviour-test doubles importable as ``behaviors_fakes`` however pytest is run
-(the suite uses --import-mode=importlib, which puts no test directory on sys.path)."""
+"""Makes the behaviour-test doubles importable as ``behaviors_fakes`` and the pre-XML tree
+builder as ``behaviors_legacy_tree`` however pytest is run (the suite uses
+--import-mode=importlib, which puts no test directory on sys.path)."""
 
 import importlib.util
 import sys
@@ -8,13 +9,12 @@ from pathlib import Path
 import py_trees
 import pytest
 
-if "behaviors_fakes" not in sys.modules:
-    _spec = importlib.util.spec_from_file_location(
-        "behaviors_fakes", Path(__file__).with_name("fakes.py")
-    )
-    _module = importlib.util.module_from_spec(_spec)
-    sys.modules["behaviors_fakes"] = _module
-    _spec.loader.exec_module(_module)
+for _name, _file in (("behaviors_fakes", "fakes.py"), ("behaviors_legacy_tree", "legacy_tree.py")):
+    if _name not in sys.modules:
+        _spec = importlib.util.spec_from_file_location(_name, Path(__file__).with_name(_file))
+        _module = importlib.util.module_from_spec(_spec)
+        sys.modules[_name] = _module
+        _spec.loader.exec_module(_module)
 
 
 @pytest.fixture(autouse=True)

@@ -133,9 +133,7 @@ def btcpp_tree(xml: str):
         else:
             factory.register_simple_decorator(tag, lambda status, node: status)
     main = root.get("main_tree_to_execute")
-    for element in root.iter():
-        if element is root or element.tag == "TreeNodesModel":
-            continue
+    for element in [e for tree in root.findall("BehaviorTree") for e in tree.iter()]:
         for name in [k for k in element.attrib if k not in ("ID", "name")]:
             del element.attrib[name]
     factory.register_behavior_tree_from_text(ET.tostring(root, encoding="unicode"))
@@ -189,19 +187,25 @@ def test_the_clock_not_the_wall_stamps_the_log(tmp_path):
         (pytest.approx(2.5), 1, NodeStatus.SUCCESS)]
 
 
-def test_every_flight_with_a_report_directory_writes_its_tick_log(tmp_path):
+def test_a_mission_flying_its_own_tree_file_writes_its_tick_log(tmp_path):
+    # missions/skip_search.yaml flies missions/skip_search.xml (a subtree, no search).
     from autonomy.config import load_mission
     from autonomy.runner import fly as fly_mission
 
-    mission = load_mission("missions/demo.yaml")
-    result = fly_mission(mission, out_dir=tmp_path)
+    result = fly_mission(load_mission("missions/skip_search.yaml"), out_dir=tmp_path)
 
+    assert result.outcome == "landed"
+    assert (result.data.verification_attempts, result.data.search_patterns) == (2, 0)
     log = read_btlog(tmp_path / "tree.btlog")
-    root = log.nodes[1]
-    assert root.name == "Landing mission" and not log.truncated
+    assert log.nodes[1].name == "Survey then land" and not log.truncated
+    subtree = log.nodes[2]
+    assert (subtree.tag, subtree.name, subtree.attributes["_fullpath"]) == (
+        "SubTree", "Failsafe", "Failsafe::2")
+    assert log.nodes[3].parent == 2 and log.nodes[3].name == "Failsafe"
+    assert "Survey point 3" in {n.name for n in log.nodes.values()}
     # The root's last transition is the flight's end, at the simulated time it landed.
     last = [t for t in log.transitions if t.uid == 1][-1]
-    assert last.status is NodeStatus.SUCCESS and result.outcome == "landed"
+    assert last.status is NodeStatus.SUCCESS
     assert last.time == pytest.approx(result.data.end_time, abs=0.11)
     phases = [e["value"] for e in read_blackboard_log(tmp_path / "blackboard.jsonl")
               if e["key"] == keys.PHASE]
