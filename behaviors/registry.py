@@ -22,6 +22,9 @@ Mission settings are the mission's landing settings by field name (``acceptance_
 (the effective one), ``match_radius`` (the LSM's), ``last_waypoint`` (x;y of the last
 mission waypoint), ``waypoint_count`` and ``waypoint_1`` .. ``waypoint_N``; inside
 ``MissionWaypoints`` also ``waypoint`` and ``waypoint_number``.
+
+The module is one table of every node, so it runs past 500 lines: splitting it would
+scatter the registry a reader wants to see whole.
 """
 
 from __future__ import annotations
@@ -54,6 +57,7 @@ from behaviors.landing import (
     GetLandingSite,
     LandingSiteVerification,
 )
+from behaviors.laser_guidance import LaserGuidance
 from behaviors.ports import Clock, VehiclePort
 from behaviors.search import GetNextPatternCenterWP, LandingSiteSearch
 from behaviors.settings import MissionPlan
@@ -487,10 +491,22 @@ _leaf("GetNextPatternCenterWP", "Action", "draws a new pattern centre (seeded) w
             "output", True),
        _RESERVE, _RADIUS, _COMMAND])
 
+_leaf("LaserGuidance", "Action", "after a GPS loss: waits for a ground laser, flies its "
+      "bearing by velocity commands and lands over it (the mission's "
+      "landing.laser_guidance settings; its estimator draws from a generator spawned from "
+      "the mission's)",
+      lambda c, n, v, ch: LaserGuidance(n, c.vehicle, c.clock, c.plan.landing.laser_guidance,
+                                        rng=c.rng.spawn(1)[0],
+                                        command_timeout=v["command_timeout"]),
+      [_COMMAND])
+
 
 def mission_settings(plan: MissionPlan, match_radius: float) -> dict[str, Any]:
     """The mission settings a tree file may name in ``{...}`` (see the module docstring)."""
-    settings: dict[str, Any] = dict(plan.landing)
+    settings: dict[str, Any] = {  # the landing section's numbers, flags and pairs
+        name: value for name, value in plan.landing
+        if isinstance(value, (bool, int, float)) or (
+            isinstance(value, tuple) and len(value) in (2, 3))}
     last = plan.waypoints[-1]
     settings.update(
         cruise_altitude=plan.cruise_altitude,
