@@ -30,6 +30,7 @@ from behaviors import blackboard as keys
 from behaviors.registry import (
     PARSERS,
     REGISTRY,
+    SERVICES,
     BuildContext,
     NodeModel,
     PortValueError,
@@ -173,10 +174,11 @@ class _Builder:
     settings and, when ``context`` is given, builds it."""
 
     def __init__(self, document: TreeDocument, settings: dict[str, Any],
-                 context: BuildContext | None) -> None:
+                 context: BuildContext | None, services: frozenset[str] = frozenset()) -> None:
         self.doc = document
         self.settings = settings
         self.context = context
+        self.services = services if context is None else frozenset(context.services)
         self.problems: list[str] = []
         self.runtime_keys: dict[str, None] = {}  # absolute blackboard keys, in order
 
@@ -267,6 +269,10 @@ class _Builder:
         label = f"{node_id} '{node.attrib['name']}'" if "name" in node.attrib else node_id
         if self.skipped(node, label):
             return []
+        for need in model.requires:
+            if need not in self.services:
+                self.problem(node, label, f"needs {SERVICES[need]}, which this mission does "
+                             "not provide")
         if node_id == "SubTree":
             return self.subtree(node, label, path)
         if node_id == "MissionWaypoints":
@@ -404,10 +410,13 @@ def _substitute(name: str, settings: dict[str, Any]) -> str:
                   if m.group(1) in settings else m.group(0), name)
 
 
-def check_tree(document: TreeDocument, settings: dict[str, Any]) -> list[str]:
+def check_tree(document: TreeDocument, settings: dict[str, Any],
+               services: frozenset[str] | set[str] = frozenset()) -> list[str]:
     """Every problem of ``document`` flown with the mission ``settings``
-    (:func:`behaviors.registry.mission_settings`), one line each; [] when it is fine."""
-    checker = _Builder(document, settings, None)
+    (:func:`behaviors.registry.mission_settings`) and ``services`` (names of
+    :data:`behaviors.registry.SERVICES` the mission provides), one line each; [] when it is
+    fine."""
+    checker = _Builder(document, settings, None, frozenset(services))
     checker.tree(document.main, (document.main,))
     return list(dict.fromkeys(checker.problems))
 

@@ -32,7 +32,7 @@ from __future__ import annotations
 import math
 import xml.etree.ElementTree as ET
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
@@ -41,7 +41,9 @@ from py_trees.composites import Parallel, Selector, Sequence
 from py_trees.decorators import Inverter, Retry
 
 from behaviors import blackboard as keys
+from behaviors.approach import FlyApproachTrajectory
 from behaviors.decorators import ClockTimeout, RetryWhileBattery
+from behaviors.descent_watch import WatchedDescent
 from behaviors.failsafe import BatteryAllows, BatteryCritical, BatteryReserve, GpsLost, NoFailsafe
 from behaviors.flight import (
     ChangeAltitudeLS,
@@ -201,16 +203,25 @@ class Port:
     optional: bool = False
 
 
+SERVICES: dict[str, str] = {
+    "approach_planner": "an approach planner (behaviors.ports.ApproachPlanner)",
+    "obstacle_watch": "a descent camera's obstacle watch (behaviors.ports.ObstacleWatch)",
+}
+"""What some nodes need beyond the vehicle, LSM and clock, by name -> in words. The runner
+passes those the mission provides (``build_mission_tree(..., services=...)``)."""
+
+
 @dataclass
 class BuildContext:
     """What nodes are built with: the vehicle port, the LSM, the clock, the seeded
-    generator and the mission plan."""
+    generator, the mission plan and the services of :data:`SERVICES` the mission has."""
 
     vehicle: VehiclePort
     lsm: LandingSiteManager
     clock: Clock
     rng: np.random.Generator
     plan: MissionPlan
+    services: dict[str, Any] = field(default_factory=dict)
 
 
 Builder = Callable[[BuildContext, str, dict[str, Any], list[py_trees.behaviour.Behaviour]],
@@ -233,6 +244,7 @@ class NodeModel:
     ports: tuple[Port, ...] = ()
     children: tuple[int, int | None] = (0, 0)  # at least, at most (None: any number)
     default_name: Callable[[dict[str, str], list[str]], str] | None = None
+    requires: tuple[str, ...] = ()  # keys of SERVICES the node needs
 
     def port(self, name: str) -> Port | None:
         return next((p for p in self.ports if p.name == name), None)
@@ -349,8 +361,8 @@ class _SubTree(py_trees.decorators.Decorator):
         return self.decorated.status
 
 
-def _leaf(id: str, kind: Kind, description: str, make, ports=()) -> None:
-    register(NodeModel(id, kind, description, make, tuple(ports)))
+def _leaf(id: str, kind: Kind, description: str, make, ports=(), requires=()) -> None:
+    register(NodeModel(id, kind, description, make, tuple(ports), requires=tuple(requires)))
 
 
 _leaf("NoFailsafe", "Condition", "SUCCESS while no failsafe has taken over the mission",
@@ -499,6 +511,31 @@ _leaf("LaserGuidance", "Action", "after a GPS loss: waits for a ground laser, fl
                                         rng=c.rng.spawn(1)[0],
                                         command_timeout=v["command_timeout"]),
       [_COMMAND])
+
+_leaf("FlyApproachTrajectory", "Action", "flies to above the chosen site (landing_site) "
+      "along a trajectory planned over the known terrain; FAILURE hands over to the next "
+      "child of a Fallback, e.g. NavigateToSite",
+      lambda c, n, v, ch: FlyApproachTrajectory(
+          n, c.vehicle, c.clock, c.services["approach_planner"], min_height=v["min_height"],
+          acceptance_radius=v["acceptance_radius"],
+          max_tracking_error=v["max_tracking_error"], command_timeout=v["command_timeout"]),
+      [Port("min_height", "double", "m", "the trajectory ends at least this high above the "
+            "site", "10.0"),
+       Port("max_tracking_error", "double", "m", "farther from the trajectory fails", "5.0"),
+       _RADIUS, _COMMAND], requires=["approach_planner"])
+_leaf("WatchedDescent", "Action", "descends to `height` above the chosen site (landing_site) "
+      "while the descent camera's optical flow watches for obstacles, stepping away from them",
+      lambda c, n, v, ch: WatchedDescent(
+          n, c.vehicle, c.clock, v["height"], c.services["obstacle_watch"], step=v["step"],
+          max_offset=v["max_offset"], settle=v["settle"],
+          acceptance_radius=v["acceptance_radius"], command_timeout=v["command_timeout"],
+          phase=v["phase"]),
+      [Port("height", "double", "m", "above the site", "{verification_altitude}"),
+       Port("step", "double", "m", "a step away from an obstacle", "1.5"),
+       Port("max_offset", "double", "m", "farthest from the site's column", "3.0"),
+       Port("settle", "double", "s", "sightings ignored after a step", "1.0"),
+       _RADIUS, _COMMAND, Port("phase", "std::string", "", _PHASE, "descend")],
+      requires=["obstacle_watch"])
 
 
 def mission_settings(plan: MissionPlan, match_radius: float) -> dict[str, Any]:

@@ -64,7 +64,7 @@ autopilot's reason), RUNNING otherwise. Stop ticking once it is no longer RUNNIN
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import py_trees
@@ -132,6 +132,7 @@ def build_mission_tree(
     clock: Clock,
     rng: np.random.Generator,
     tree_file: str | Path | TreeDocument | None = None,
+    services: dict[str, Any] | None = None,
 ) -> MissionTree:
     """Build the landing-mission tree for ``plan`` from a tree file (see the module
     docstring for the built-in one's shape).
@@ -148,6 +149,9 @@ def build_mission_tree(
         rng: seeded generator for the random search-pattern centres.
         tree_file: a BehaviorTree.CPP v4 XML tree file (or one already read); None flies
             the built-in landing tree.
+        services: what nodes need beyond the above, by the names of
+            :data:`behaviors.registry.SERVICES` (an approach planner, an obstacle watch);
+            a tree with a node whose service is missing is refused.
 
     Returns:
         the tree, not yet set up; tick it once per runner step. Its ``blackboard_keys``
@@ -158,7 +162,8 @@ def build_mission_tree(
     """
     document = tree_file if isinstance(tree_file, TreeDocument) else load_tree_file(tree_file)
     settings = mission_settings(plan, lsm.settings.match_radius)
-    root, extra = build_tree(document, settings, BuildContext(vehicle, lsm, clock, rng, plan))
+    context = BuildContext(vehicle, lsm, clock, rng, plan, dict(services or {}))
+    root, extra = build_tree(document, settings, context)
     tree = MissionTree(root)
     tree.blackboard_keys = tuple(extra)
     return tree

@@ -269,6 +269,13 @@ def test_check_tree_refuses_structural_mistakes_in_one_line_each():
                          '<Land _skipIf="verify"/></Inverter></BehaviorTree></root>', "y.xml")
     assert check_tree(skipped, settings) == [
         "y.xml:1: Inverter: its child is left out (_skipIf) or unknown"]
+    # A node needing what the mission does not provide.
+    watched = parse_tree('<root BTCPP_format="4"><BehaviorTree ID="A">\n<WatchedDescent '
+                         'name="Down"/></BehaviorTree></root>', "z.xml")
+    assert check_tree(watched, settings) == [
+        "z.xml:2: WatchedDescent 'Down': needs a descent camera's obstacle watch "
+        "(behaviors.ports.ObstacleWatch), which this mission does not provide"]
+    assert check_tree(watched, settings, {"obstacle_watch"}) == []
 
 
 def test_the_node_registry_page_lists_every_registered_node():
