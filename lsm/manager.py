@@ -10,6 +10,9 @@ The loss depends on the drone position and on the largest retained size, so heap
 recomputed (an O(n) re-heapify) when the drone has moved more than ``rekey_distance`` or the
 largest size changed. :meth:`LandingSiteManager.ranked` always computes exact losses at the
 given drone position.
+
+Longer than 500 lines because the heap, the structure of arrays and the spatial hash are one
+data structure kept consistent under one lock; the loss and the records live beside it.
 """
 
 from __future__ import annotations

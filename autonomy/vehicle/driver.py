@@ -7,6 +7,10 @@ bytes into an immutable :class:`~behaviors.ports.VehicleState`, then sends what 
 HEARTBEAT, command re-sends, setpoint streams); commands return handles at once.
 
 Lockstep use, once per tick: ``sitl.step(dt); clock.advance(dt); vehicle.poll(); tree.tick()``.
+
+Longer than 500 lines because :class:`MavlinkVehicle` is the whole VehiclePort over one
+link's state (decoding, command tracking for two autopilots, setpoint streams); what needs
+no link state lives beside it (commands.py, modes.py, frames.py, connection.py).
 """
 
 from __future__ import annotations
