@@ -180,8 +180,18 @@ def _overlay_cloud(path: Path, cloud: np.ndarray, obs: list[SiteObservation], se
     frame = "" if georef is None or georef.crs is None else f", {georef.label} in metres"
     fig, ax = plt.subplots(figsize=(8, 8))
     if len(pts):
-        sc = ax.scatter(pts[:, 0], pts[:, 1], c=pts[:, 2], s=0.5, cmap="terrain", linewidths=0)
-        fig.colorbar(sc, ax=ax, label="z (m)", shrink=0.8)
+        # Highest point per pixel of a 600 px raster: as fast for a million points as for
+        # a thousand (a scatter of each point is not).
+        lo, hi = pts[:, :2].min(axis=0), pts[:, :2].max(axis=0)
+        cell = max(float((hi - lo).max()) / 600.0, 1e-6)
+        ij = ((pts[:, :2] - lo) / cell).astype(np.int64)
+        shape = (int(ij[:, 1].max()) + 1, int(ij[:, 0].max()) + 1)
+        top = np.full(shape[0] * shape[1], -np.inf)
+        np.maximum.at(top, ij[:, 1] * shape[1] + ij[:, 0], pts[:, 2])
+        top = np.where(np.isfinite(top), top, np.nan).reshape(shape)
+        im = ax.imshow(top, origin="lower", cmap="terrain", interpolation="nearest",
+                       extent=(lo[0], lo[0] + shape[1] * cell, lo[1], lo[1] + shape[0] * cell))
+        fig.colorbar(im, ax=ax, label="z (m)", shrink=0.8)
     for i, o in enumerate(obs[:MAX_DRAWN_SITES]):
         ax.add_patch(Circle((o.x, o.y), o.size, fill=False, ec="red", lw=1.2))
         if i < 20:

@@ -1,0 +1,82 @@
+"""Sites a 1 m footprint can live with, judged against classified clouds' own labels and a
+plane fit (lsd.lidar_pca_judge, written apart from the detector): synthetic urban,
+farmland and forest scenes and the real tiles in tests/data/real (issue 16)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import autonomy.cli as cli
+from lsd.io import read_point_cloud
+from lsd.lidar_pca_judge import Judge, JudgeRules, random_discs
+from lsd.lidar_pca_scenes import HIGH_VEG, LOW_VEG, MEDIUM_VEG, scene
+from lsd.lidar_pca_settings import LidarPcaSettings
+from lsd.lidar_pca_sites import find_sites, finish_sites, thin_discs
+
+REAL = Path(__file__).resolve().parents[1] / "data" / "real"
+SETTINGS = LidarPcaSettings(seeding="grid")
+
+
+def detect(points, codes, settings=SETTINGS):
+    spots, counts = find_sites(points, codes, settings, np.random.default_rng(0))
+    return finish_sites(spots, settings, counts), counts
+
+
+@pytest.mark.parametrize("kind", ["urban", "farmland"])
+def test_sites_on_classified_scenes_are_safe_where_random_discs_are_not(kind):
+    points, codes = scene(kind, size=60.0, seed=21)
+    spots, counts = detect(points, codes)
+    judge = Judge(points, codes, JudgeRules.from_settings(SETTINGS))
+    safe, why = judge.judge(spots.centre[:, :2], spots.radius)
+    assert len(spots) >= 5
+    assert safe.mean() >= 0.95, why
+    base, _ = judge.judge(random_discs(points, 200, SETTINGS.r_min,
+                                       np.random.default_rng(2)), SETTINGS.r_min)
+    assert base.mean() < 0.5
+    assert counts.kept == len(spots) and counts.dropped["class"] > 0
+
+
+def test_a_forest_gives_no_site_with_canopy_in_or_over_it():
+    points, codes = scene("forest", size=60.0, seed=22)
+    spots, _ = detect(points, codes)
+    canopy = np.isin(codes, (LOW_VEG, MEDIUM_VEG, HIGH_VEG))
+    for centre, radius in zip(spots.centre, spots.radius, strict=True):
+        d = np.hypot(*(points[canopy, :2] - centre[:2]).T)
+        assert d.min() > radius + SETTINGS.obstacle_margin
+    # Geometry alone, the canopy's flat crowns would not all be told apart from ground.
+    assert canopy.mean() > 0.6
+
+
+def test_sites_never_overlap_and_thinning_is_the_sequential_greedy():
+    rng = np.random.default_rng(5)
+    centres = rng.uniform(0, 20, (300, 2))
+    radii = rng.uniform(1.5, 3.0, 300)
+    keep = thin_discs(centres, radii, 1.0)
+    kept = []
+    for i in range(300):  # the greedy, one disc at a time, best (first) first
+        if all(np.hypot(*(centres[i] - centres[j])) >= max(radii[i] + radii[j], 1.0)
+               for j in kept):
+            kept.append(i)
+    assert np.flatnonzero(keep).tolist() == kept
+
+
+@pytest.mark.parametrize("name", ["lambert93_rural.laz", "nebraska_urban_ftus.las"])
+def test_sites_on_real_classified_tiles_are_safe(name):
+    data = read_point_cloud(REAL / name)
+    spots, _ = detect(data.points, data.classification)
+    assert len(spots) >= 1
+    judge = Judge(data.points, data.classification, JudgeRules.from_settings(SETTINGS))
+    safe, why = judge.judge(spots.centre[:, :2], spots.radius)
+    assert safe.all(), why
+
+
+def test_a_tile_whose_non_ground_is_unclassified_says_why_it_has_no_site(monkeypatch, tmp_path,
+                                                                        capsys):
+    monkeypatch.setattr(cli, "COMMAND_MODULES", ("autonomy.cli.detect",))
+    assert cli.main(["detect", "--lidar", str(REAL / "autzen_suburban_ft.laz"),
+                     "--out", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert "0 sites, because the site rules dropped all" in out and "(class " in out
