@@ -120,6 +120,17 @@ def _spill(points, codes, edge, margin, tmp: Path, files: dict) -> None:
     usable = (np.abs(points) <= MAX_COORDINATE).all(axis=1)
     points = points[usable]
     codes = np.zeros(len(points), np.int16) if codes is None else codes[usable].astype(np.int16)
+    for tile, rows in _tile_rows(points, edge, margin):
+        record = np.empty(len(rows), dtype=_RECORD)
+        record["xyz"] = points[rows]
+        record["cls"] = codes[rows]
+        file = files.setdefault(tile, tmp / f"tile_{tile[0]}_{tile[1]}.bin")
+        with open(file, "ab") as f:
+            record.tofile(f)
+
+
+def _tile_rows(points: np.ndarray, edge: float, margin: float):
+    """Yield (tile key, rows of ``points`` in its core or margin, in order) per tile."""
     if not len(points):
         return
     tx = np.floor(points[:, 0] / edge).astype(np.int64)
@@ -139,14 +150,36 @@ def _spill(points, codes, edge, margin, tmp: Path, files: dict) -> None:
     order = np.lexsort((row, key[:, 1], key[:, 0]))  # per tile, in file order
     key, row = key[order], row[order]
     cut = np.flatnonzero(np.any(key[1:] != key[:-1], axis=1)) + 1
-    record = np.empty(len(row), dtype=_RECORD)
-    record["xyz"] = points[row]
-    record["cls"] = codes[row]
     for start, stop in zip(np.r_[0, cut], np.r_[cut, len(row)], strict=True):
-        tile = (int(key[start, 0]), int(key[start, 1]))
-        file = files.setdefault(tile, tmp / f"tile_{tile[0]}_{tile[1]}.bin")
-        with open(file, "ab") as f:
-            record[start:stop].tofile(f)
+        yield (int(key[start, 0]), int(key[start, 1])), row[start:stop]
+
+
+def detect_in_tiles(
+    points: np.ndarray,
+    codes: np.ndarray | None,
+    settings: LidarPcaSettings,
+    rng: np.random.Generator,
+    tile_size: float = 200.0,
+    progress: Callable[[str, float], None] | None = None,
+) -> tuple[SpotTable, SiteCounts]:
+    """:func:`detect_tiled` on a cloud already in memory: the search's working memory is
+    bounded by a tile (its neighbourhood pairs grow with the search points), with the
+    same sites as one search over the whole cloud."""
+    edge = tile_edge(settings, tile_size)
+    classified = codes is not None and bool((codes == 2).any())
+    counts = SiteCounts(points=len(points))
+    found = SpotTable()
+    tiles = list(_tile_rows(points, edge, tile_margin(settings)))
+    for k, (key, rows) in enumerate(tiles):
+        core = (key[0] * edge, (key[0] + 1) * edge, key[1] * edge, (key[1] + 1) * edge)
+        spots, tile_counts = find_sites(points[rows], None if codes is None else codes[rows],
+                                        settings, rng, core=core, classified=classified)
+        tile_counts.points = 0
+        counts.merge(tile_counts)
+        found = SpotTable.concat(found, spots)
+        if progress:
+            progress("tiles", (k + 1) / len(tiles))
+    return finish_sites(found, settings, counts), counts
 
 
 def stderr_progress(label: str) -> Callable[[str, float], None]:
@@ -171,4 +204,11 @@ def stderr_progress(label: str) -> Callable[[str, float], None]:
     return show
 
 
-__all__ = ["TiledResult", "detect_tiled", "stderr_progress", "tile_edge", "tile_margin"]
+__all__ = [
+    "TiledResult",
+    "detect_in_tiles",
+    "detect_tiled",
+    "stderr_progress",
+    "tile_edge",
+    "tile_margin",
+]

@@ -35,6 +35,9 @@ CSV_FIELDS = (
 MAX_PLOTTED_POINTS = 200_000
 DROPPED = "with NaN/inf or beyond 1e8 m dropped"
 MAX_DRAWN_SITES = 200  # the best ones; all are in sites.csv
+# Clouds in memory with more points are searched a 200 m tile at a time (same sites): the
+# search's neighbourhood pairs grow with the search points, about 1 GB per 2 M points.
+TILE_ABOVE = 500_000
 
 
 def _settings(model: type, values: dict, flag_of: dict[str, str]):
@@ -290,8 +293,15 @@ def run_lidar(args: argparse.Namespace, out_dir: Path) -> int:
                 )
             finite = (np.abs(raw) <= 1e8).all(axis=1)
             codes = None if data.classification is None else data.classification[finite]
-            spots, counts = find_sites(cloud, codes, settings, rng)
-            spots = finish_sites(spots, settings, counts)
+            if settings.seeding == "grid" and (args.tile_size or len(cloud) > TILE_ABOVE):
+                from lsd.lidar_pca_tiles import detect_in_tiles, stderr_progress
+
+                spots, counts = detect_in_tiles(
+                    cloud, codes, settings, rng, tile_size=args.tile_size or 200.0,
+                    progress=None if args.quiet else stderr_progress(str(path)))
+            else:
+                spots, counts = find_sites(cloud, codes, settings, rng)
+                spots = finish_sites(spots, settings, counts)
             raw = cloud
     except DataFileError as exc:
         raise UserError(str(exc)) from None
@@ -526,10 +536,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                        help="score the sites against the cloud's labels and a plane fit, "
                        "beside random discs on the same cloud")
     lidar.add_argument("--tile-size", type=types.number(10, 100_000), metavar="M",
-                       help="stream a LAS/LAZ file through square tiles of this edge (m); "
-                       "default: only files above --in-memory-points, 200 m tiles")
+                       help="search square tiles of this edge (m), a LAS/LAZ file streamed "
+                       "through them; default: 200 m tiles for clouds above 500,000 points, "
+                       "LAS/LAZ files above --in-memory-points streamed")
     lidar.add_argument("--in-memory-points", type=types.integer(1, 1_000_000_000),
-                       default=5_000_000, metavar="N",
+                       default=2_000_000, metavar="N",
                        help="LAS/LAZ files with more points are streamed through tiles "
                        "(bounded memory), default %(default)s")
     lidar.add_argument("--quiet", action="store_true", help="no progress bar")

@@ -103,6 +103,16 @@ def test_streamed_tiles_give_the_sites_of_the_whole_cloud(tmp_path, capsys):
         {k: v for k, v in r.items() if k != "class"} for r in tiles]
 
 
+def test_a_cloud_in_memory_searched_in_tiles_gives_the_sites_of_the_whole(tmp_path):
+    points, codes = scene("farmland", size=60.0, seed=7)
+    np.save(tmp_path / "c.npy", np.column_stack((points, codes)))
+    assert lander("--lidar", tmp_path / "c.npy", "--out", tmp_path / "whole") == 0
+    assert lander("--lidar", tmp_path / "c.npy", "--tile-size", 12, "--out",
+                  tmp_path / "tiles") == 0
+    whole, tiles = read_sites(tmp_path / "whole"), read_sites(tmp_path / "tiles")
+    assert len(whole) >= 3 and whole == tiles
+
+
 def test_no_crs_is_said_in_one_line_and_taken_as_metres(tmp_path, capsys):
     points, codes = scene("bare", size=20.0, seed=5)
     write_las(tmp_path / "c.las", points, codes)
