@@ -101,3 +101,42 @@ def test_a_model_of_nodata_only_is_refused_in_one_line(tmp_path):
     write_asc(path, np.full((5, 5), NODATA))
     with pytest.raises(ValueError, match="no valid heights"):
         FileTerrainSettings(path=path, cell_size=0.25, home_clear_radius=0.0)
+
+
+def test_a_flight_over_a_real_elevation_model_lands_on_it(tmp_path):
+    """The USGS DEM matplotlib ships (Jacksboro fault, Tennessee), a 41 x 51 cell crop at
+    1:74 scale (1 m cells, heights / 74: its real relief and slopes on a 40 m x 50 m
+    model), flown with the elevation-map detector from a camera that sees past the edge."""
+    import matplotlib.cbook as cbook
+
+    from autonomy.config import parse_mission
+    from autonomy.runner import fly
+
+    dem = cbook.get_sample_data("jacksboro_fault_dem.npz")["elevation"][110:161, 270:311]
+    np.save(tmp_path / "dem.npy", np.asarray(dem, dtype=np.float32)[::-1])  # south first
+    mission = parse_mission(
+        f"""\
+cruise_altitude: 15.0
+waypoints:
+  - [8.0, 0.0, 15.0]
+landing: {{verification_duration: 6.0, search_rectangle: [10, 10],
+          pattern_center_radius: 2.0}}
+world: {{kind: file, path: {tmp_path / "dem.npy"}, source_cell_size: 1.0,
+        vertical_scale: 0.0135, cell_size: 0.25, home_clear_radius: 3.0}}
+lsm: {{match_radius: 3.0}}
+sitl: {{arming_settle_time: 2.0}}
+perception:
+  detector: elevation_map
+  rate: 1.0
+  camera: {{width: 64, height: 64, focal_px: 32.0}}
+  elevation_map: {{size: 30.0, resolution: 0.5, fine_below: 0.0}}
+seed: 3
+""",
+        "dem.yaml",
+    )
+    result = fly(mission, report_png=False)
+    summary = result.summary
+    terrain = make_terrain(mission.world)
+    assert summary["outcome"] == "landed", summary["outcome"]
+    touchdown = summary["touchdown"]
+    assert terrain.has_ground(touchdown["x"], touchdown["y"])
