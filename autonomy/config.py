@@ -613,7 +613,9 @@ def _tree_problems(mission: Mission, root: yaml.Node, name: str) -> list[str]:
         document = read_tree(mission.tree)
     except TreeFileError as exc:
         return exc.problems
-    return check_tree(document, mission_settings(mission.plan(), mission.lsm.match_radius))
+    services = {"obstacle_watch"} if mission.landing.descent_watch.enabled else set()
+    return check_tree(document, mission_settings(mission.plan(), mission.lsm.match_radius),
+                      services)
 
 
 def _validate(data: Any) -> tuple[Mission | None, list[dict[str, Any]]]:

@@ -9,7 +9,7 @@ import math
 from py_trees.common import Access, Status
 
 from behaviors import blackboard as keys
-from behaviors.base import Point, VehicleAction, reached
+from behaviors.base import Point, VehicleAction, horizontal_distance, reached
 from behaviors.ports import Clock, ObstacleSighting, ObstacleWatch, VehiclePort
 
 
@@ -46,11 +46,12 @@ class WatchedDescent(VehicleAction):
     When a sighting flags an obstacle, the descent stops where the vehicle is (a goto at its
     current altitude), the column moves up to ``step`` m away from the obstacle (the
     sighting's away vector turned into ENU with the camera's heading), at most
-    ``max_offset`` m from the site in all, and once over the new column the descent resumes
-    there. Sightings from the step itself and from the first ``settle`` seconds after it are
-    ignored (the watch is off while stepping: sideways flow is not a descent's). With no room
-    left to step away, the vehicle climbs back to the altitude the descent began at and the
-    behaviour fails, so the landing try ends and the tree chooses again (re-plans).
+    ``max_offset`` m from the site in all, and once over the new column (within 0.3 m,
+    moving sideways at under 0.3 m/s) the descent resumes there. Sightings from the step
+    itself and from the first ``settle`` seconds after it are ignored (the watch is off
+    while stepping: sideways flow is not a descent's). With no room left to step away, the
+    vehicle climbs back to the altitude the descent began at and the behaviour fails, so
+    the landing try ends and the tree chooses again (re-plans).
 
     The descent ends over the moved column: the verification hover and the centring over the
     verified site that follow bring the vehicle back over the site, low and slowly.
@@ -83,6 +84,8 @@ class WatchedDescent(VehicleAction):
         self.max_offset = float(max_offset)
         self.settle = float(settle)
         self.acceptance_radius = float(acceptance_radius)
+        self.still_radius = min(0.3, self.acceptance_radius)  # m, over the new column
+        self.still_speed = 0.3  # m/s sideways at most when the descent resumes
         self.blackboard.register_key(key=keys.LANDING_SITE, access=Access.READ)
         self._reset()
 
@@ -162,7 +165,11 @@ class WatchedDescent(VehicleAction):
         if self.mode == "climb":
             return self.fail(self.abort_reason) if arrived else Status.RUNNING
         if self.mode == "step":
-            if arrived:
+            # Resume once over the new column and nearly still: sideways motion would
+            # read as flow of its own.
+            vx, vy, _ = self.vehicle.state.velocity
+            if (horizontal_distance(position, self.target) <= self.still_radius
+                    and math.hypot(vx, vy) <= self.still_speed):
                 self._descend()
             return Status.RUNNING
         if arrived:

@@ -18,7 +18,8 @@ A port's value in a tree file is one of
   names (:data:`BLACKBOARD_NAMES`), any other name is a new entry ``/tree/<name>``.
 
 Mission settings are the mission's landing settings by field name (``acceptance_radius``,
-``verify``, ``navigation_timeout``, ...), plus ``cruise_altitude``, ``takeoff_altitude``
+``verify``, ``navigation_timeout``, ...; a sub-section's as ``section_field``, e.g.
+``descent_watch_enabled``), plus ``cruise_altitude``, ``takeoff_altitude``
 (the effective one), ``match_radius`` (the LSM's), ``last_waypoint`` (x;y of the last
 mission waypoint), ``waypoint_count`` and ``waypoint_1`` .. ``waypoint_N``; inside
 ``MissionWaypoints`` also ``waypoint`` and ``waypoint_number``.
@@ -39,6 +40,7 @@ import numpy as np
 import py_trees
 from py_trees.composites import Parallel, Selector, Sequence
 from py_trees.decorators import Inverter, Retry
+from pydantic import BaseModel
 
 from behaviors import blackboard as keys
 from behaviors.approach import FlyApproachTrajectory
@@ -531,9 +533,11 @@ _leaf("WatchedDescent", "Action", "descends to `height` above the chosen site (l
           acceptance_radius=v["acceptance_radius"], command_timeout=v["command_timeout"],
           phase=v["phase"]),
       [Port("height", "double", "m", "above the site", "{verification_altitude}"),
-       Port("step", "double", "m", "a step away from an obstacle", "1.5"),
-       Port("max_offset", "double", "m", "farthest from the site's column", "3.0"),
-       Port("settle", "double", "s", "sightings ignored after a step", "1.0"),
+       Port("step", "double", "m", "a step away from an obstacle", "{descent_watch_step}"),
+       Port("max_offset", "double", "m", "farthest from the site's column",
+            "{descent_watch_max_offset}"),
+       Port("settle", "double", "s", "sightings ignored after a step",
+            "{descent_watch_settle}"),
        _RADIUS, _COMMAND, Port("phase", "std::string", "", _PHASE, "descend")],
       requires=["obstacle_watch"])
 
@@ -544,6 +548,10 @@ def mission_settings(plan: MissionPlan, match_radius: float) -> dict[str, Any]:
         name: value for name, value in plan.landing
         if isinstance(value, (bool, int, float)) or (
             isinstance(value, tuple) and len(value) in (2, 3))}
+    for section, model in plan.landing:  # its sub-sections' too: descent_watch_enabled, ...
+        if isinstance(model, BaseModel):
+            settings.update({f"{section}_{name}": value for name, value in model
+                             if isinstance(value, (bool, int, float))})
     last = plan.waypoints[-1]
     settings.update(
         cruise_altitude=plan.cruise_altitude,

@@ -20,7 +20,9 @@ and only the excess counts (``max(0, m / expected - 1)``: 0 on the ground, ``g /
 on a top ``g`` m high). The metric is then Algorithm 2's: excess summed over each
 direction's corners (more corners and more excess, more likely an obstacle), the variance
 of the m x m segment sums as the gate, O_T and V_T in these units. Sideways drift between
-frames adds flow that is not the descent's; the behaviour does not watch while it steps.
+frames adds flow that is not the descent's: pairs taken while the camera moved more than
+half as far sideways as down give no verdict, and the behaviour does not watch while it
+steps.
 
 :func:`calibrate_descent` flies the camera down an obstacle-free column and returns the
 thresholds (O_T, V_T) :func:`avoidance.calibrate` derives from it (``lander flow-calibrate``
@@ -130,12 +132,16 @@ class DescentFlow:
         if shot is None:
             self._previous = None
             return
-        z = float(state.position[2])
-        previous, self._previous = self._previous, (shot[0], shot[1], z)
+        here = tuple(float(v) for v in state.position)
+        previous, self._previous = self._previous, (shot[0], shot[1], here)
         if previous is None:
             return
-        report = expansion_report(previous[0], shot[0], previous[1], previous[2] - z,
-                                  self.settings)
+        before = previous[2]
+        drop = before[2] - here[2]
+        if np.hypot(here[0] - before[0], here[1] - before[1]) > 0.5 * max(drop, 0.0):
+            self.counters["sideways"] += 1  # moving more sideways than down: not a descent
+            return
+        report = expansion_report(previous[0], shot[0], previous[1], drop, self.settings)
         if report is None:
             return
         self.counters["pairs"] += 1

@@ -75,6 +75,9 @@ class Flight:
         console: optional phase console.
         loss_wait: clock seconds the mission holds for a lost link (see
             :mod:`autonomy.runner.link`).
+        descent_flow: the descent watch's camera
+            (:class:`autonomy.perception.descent_flow.DescentFlow`), updated every
+            ``descent_flow_every`` ticks before the tree ticks; None without the watch.
     """
 
     def __init__(
@@ -83,6 +86,7 @@ class Flight:
         perception_every: int, truth: Callable[[], Any] | None, lockstep: bool,
         console: PhaseConsole | None = None, low_altitude_every: int | None = None,
         low_altitude: float = 0.0, loss_wait: float = 30.0,
+        descent_flow: Any = None, descent_flow_every: int = 1,
     ) -> None:
         self.vehicle = vehicle
         self.lsm = lsm
@@ -96,6 +100,8 @@ class Flight:
         self.truth = truth
         self.lockstep = lockstep
         self.console = console
+        self.descent_flow = descent_flow
+        self.descent_flow_every = max(1, int(descent_flow_every))
         self.trace = FlightTrace()
         self.ticks = 0
         self.phase: str | None = None
@@ -179,6 +185,11 @@ class Flight:
             if self.lockstep:
                 self.lsm.process_pending()
             for event in self.source.drain_events():
+                self.log.add("perception", **event)
+        flow = self.descent_flow
+        if flow is not None and self.ticks % self.descent_flow_every == 0:
+            flow.update(state, now)
+            for event in flow.drain_events():
                 self.log.add("perception", **event)
         self.tree.tick()
         self.ticks += 1

@@ -37,6 +37,7 @@ from autonomy.runner.interrupt import ctrl_c_flag
 from autonomy.runner.progress import FlightProgress
 from autonomy.runner.world import (
     FlightSeeds,
+    build_descent_flow,
     build_sitl,
     build_source,
     build_terrain,
@@ -154,6 +155,8 @@ def fly(
     )
     source = build_source(mission, terrain, np.random.default_rng(seeds.perception))
     sitl = build_sitl(mission, terrain, seeds.sitl) if lockstep else None
+    descent_flow = build_descent_flow(mission, terrain, seeds.descent_flow)
+    services = {} if descent_flow is None else {"obstacle_watch": descent_flow}
     vehicle = None
     refusal: HomeMismatch | None = None
     failure: BaseException | None = None
@@ -171,7 +174,8 @@ def fly(
         def build_tree(plan: MissionPlan) -> py_trees.trees.BehaviourTree:
             bb.reset()
             tree = build_mission_tree(
-                plan, vehicle, lsm, clock, np.random.default_rng(seeds.tree), mission.tree
+                plan, vehicle, lsm, clock, np.random.default_rng(seeds.tree), mission.tree,
+                services=services,
             )
             tree.setup()
             if out is not None:
@@ -190,6 +194,10 @@ def fly(
             lockstep=lockstep,
             console=PhaseConsole(before_line=meter.clear if meter else None) if console else None,
             loss_wait=mission.vehicle.link.loss_wait,
+            descent_flow=descent_flow,
+            descent_flow_every=_ticks_per_update(
+                mission.tick_rate, mission.perception.descent_flow.rate
+            ),
         )
         try:
             if lockstep:

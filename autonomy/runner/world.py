@@ -22,11 +22,14 @@ class FlightSeeds:
     sitl: int
     perception: int
     tree: int
+    descent_flow: int  # the descent watch's camera (grain and read noise)
 
     @classmethod
     def derive(cls, seed: int) -> FlightSeeds:
-        """Spawn child seeds with numpy's SeedSequence, so the parts never share a stream."""
-        children = np.random.SeedSequence(seed).spawn(4)
+        """Spawn child seeds with numpy's SeedSequence, so the parts never share a stream.
+        A child depends only on its index, so a part added last leaves the others' seeds as
+        they were."""
+        children = np.random.SeedSequence(seed).spawn(5)
         return cls(*(int(c.generate_state(1, dtype=np.uint32)[0]) for c in children))
 
 
@@ -69,6 +72,16 @@ def build_source(mission: Mission, terrain: Any, rng: np.random.Generator) -> Si
             terrain, rng=rng, lidar=perception.lidar, detector=perception.lidar_pca
         )
     raise UserError(f"perception.detector: unknown detector {perception.detector!r}")
+
+
+def build_descent_flow(mission: Mission, terrain: Any, seed: int) -> Any:
+    """The descent watch's camera (:class:`autonomy.perception.descent_flow.DescentFlow`)
+    when ``landing.descent_watch`` is enabled, else None (nothing built or drawn)."""
+    if not mission.landing.descent_watch.enabled or terrain is None:
+        return None
+    from autonomy.perception.descent_flow import DescentFlow
+
+    return DescentFlow(terrain, mission.perception.descent_flow, seed)
 
 
 def build_sitl(mission: Mission, terrain: Any, seed: int) -> Any:

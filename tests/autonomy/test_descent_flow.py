@@ -1,0 +1,63 @@
+"""The descent watch's camera on the autonomy side: seeds, when it is built, when it gives
+no verdict."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from autonomy.config import Mission
+from autonomy.perception.descent_flow import DescentFlow, calibrate_descent
+from autonomy.perception.descent_flow_settings import DescentFlowSettings
+from autonomy.runner.world import FlightSeeds, build_descent_flow
+from behaviors.ports import VehicleState
+from sitl.terrain import Terrain
+
+SMALL = DescentFlowSettings(width=64, height=48, focal_px=32.0, max_corners=200)
+
+
+def _flat():
+    return Terrain(np.zeros((161, 161), np.float32), 0.25, (-20.0, -20.0), kind="flat")
+
+
+def test_the_watch_seed_leaves_every_other_seed_of_a_flight_as_it_was():
+    for seed in (0, 1, 7, 2**32 - 1):
+        before = [int(c.generate_state(1, dtype=np.uint32)[0])
+                  for c in np.random.SeedSequence(seed).spawn(4)]
+        seeds = FlightSeeds.derive(seed)
+        assert [seeds.terrain, seeds.sitl, seeds.perception, seeds.tree] == before
+        assert seeds.descent_flow not in before
+
+
+def test_the_watch_is_built_only_when_the_mission_enables_it():
+    mission = {"waypoints": [[0.0, 0.0, 10.0]]}
+    assert build_descent_flow(Mission.model_validate(mission), _flat(), 1) is None
+    mission["landing"] = {"descent_watch": {"enabled": True}}
+    assert isinstance(build_descent_flow(Mission.model_validate(mission), _flat(), 1),
+                      DescentFlow)
+
+
+def _state(x, y, z):
+    return VehicleState(position=(x, y, z), yaw=0.3)
+
+
+def test_no_verdict_while_hovering_or_moving_sideways_or_not_watching():
+    flow = DescentFlow(_flat(), SMALL, seed=2)
+    flow.update(_state(0, 0, 10), 0.0)
+    assert flow.counters["frames"] == 0  # not watching: nothing rendered
+    flow.watch(True)
+    flow.update(_state(0, 0, 10.0), 0.0)
+    flow.update(_state(0, 0, 10.0), 0.2)  # hovering
+    assert flow.latest() is None
+    flow.update(_state(1.0, 0, 9.8), 0.4)  # 1 m sideways for 0.2 m down
+    assert flow.latest() is None and flow.counters["sideways"] == 1
+    flow.update(_state(1.0, 0, 9.5), 0.6)  # descending: a verdict, no obstacle on flat ground
+    sighting = flow.latest()
+    assert sighting is not None and sighting.time == 0.6 and not sighting.obstacle
+    flow.watch(False)
+    assert flow.latest() is None
+
+
+def test_calibration_refuses_a_descent_that_gives_no_frames():
+    with pytest.raises(ValueError, match="top"):
+        calibrate_descent(_flat(), 0.0, 0.0, settings=SMALL, top=2.0, bottom=3.0)
