@@ -35,6 +35,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "autonomy.cli.detect",
     "autonomy.cli.link",
     "autonomy.cli.terrain",
+    "autonomy.cli.flow",
 )
 EXIT_INTERNAL_ERROR = 70  # sysexits.h EX_SOFTWARE
 TRACEBACK_ENV = "LANDER_TRACEBACK"

@@ -61,3 +61,21 @@ def test_no_verdict_while_hovering_or_moving_sideways_or_not_watching():
 def test_calibration_refuses_a_descent_that_gives_no_frames():
     with pytest.raises(ValueError, match="top"):
         calibrate_descent(_flat(), 0.0, 0.0, settings=SMALL, top=2.0, bottom=3.0)
+
+
+def test_lander_flow_calibrate_prints_the_thresholds_to_paste(tmp_path, capsys):
+    from autonomy.cli import main
+
+    mission = tmp_path / "m.yaml"
+    mission.write_text(
+        "waypoints: [[0.0, 0.0, 20.0]]\n"
+        "world: {kind: flat, size: [60.0, 60.0], cell_size: 0.25}\n"
+        "perception: {descent_flow: {width: 64, height: 48, focal_px: 32.0, rate: 2.0}}\n"
+    )
+    assert main(["flow-calibrate", str(mission), "--at", "5,5", "--top", "12"]) == 0
+    out = capsys.readouterr().out
+    o_t = float(out.split("obstacle_threshold:")[1].split()[0])
+    v_t = float(out.split("variance_threshold:")[1].split()[0])
+    assert o_t > 0 and v_t > 0 and "frame pairs" in out
+    assert main(["flow-calibrate", str(mission), "--at", "500,5"]) == 2
+    assert "--at 500,5: no ground of the world there" in capsys.readouterr().err
