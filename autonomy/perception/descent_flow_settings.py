@@ -29,12 +29,12 @@ class DescentFlowSettings(BaseModel):
         "100 (at most one per tick); the thresholds are per frame pair at this rate"
     )
     obstacle_threshold: float = Field(
-        25.0, ge=0, le=1e6, description="O_T: excess expansion (flow over flat ground's at "
+        50.0, ge=0, le=1e6, description="O_T: excess expansion (flow over flat ground's at "
         "the measured height, less 1) summed over a direction's corners, above which that "
         "direction may hold an obstacle, 0 .. 1e6"
     )
     variance_threshold: float = Field(
-        50.0, ge=0, le=1e12, description="V_T: variance of the m x m segment sums of excess "
+        150.0, ge=0, le=1e12, description="V_T: variance of the m x m segment sums of excess "
         "expansion above which a direction's sum counts, 0 .. 1e12"
     )
     min_drop: float = Field(
