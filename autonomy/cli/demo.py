@@ -69,7 +69,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         description=f"Fly missions/{DEMO_MISSION} in lockstep on the embedded SITL: a survey "
         "over Mars terrain with the elevation-map detector in the loop, a site that fails "
         "verification at 2.5 m and is banned, and a landing on the next one. Writes the "
-        "flight report (summary.json, events.jsonl, flight.tlog, report.png).",
+        "flight report (summary.json, events.jsonl, flight.tlog, report.png, report.html).",
     )
     parser.add_argument("--out", metavar="DIR", default="out/demo",
                         help="report directory (default out/demo)")

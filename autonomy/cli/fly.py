@@ -57,8 +57,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "fly", help="fly a mission and write its flight report",
         description="Fly a mission: lockstep on the embedded SITL for sim://, live over "
         "MAVLink otherwise (on the vehicle's own time; lat/lon waypoints converted about the "
-        "home the vehicle reports). Writes summary.json, events.jsonl, flight.tlog and "
-        "report.png to --out whatever ends the flight.",
+        "home the vehicle reports). Writes summary.json, events.jsonl, flight.tlog, "
+        "report.png and report.html (lander replay DIR opens it) to --out whatever ends the "
+        "flight.",
         epilog="exit codes: " + "; ".join(
             f"{code} = {meaning}" for code, meaning in sorted(EXIT_MEANINGS.items())
         ) + ".",
