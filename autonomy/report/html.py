@@ -68,8 +68,9 @@ def render_html(page: dict[str, Any], footer: str = "") -> str:
     """The report page for ``page`` (the dict of :func:`build_page`)."""
     summary = page.get("summary", {})
     name = summary.get("mission") or "mission"
-    # "</" cannot end the data script early once escaped; JSON reads "<\\/" as "</".
-    data = json.dumps(page, separators=(",", ":"), allow_nan=False).replace("</", "<\\/")
+    # No "<" at all in the data script ("</script>", "<!--" cannot end or bend it); JSON
+    # reads the escape back as "<".
+    data = json.dumps(page, separators=(",", ":"), allow_nan=False).replace("<", "\\u003c")
     return _PAGE.format(
         title=html.escape(f"{name}: {summary.get('outcome', '')} (seed {summary.get('seed')})"),
         heading=html.escape(f"{name} \u2014 seed {summary.get('seed')}"),

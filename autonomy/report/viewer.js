@@ -359,7 +359,8 @@
     cursors.forEach(function (c) { c.setAttribute("x1", tx_(now)); c.setAttribute("x2", tx_(now)); });
     listeners.forEach(function (f) { f(now); });
     var i = sampleAt(now);
-    var z = i >= 0 ? T.z[i] : null, agl = i >= 0 ? T.z[i] - T.ground[i] : null;
+    var z = i >= 0 ? T.z[i] : null;
+    var agl = i >= 0 && T.ground[i] !== null ? T.z[i] - T.ground[i] : null;  // null: no ground
     readout.innerHTML = "<span>t <b>" + fmt(now, 1, " s") + "</b></span><span>phase <b>" +
       esc(phaseAt(now) || "-") + "</b></span><span>z <b>" + fmt(z, 1, " m") + "</b> (AGL " +
       fmt(agl, 1, " m") + ")</span><span>battery <b>" + fmt(i >= 0 ? T.battery[i] : null, 1, " %") +

@@ -15,10 +15,7 @@ from autonomy.report.page import build_page, loss_terms
 
 def embedded(path):
     """The flight data a report.html embeds."""
-    text = path.read_text(encoding="utf-8")
-    match = re.search(r'<script id="flight-data" type="application/json">(.*?)</script>',
-                      text, re.S)
-    return json.loads(match.group(1))
+    return embedded_text(path.read_text(encoding="utf-8"))
 
 
 def test_loss_terms_add_up_to_the_loss_the_lsm_ranked_by(demo_flight):
@@ -117,3 +114,18 @@ def test_report_html_loads_in_chromium_without_errors_and_shows_the_loss_terms(
     assert image.shape[:2] == (1300, 1600)
     colours = image.reshape(-1, 3).astype(np.int64) @ np.array([1 << 16, 1 << 8, 1])
     assert len(np.unique(colours)) > 50
+
+
+def test_text_in_the_data_cannot_end_the_pages_script():
+    from autonomy.report.html import render_html
+
+    page = {"summary": {"mission": "a</script><!--<b>", "seed": 1}}
+    text = render_html(page)
+    assert text.count("</script>") == 2  # the data's and the viewer's, none from the data
+    assert embedded_text(text) == page
+
+
+def embedded_text(text):
+    match = re.search(r'<script id="flight-data" type="application/json">(.*?)</script>',
+                      text, re.S)
+    return json.loads(match.group(1))
