@@ -14,13 +14,14 @@ if HERE not in sys.path:  # the `browser` helper module beside this file
 
 @pytest.fixture(scope="session")
 def demo_flight(tmp_path_factory):
-    """The demo mission flown once (lockstep) into a report folder: the FlightResult."""
-    from autonomy.cli.demo import demo_mission_path
+    """missions/demo.yaml (scripted sites over flat ground: quick) flown once in lockstep
+    into a report folder: the FlightResult."""
+    from autonomy.cli.demo import mission_path
     from autonomy.config import load_mission
     from autonomy.runner import fly
 
     out = tmp_path_factory.mktemp("demo-report")
-    return fly(load_mission(demo_mission_path()), out_dir=out)
+    return fly(load_mission(mission_path("demo.yaml")), out_dir=out)
 
 
 @pytest.fixture(scope="session")

@@ -8,7 +8,7 @@ from pathlib import Path
 from autonomy.campaign import run_campaign
 from autonomy.campaign.worker import error_record, fly_run
 from autonomy.cli import main
-from autonomy.cli.demo import demo_mission_path
+from autonomy.cli.demo import mission_path
 from autonomy.config import load_mission
 
 
@@ -24,8 +24,9 @@ class InProcess:
 
 def test_campaign_page_links_each_run_to_its_flight_page(tmp_path, capsys, chromium):
     out = tmp_path / "campaign"
-    run_campaign(load_mission(demo_mission_path()), runs=1, out_dir=out, backend=InProcess(),
-                 vary=["landing.verification_altitude=2.5,4"], quiet=True, name="demo")
+    run_campaign(load_mission(mission_path("demo.yaml")), runs=1, out_dir=out,
+                 backend=InProcess(), vary=["landing.verification_altitude=2.5,4"], quiet=True,
+                 name="demo")
     page = (out / "campaign.html").read_text(encoding="utf-8")
     links = re.findall(r'href="([^"]+)"', page)
     assert links == ["runs/v000-r00000/report.html", "runs/v001-r00000/report.html"]
@@ -56,7 +57,7 @@ def test_campaign_without_pages_gives_its_runs_no_folder(tmp_path):
             seen.extend(t.out_dir for t in tasks)
             return (error_record(t, "not flown here") for t in tasks)
 
-    mission = load_mission(demo_mission_path())
+    mission = load_mission(mission_path("demo.yaml"))
     run_campaign(mission, runs=2, out_dir=tmp_path / "a", backend=Recording(), quiet=True,
                  pages=False)
     assert seen == [None, None]

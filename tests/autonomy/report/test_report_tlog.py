@@ -12,7 +12,7 @@ from pathlib import Path
 import pymavlink
 import pytest
 
-from autonomy.cli.demo import demo_mission_path
+from autonomy.cli.demo import mission_path
 from autonomy.config import load_mission
 
 MAVLOGDUMP = Path(pymavlink.__file__).parent / "tools" / "mavlogdump.py"
@@ -20,7 +20,7 @@ EARTH_RADIUS = 6_378_137.0
 
 
 def test_mavlogdump_reads_the_track_and_the_hud_at_ground_station_rates(demo_flight):
-    mission = load_mission(demo_mission_path())
+    mission = load_mission(mission_path("demo.yaml"))
     dump = subprocess.run(
         [sys.executable, str(MAVLOGDUMP), "--format", "json", "--source-system", "1", "--types",
          "GLOBAL_POSITION_INT,ATTITUDE,HEARTBEAT,VFR_HUD", str(demo_flight.out_dir /
