@@ -36,7 +36,7 @@ from autonomy.vehicle.commands import (
     Wait,
     finished_handle,
 )
-from autonomy.vehicle.settings import VehicleLinkSettings
+from autonomy.vehicle.settings import LOG_STREAMS, VehicleLinkSettings
 from autonomy.vehicle.tlog import TlogWriter
 from behaviors.ports import Clock, CommandStatus, LandedState, VehicleState
 
@@ -766,7 +766,10 @@ class MavlinkVehicle:
         )
 
     def _request_streams(self, now: float) -> None:
-        for name, rate in self.settings.streams.items():
+        streams = dict(self.settings.streams)
+        if self._tlog is not None:  # what log viewers draw, only when there is a log
+            streams = {**LOG_STREAMS, **streams}
+        for name, rate in streams.items():
             msg_id = getattr(mavlink, f"MAVLINK_MSG_ID_{name}")
             interval_us = 1e6 / rate if rate > 0 else -1.0
             self._tracker.submit(

@@ -17,11 +17,14 @@ DEFAULT_STREAMS: dict[str, float] = {
     "GPS_RAW_INT": 2.0,
     "HOME_POSITION": 0.5,
     "EKF_STATUS_REPORT": 1.0,  # ArduPilot: whether it has a position estimate
-    # Not read by the flight: what log viewers (MAVExplorer, UAV Log Viewer) draw from
-    # flight.tlog, the track on a map and the HUD, at the rates ground stations ask for.
+}
+LOG_STREAMS: dict[str, float] = {
     "GLOBAL_POSITION_INT": 5.0,
     "VFR_HUD": 4.0,
 }
+"""Asked for as well when a telemetry log is written (unless ``streams`` names them): not read
+by the flight, but what log viewers (MAVExplorer, UAV Log Viewer) draw from flight.tlog, the
+track on a map and the HUD, at the rates ground stations ask for."""
 
 
 MAX_WAIT = 3_600.0
@@ -94,7 +97,8 @@ class VehicleLinkSettings(BaseModel):
     streams: dict[str, Annotated[float, Field(ge=0, le=MAX_RATE)]] = Field(
         default_factory=lambda: dict(DEFAULT_STREAMS),
         description="telemetry asked for with SET_MESSAGE_INTERVAL: MAVLink message name -> "
-        "Hz, 0 (off) .. 100",
+        "Hz, 0 (off) .. 100; with a telemetry log, GLOBAL_POSITION_INT (5 Hz) and VFR_HUD "
+        "(4 Hz) too unless named here",
     )
     source_system: int = Field(255, ge=1, le=255, description="our MAVLink system id")
     source_component: int = Field(190, ge=1, le=255, description="our component id (GCS)")
