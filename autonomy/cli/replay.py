@@ -1,7 +1,7 @@
 """``lander replay OUT_DIR``: open a flight's report.html (or a campaign's campaign.html).
 
     lander replay out/demo            # opens out/demo/report.html in the default browser
-    lander replay out/demo --print    # prints its path instead (no browser, e.g. over ssh)
+    lander replay out/demo --print    # prints its path instead (also without a display)
 
 A folder whose flight was killed before it wrote its report (events.jsonl, flight.tlog and
 tree.btlog are written as it flies) gets a report.html rebuilt from those logs.
@@ -10,6 +10,7 @@ tree.btlog are written as it flies) gets a report.html rebuilt from those logs.
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import webbrowser
 from pathlib import Path
@@ -42,9 +43,16 @@ def find_page(folder: Path) -> Path:
                     "a page from (not the output folder of lander fly, demo or campaign)")
 
 
+def _has_display() -> bool:
+    """Whether a graphical browser can open here (on Linux a terminal over ssh has none, and
+    webbrowser would fall back to a text browser in this terminal)."""
+    return sys.platform in ("darwin", "win32") or bool(
+        os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
+
+
 def run(args: argparse.Namespace) -> int:
     page = find_page(Path(args.out_dir))
-    if not args.print and webbrowser.open(page.resolve().as_uri()):
+    if not args.print and _has_display() and webbrowser.open(page.resolve().as_uri()):
         print(f"opened {page}")
     else:
         print(page)
@@ -56,7 +64,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "replay", help="open a flight's report.html (or a campaign's page) in a browser",
         description="Open OUT_DIR/report.html, the page of a flight written by lander fly or "
         "lander demo (or OUT_DIR/campaign.html of lander campaign), in the default web "
-        "browser; prints its path when there is no browser or with --print. The page is one "
+        "browser; prints its path with --print or when there is no display (DISPLAY, "
+        "WAYLAND_DISPLAY) or browser. The page is one "
         "file and needs no server or network.",
     )
     parser.add_argument("out_dir", metavar="OUT_DIR", help="the flight's report folder")

@@ -14,12 +14,20 @@ def test_replay_prints_the_flight_page(demo_flight, capsys):
     assert capsys.readouterr().out.strip() == str(demo_flight.out_dir / "report.html")
 
 
-def test_replay_opens_the_page_in_a_browser(demo_flight, capsys, monkeypatch):
+def test_replay_opens_the_page_in_a_browser_where_there_is_a_display(demo_flight, capsys,
+                                                                     monkeypatch):
     opened = []
     monkeypatch.setattr("webbrowser.open", lambda url: opened.append(url) or True)
+    monkeypatch.setenv("DISPLAY", ":0")
     assert main(["replay", str(demo_flight.out_dir)]) == 0
     assert opened == [(demo_flight.out_dir / "report.html").resolve().as_uri()]
     assert "opened" in capsys.readouterr().out
+    # Over ssh (no display) it prints the path rather than start a text browser here.
+    monkeypatch.delenv("DISPLAY")
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    assert main(["replay", str(demo_flight.out_dir)]) == 0
+    assert capsys.readouterr().out.strip() == str(demo_flight.out_dir / "report.html")
+    assert len(opened) == 1
 
 
 def test_replay_of_a_folder_without_a_report_is_one_line_exit_2(tmp_path, capsys):
