@@ -14,12 +14,14 @@ bearing, and :class:`LaserGuidance` flies along it by velocity commands:
    ``min_concentration``); hover whenever the light is gone for a moment;
 3. descend at ``descent_speed`` while the light comes from below (the downward sensor: the
    vehicle is over the emitter), steering again when it comes from the side;
-4. land (the autopilot's LAND) once over the emitter within ``land_height`` m of the ground.
+4. succeed once over the emitter within ``land_height`` m of the ground (the tree then
+   lands with :class:`behaviors.flight.Land`, outcome hint "laser_guidance").
 
 Light counts as the laser only when the filter has that evidence and the reading agrees
 with it, or when it comes from below; a momentary reflection from elsewhere is fed
 to the filter but neither starts the guidance nor keeps it alive. It gives up (FAILURE,
-with the reason) when no laser came within ``wait_timeout``, when the light was gone for
+with the reason) at once when no light-sensor reading ever arrived (the vehicle has no ring:
+nothing to wait for), when no laser came within ``wait_timeout``, when the light was gone for
 ``lost_timeout`` (the emitter is behind terrain, the operator stopped), or
 when the whole guidance took longer than ``timeout``; the tree then lands in place. Once it
 gave up it stays failed, so the tree never flies a bearing it has no evidence for.
@@ -31,19 +33,20 @@ import math
 from collections import deque
 
 import numpy as np
+import py_trees
 from py_trees.common import Access, Status
 from pydantic import BaseModel, ConfigDict, Field
 
 from behaviors import blackboard as keys
 from behaviors.base import VehicleAction
-from behaviors.ports import Clock, LandedState, VehiclePort
+from behaviors.ports import Clock, VehiclePort
 from guidance import DirectionEstimatorSettings, GuidingDirectionEstimator
 from guidance.detector import ring_bearing
 
 RING_MASK = (1 << 12) - 1
 DOWN_BIT = 1 << 12
 OUTCOME = "laser_guidance"
-"""OUTCOME_HINT of a landing the laser guided."""
+"""OUTCOME_HINT of a landing the laser guided (the tree's Land writes it)."""
 _MAX_WAIT = 3_600.0  # s, as behaviors.settings.MAX_WAIT
 # A reading within this angle of the estimate is the laser (neighbours lit at range and the
 # 30 deg sectors keep the laser's own readings well inside it).
@@ -106,10 +109,11 @@ class LaserGuidanceSettings(BaseModel):
 class LaserGuidance(VehicleAction):
     """Fly to a ground laser by velocity commands and land over it (see the module docstring).
 
-    * SUCCESS: landed and disarmed over the emitter (OUTCOME_HINT "laser_guidance")
+    * SUCCESS: over the emitter, ``land_height`` m above the ground; latched: it succeeds
+      at once when ticked again
     * FAILURE: no laser in time, the light lost too long, the guidance too long, a command
       denied; latched: it fails at once when ticked again
-    * RUNNING: hovering, flying, descending or landing
+    * RUNNING: hovering, flying or descending
     """
 
     def __init__(
@@ -126,29 +130,27 @@ class LaserGuidance(VehicleAction):
         self.settings = settings or LaserGuidanceSettings()
         # The estimator's own generator (the tree passes one spawned from the mission's).
         self.rng = rng if rng is not None else np.random.default_rng(0)
-        self.blackboard.register_key(key=keys.OUTCOME_HINT, access=Access.WRITE)
         self.gave_up: str | None = None
+        self.arrived = False
         self.estimator: GuidingDirectionEstimator | None = None
-        self.stage = "wait"
 
     def initialise(self) -> None:
         super().initialise()
-        if self.gave_up is not None:
+        if self.gave_up is not None or self.arrived:
             return
         s = self.settings
         self.estimator = GuidingDirectionEstimator(
             DirectionEstimatorSettings(n_particles=s.particles, dispersion_fraction=s.dispersion),
             self.rng,
         )
-        now = self.clock.now()
-        self.started = now
-        self.stage = "wait"
+        self.started = self.clock.now()
         self.last_light: float | None = None
         self.last_reading: float | None = None
         self.below = False
         self.agreement: deque[bool] = deque(maxlen=_WINDOW)
         self.velocity: tuple[float, float, float] | None = None
-        self._fly((0.0, 0.0, 0.0))
+        if self.vehicle.state.light_sensors_time is not None:
+            self._fly((0.0, 0.0, 0.0))
 
     def _fly(self, velocity: tuple[float, float, float]) -> None:
         """Command ``velocity`` (ENU m/s) unless it is what the vehicle already flies."""
@@ -204,11 +206,15 @@ class LaserGuidance(VehicleAction):
     def update(self) -> Status:
         if self.gave_up is not None:
             return self.fail(self.gave_up)
+        if self.vehicle.state.light_sensors_time is None:
+            # No ring on this vehicle (no reading ever came): nothing to wait for.
+            return self._give_up("no light sensors report on this vehicle")
+        if self.arrived:
+            self.feedback_message = "over the laser"
+            return Status.SUCCESS
         s = self.settings
         state = self.vehicle.state
         now = self.clock.now()
-        if self.stage == "land":
-            return self._landing(state)
         problem = self.command_problem()
         if problem is not None:
             return self._give_up(problem)
@@ -230,10 +236,9 @@ class LaserGuidance(VehicleAction):
         if self.below:
             agl = state.rangefinder_agl
             if agl is not None and agl <= s.land_height:
-                self.stage = "land"
-                self.command(self.vehicle.land())
-                self.feedback_message = f"over the laser at {agl:.1f} m: landing"
-                return Status.RUNNING
+                self.arrived = True
+                self.feedback_message = f"over the laser at {agl:.1f} m"
+                return Status.SUCCESS
             self._fly((0.0, 0.0, -s.descent_speed))
             self.feedback_message = "light from below: descending"
             return Status.RUNNING
@@ -250,16 +255,41 @@ class LaserGuidance(VehicleAction):
         self.feedback_message = f"following the laser, bearing {math.degrees(bearing):.0f} deg"
         return Status.RUNNING
 
-    def _landing(self, state) -> Status:
-        grounded = state.landed_state in (LandedState.ON_GROUND, LandedState.UNDEFINED)
-        if not state.armed and grounded:
-            self.blackboard.set(keys.OUTCOME_HINT, OUTCOME)
-            self.blackboard.set(keys.PHASE, "done")
-            self.blackboard.set(keys.FAILURE_REASON, None)
-            self.feedback_message = "landed over the laser"
-            return Status.SUCCESS
-        problem = self.command_problem()
-        if problem is not None:
-            return self._give_up(problem)
-        self.feedback_message = "landing over the laser"
-        return Status.RUNNING
+class FailsafeIs(py_trees.behaviour.Behaviour):
+    """Condition: the latched failsafe (FAILSAFE) is ``kind``.
+
+    * SUCCESS: FAILSAFE == ``kind``
+    * FAILURE: another failsafe, or none
+    """
+
+    def __init__(self, name: str, kind: str) -> None:
+        super().__init__(name=name)
+        self.kind = kind
+        self.blackboard = self.attach_blackboard_client(name)
+        self.blackboard.register_key(key=keys.FAILSAFE, access=Access.READ)
+
+    def update(self) -> Status:
+        failsafe = self.blackboard.get(keys.FAILSAFE)
+        self.feedback_message = f"failsafe {failsafe}"
+        return Status.SUCCESS if failsafe == self.kind else Status.FAILURE
+
+
+class BatteryAbove(py_trees.behaviour.Behaviour):
+    """Condition: the battery is above ``level`` percent (or unknown): a guard that hands the
+    vehicle to the critical-battery landing the moment the level is reached.
+
+    * SUCCESS: battery unknown or > ``level`` %
+    * FAILURE: battery <= ``level`` %
+    """
+
+    def __init__(self, name: str, vehicle: VehiclePort, level: float) -> None:
+        super().__init__(name=name)
+        self.vehicle = vehicle
+        self.level = float(level)
+
+    def update(self) -> Status:
+        battery = self.vehicle.state.battery_percent
+        if battery is not None and battery <= self.level:
+            self.feedback_message = f"battery at or below {self.level:g} %"
+            return Status.FAILURE
+        return Status.SUCCESS

@@ -21,7 +21,8 @@ Mission settings are the mission's landing settings by field name (``acceptance_
 ``verify``, ``navigation_timeout``, ...; a sub-section's as ``section_field``, e.g.
 ``descent_watch_enabled``), plus ``cruise_altitude``, ``takeoff_altitude``
 (the effective one), ``match_radius`` (the LSM's), ``last_waypoint`` (x;y of the last
-mission waypoint), ``waypoint_count`` and ``waypoint_1`` .. ``waypoint_N``; inside
+mission waypoint), ``waypoint_count``, ``waypoint_1`` .. ``waypoint_N`` and
+``laser_guidance`` (landing.laser_guidance.enabled); inside
 ``MissionWaypoints`` also ``waypoint`` and ``waypoint_number``.
 
 The module is one table of every node, so it runs past 500 lines: splitting it would
@@ -61,7 +62,7 @@ from behaviors.landing import (
     GetLandingSite,
     LandingSiteVerification,
 )
-from behaviors.laser_guidance import LaserGuidance
+from behaviors.laser_guidance import BatteryAbove, FailsafeIs, LaserGuidance
 from behaviors.ports import Clock, VehiclePort
 from behaviors.search import GetNextPatternCenterWP, LandingSiteSearch
 from behaviors.settings import MissionPlan
@@ -506,13 +507,20 @@ _leaf("GetNextPatternCenterWP", "Action", "draws a new pattern centre (seeded) w
        _RESERVE, _RADIUS, _COMMAND])
 
 _leaf("LaserGuidance", "Action", "after a GPS loss: waits for a ground laser, flies its "
-      "bearing by velocity commands and lands over it (the mission's "
+      "bearing by velocity commands and descends over it; SUCCESS over the laser at "
+      "land_height, FAILURE (latched) when there is no laser to follow (the mission's "
       "landing.laser_guidance settings; its estimator draws from a generator spawned from "
       "the mission's)",
       lambda c, n, v, ch: LaserGuidance(n, c.vehicle, c.clock, c.plan.landing.laser_guidance,
                                         rng=c.rng.spawn(1)[0],
                                         command_timeout=v["command_timeout"]),
       [_COMMAND])
+_leaf("FailsafeIs", "Condition", "SUCCESS when the failsafe that took over is `kind`",
+      lambda c, n, v, ch: FailsafeIs(n, v["kind"]),
+      [Port("kind", "std::string", "", "battery_critical or gps_lost")])
+_leaf("BatteryAbove", "Condition", "SUCCESS while the battery is above `level` (or unknown)",
+      lambda c, n, v, ch: BatteryAbove(n, c.vehicle, v["level"]),
+      [Port("level", "double", "%", "battery level", "{battery_critical}")])
 
 _leaf("FlyApproachTrajectory", "Action", "flies to above the chosen site (landing_site) "
       "along a trajectory planned over the known terrain; FAILURE hands over to the next "
@@ -559,6 +567,7 @@ def mission_settings(plan: MissionPlan, match_radius: float) -> dict[str, Any]:
         match_radius=float(match_radius),
         last_waypoint=(float(last[0]), float(last[1])),
         waypoint_count=len(plan.waypoints),
+        laser_guidance=plan.landing.laser_guidance.enabled,
     )
     for i, waypoint in enumerate(plan.waypoints):
         settings[f"waypoint_{i + 1}"] = tuple(float(v) for v in waypoint)

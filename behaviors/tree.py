@@ -9,7 +9,14 @@ mission names, from the node registry (:mod:`behaviors.registry`).
     Landing mission (Selector, no memory: the failsafe is checked every tick)
      ├─ Failsafe (Sequence, memory)           [latched once it fires]
      │   ├─ Failsafe? = Selector[Battery critical?, GPS lost?]
-     │   └─ Land where it is                [OUTCOME_HINT: the failsafe's kind]
+     │   └─ Failsafe landing (Selector, no memory)
+     │       ├─ Laser guidance (Sequence, no memory; landing.laser_guidance.enabled)
+     │       │   [docs/gps-denied.md: the guards hold on every tick]
+     │       │   ├─ GPS lost failsafe?     [FailsafeIs gps_lost]
+     │       │   ├─ Battery above critical?
+     │       │   ├─ Follow the laser       [LaserGuidance; latched once it gives up]
+     │       │   └─ Land over the laser    [OUTCOME_HINT "laser_guidance"]
+     │       └─ Land where it is            [OUTCOME_HINT: the failsafe's kind]
      └─ Mission (Sequence, memory)
          ├─ No failsafe?                       [a mission ended by the failsafe never restarts]
          ├─ Preflight                          [link, position, GPS fix, prearm; clock timeout]

@@ -123,7 +123,7 @@ class Sitl:
         self.light_sensors: LightSensorRing | None = None
         self.light_sensor_mask = 0  # the last reading (bit mask, sitl.sensors.laser)
         self._light_due = 0.0
-        if s.laser is not None and s.laser.emitter is not None:
+        if s.laser is not None:
             self.light_sensors = LightSensorRing(
                 s.laser, self._heights, np.random.default_rng([seed, _LASER_STREAM])
             )

@@ -68,7 +68,8 @@ class LaserSettings(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
     emitter: tuple[Coordinate, Coordinate] | None = Field(
-        None, description="ENU x, y (m from home) of the laser on the ground; None: no laser"
+        None, description="ENU x, y (m from home) of the laser on the ground; None: nobody "
+        "aims one (the sensors still read ambient light and reflections)"
     )
     emitter_height: float = Field(
         1.5, ge=0, le=100, description="m above the ground the laser is held, up to 100 (a roof)"
@@ -120,8 +121,6 @@ class LightSensorRing:
     """
 
     def __init__(self, settings: LaserSettings, height, rng: np.random.Generator) -> None:
-        if settings.emitter is None:
-            raise ValueError("laser.emitter: a light sensor ring needs an emitter to read")
         self.settings = settings
         self.height = height
         self.rng = rng
@@ -129,9 +128,12 @@ class LightSensorRing:
         self.ambient = ambient
         # Threshold over the start-up ambient reading (the paper's "initial brightness").
         self.threshold = settings.threshold_ratio * ambient + settings.threshold_margin
-        ex, ey = settings.emitter
-        ground = float(np.asarray(height(np.array([ex]), np.array([ey]))).ravel()[0])
-        self.emitter_position = (float(ex), float(ey), ground + settings.emitter_height)
+        # No emitter: the ring reads ambient light and reflections only (nobody aims a laser).
+        self.emitter_position: tuple[float, float, float] | None = None
+        if settings.emitter is not None:
+            ex, ey = settings.emitter
+            ground = float(np.asarray(height(np.array([ex]), np.array([ey]))).ravel()[0])
+            self.emitter_position = (float(ex), float(ey), ground + settings.emitter_height)
         self.centres = np.arange(RING_SENSORS) * SECTOR  # clockwise from the nose
 
     def line_of_sight(self, position: tuple[float, float, float]) -> bool:
@@ -157,14 +159,14 @@ class LightSensorRing:
         clockwise from north): the bit mask of lit sensors."""
         s = self.settings
         rng = self.rng
-        ex, ey, ez = self.emitter_position
-        x, y, z = position
-        dx, dy, dz = ex - x, ey - y, ez - z
-        horizontal = math.hypot(dx, dy)
-        distance = math.hypot(horizontal, dz)
         ring_light = np.zeros(RING_SENSORS)
         down_light = 0.0
-        if self.line_of_sight(position):
+        if self.emitter_position is not None and self.line_of_sight(position):
+            ex, ey, ez = self.emitter_position
+            x, y, z = position
+            dx, dy, dz = ex - x, ey - y, ez - z
+            horizontal = math.hypot(dx, dy)
+            distance = math.hypot(horizontal, dz)
             laser = self.illuminance(distance)
             below = math.degrees(math.atan2(-dz, horizontal))  # deg below the horizon
             if below >= 90.0 - s.down_half_angle:

@@ -29,6 +29,7 @@ from behaviors.flight import (
     Takeoff,
 )
 from behaviors.landing import CheckLandingSite, GetLandingSite, LandingSiteVerification
+from behaviors.laser_guidance import BatteryAbove, FailsafeIs, LaserGuidance
 from behaviors.ports import Clock, VehiclePort
 from behaviors.search import GetNextPatternCenterWP, LandingSiteSearch
 from behaviors.settings import MissionPlan
@@ -40,6 +41,30 @@ if TYPE_CHECKING:
 
 def _within(child: py_trees.behaviour.Behaviour, clock: Clock, seconds: float) -> ClockTimeout:
     return ClockTimeout(f"{child.name} within {seconds:g} s", child, clock, seconds)
+
+
+def _laser_guidance(s, vehicle, clock, rng) -> list:
+    """After a GPS loss, follow a ground laser while the battery is above critical."""
+    if not s.laser_guidance.enabled:
+        return []
+    return [
+        Sequence(
+            "Laser guidance",
+            memory=False,
+            children=[
+                FailsafeIs("GPS lost failsafe?", "gps_lost"),
+                BatteryAbove("Battery above critical?", vehicle, s.battery_critical),
+                LaserGuidance("Follow the laser", vehicle, clock, s.laser_guidance,
+                              rng=rng.spawn(1)[0], command_timeout=s.command_timeout),
+                _within(
+                    Land("Land over the laser", vehicle, clock, phase="failsafe",
+                         outcome_hint="laser_guidance", command_timeout=s.command_timeout),
+                    clock,
+                    s.navigation_timeout,
+                ),
+            ],
+        )
+    ]
 
 
 def legacy_mission_tree(
@@ -85,10 +110,18 @@ def legacy_mission_tree(
                     GpsLost("GPS lost?", vehicle, clock, s.gps_loss_timeout),
                 ],
             ),
-            _within(
-                Land("Land where it is", vehicle, clock, phase="failsafe", command_timeout=cmd),
-                clock,
-                nav,
+            Selector(
+                "Failsafe landing",
+                memory=False,
+                children=[
+                    *_laser_guidance(s, vehicle, clock, rng),
+                    _within(
+                        Land("Land where it is", vehicle, clock, phase="failsafe",
+                             command_timeout=cmd),
+                        clock,
+                        nav,
+                    ),
+                ],
             ),
         ],
     )

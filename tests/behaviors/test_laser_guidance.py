@@ -3,6 +3,7 @@ light-sensor model, guided to the emitter and landed, or giving up with a reason
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -29,8 +30,8 @@ def flat(x, y):
 
 
 class LightVehicle:
-    """Flies the commanded ENU velocity exactly, lands straight down in LAND, and reads the
-    light-sensor ring every step (None: no laser at all). Its yaw is fixed at ``yaw``."""
+    """Flies the commanded ENU velocity exactly and reads the light-sensor ring every step
+    (None: no laser at all). Its yaw is fixed at ``yaw``."""
 
     def __init__(self, clock, ring, position=(0.0, 0.0, 40.0), yaw=0.7, deny=()):
         self.clock, self.ring = clock, ring
@@ -60,21 +61,10 @@ class LightVehicle:
         self.velocity, self.mode = (vx, vy, vz), "GUIDED"
         return Handle("set_velocity")
 
-    def land(self):
-        self.commands.append(("land",))
-        self.mode = "LAND"
-        return Handle("land")
-
     def step(self):
         x, y, z = self.position
-        if self.mode == "LAND":
-            vx, vy, vz = 0.0, 0.0, -0.5
-        else:
-            vx, vy, vz = self.velocity
-        z = max(z + vz * DT, 0.0)
-        self.position = (x + vx * DT, y + vy * DT, z)
-        if z == 0.0 and self.mode == "LAND":
-            self.armed = False
+        vx, vy, vz = self.velocity
+        self.position = (x + vx * DT, y + vy * DT, max(z + vz * DT, 0.0))
         self.clock.advance(DT)
         if self.ring is not None:
             heading = math.pi / 2 - self.yaw  # compass heading, clockwise from north
@@ -114,16 +104,31 @@ def test_follows_the_laser_and_lands_over_the_emitter(mission, emitter):
     guidance = LaserGuidance("Laser guidance", vehicle, clock, rng=np.random.default_rng(1))
     assert fly(vehicle, guidance, 300.0) == Status.SUCCESS
     x, y, z = vehicle.position
-    assert z == 0.0
-    assert math.hypot(x - emitter[0], y - emitter[1]) < 2.0
-    assert py_trees.blackboard.Blackboard.get(keys.OUTCOME_HINT) == "laser_guidance"
+    # Over the emitter at the hand-over height: the downward sensor sees it within 15 deg.
+    assert z <= 3.0
+    assert math.hypot(x - emitter[0], y - emitter[1]) <= z * math.tan(math.radians(15.0))
     assert vehicle.commands[0] == ("set_velocity", 0.0, 0.0, 0.0)  # hovers first
-    assert vehicle.commands[-1] == ("land",)
+    assert vehicle.commands[-1][3] < 0.0  # the last command descended
+    # Ticked again, it stays done and commands nothing.
+    before = len(vehicle.commands)
+    assert fly(vehicle, guidance, 1.0) == Status.SUCCESS
+    assert len(vehicle.commands) == before
+
+
+def test_a_vehicle_without_light_sensors_gives_up_at_once(mission):
+    clock = SimClock()
+    vehicle = LightVehicle(clock, None)
+    guidance = LaserGuidance("Laser guidance", vehicle, clock)
+    assert fly(vehicle, guidance, 1.0) == Status.FAILURE
+    assert clock.now() == pytest.approx(DT)
+    assert vehicle.commands == []
+    reason = py_trees.blackboard.Blackboard.get(keys.FAILURE_REASON)
+    assert reason == "Laser guidance: no light sensors report on this vehicle"
 
 
 def test_without_a_laser_it_hovers_then_gives_up_for_good(mission):
     clock = SimClock()
-    vehicle = LightVehicle(clock, None)
+    vehicle = LightVehicle(clock, ring(None, reflection_rate=0.0))
     settings = LaserGuidanceSettings(wait_timeout=10.0)
     guidance = LaserGuidance("Laser guidance", vehicle, clock, settings)
     assert fly(vehicle, guidance, 30.0) == Status.FAILURE
@@ -131,7 +136,8 @@ def test_without_a_laser_it_hovers_then_gives_up_for_good(mission):
     assert {c for c in vehicle.commands} == {("set_velocity", 0.0, 0.0, 0.0)}
     reason = py_trees.blackboard.Blackboard.get(keys.FAILURE_REASON)
     assert reason == "Laser guidance: no laser within 10 s"
-    # Ticked again (the tree re-enters it), it fails at once and commands nothing.
+    # Ticked again (the tree re-enters it), it fails at once and commands nothing, even
+    # when a laser turns up.
     vehicle.ring = ring((50.0, 0.0))
     before = len(vehicle.commands)
     assert fly(vehicle, guidance, 5.0) == Status.FAILURE
@@ -184,3 +190,87 @@ def test_settings_refuse_what_cannot_fly():
         LaserGuidanceSettings(speed=0.0)
     with pytest.raises(ValueError):
         LaserGuidanceSettings(dispersion=1.0)
+
+
+# ------------------------------------------------------------------ in the mission tree
+def _tree_mission(landing, light_sensors=True):
+    from behaviors_fakes import FakeVehicle
+
+    class RingVehicle(FakeVehicle):
+        """The behaviour tests' fake with a light-sensor ring that never sees a laser."""
+
+        @property
+        def state(self):
+            state = super().state
+            if not light_sensors:
+                return state
+            return dataclasses.replace(
+                state, light_sensors=0, light_sensors_time=self.clock.now()
+            )
+
+    from behaviors.settings import LandingSettings, MissionPlan
+    from behaviors.tree import build_mission_tree
+    from lsm import LandingSiteManager, LsmSettings
+
+    plan = MissionPlan(
+        waypoints=[(0, 0, 50), (300, 0, 50)], landing=LandingSettings.model_validate(landing)
+    )
+    clock = SimClock()
+    vehicle = RingVehicle(clock)
+    lsm = LandingSiteManager(LsmSettings())
+    tree = build_mission_tree(plan, vehicle, lsm, clock, np.random.default_rng(0))
+    return clock, vehicle, lsm, tree
+
+
+def _lose_gps_at(vehicle, x):
+    def on_tick(_):
+        if vehicle.position[0] >= x:
+            vehicle.gps_fix = 1
+
+    return on_tick
+
+
+def test_in_the_tree_no_laser_hovers_its_wait_then_lands_in_place():
+    from behaviors_fakes import fly as fly_mission
+
+    landing = {"gps_loss_timeout": 2.0, "laser_guidance": {"wait_timeout": 12.0}}
+    clock, vehicle, lsm, tree = _tree_mission(landing)
+    flight = fly_mission(tree, vehicle, clock, lsm, on_tick=_lose_gps_at(vehicle, 100.0))
+    assert flight.status == Status.SUCCESS
+    names = [name for name, _ in vehicle.commands]
+    hover = names.index("set_velocity")
+    assert vehicle.commands[hover] == ("set_velocity", (0.0, 0.0, 0.0))
+    assert names[hover + 1 :] == ["land"]  # nothing flown on no evidence, then in place
+    assert py_trees.blackboard.Blackboard.get(keys.OUTCOME_HINT) == "gps_lost"
+
+
+def test_in_the_tree_a_vehicle_without_light_sensors_lands_in_place_at_once():
+    from behaviors_fakes import fly as fly_mission
+
+    clock, vehicle, lsm, tree = _tree_mission({"gps_loss_timeout": 2.0}, light_sensors=False)
+    flight = fly_mission(tree, vehicle, clock, lsm, on_tick=_lose_gps_at(vehicle, 100.0))
+    assert flight.status == Status.SUCCESS
+    names = [name for name, _ in vehicle.commands]
+    assert "set_velocity" not in names and names[-1] == "land"
+    assert py_trees.blackboard.Blackboard.get(keys.OUTCOME_HINT) == "gps_lost"
+
+
+def test_in_the_tree_a_critical_battery_cuts_the_guidance_short():
+    from behaviors_fakes import fly as fly_mission
+
+    landing = {"gps_loss_timeout": 2.0, "laser_guidance": {"wait_timeout": 600.0}}
+    clock, vehicle, lsm, tree = _tree_mission(landing)
+    lose = _lose_gps_at(vehicle, 100.0)
+    hovering_since: list[float] = []
+
+    def on_tick(tick):
+        lose(tick)
+        if any(name == "set_velocity" for name, _ in vehicle.commands):
+            hovering_since.append(clock.now())
+            if clock.now() - hovering_since[0] > 20.0:
+                vehicle.battery = 10.0  # below the critical 15 %
+
+    flight = fly_mission(tree, vehicle, clock, lsm, on_tick=on_tick)
+    assert flight.status == Status.SUCCESS
+    assert vehicle.commands[-1][0] == "land"
+    assert 20.0 < clock.now() - hovering_since[0] < 60.0  # not the 600 s wait

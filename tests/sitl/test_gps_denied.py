@@ -118,7 +118,7 @@ def test_terrain_blocks_the_beam_and_reflections_light_random_sensors():
     assert len({m for m in masks if m}) >= 10
 
 
-def test_light_sensors_are_published_as_named_value_int_only_when_configured():
+def test_light_sensors_are_published_as_named_value_int_only_when_fitted():
     plain, gcs = connect(SitlSettings())
     gcs.heartbeat()
     run(plain, gcs, 3.0)
@@ -131,6 +131,12 @@ def test_light_sensors_are_published_as_named_value_int_only_when_configured():
     assert len(values) >= 15  # 10 Hz
     assert values[-1].value == 1  # sensor 0, the nose points north at the emitter
     assert values[-1].time_boot_ms == pytest.approx(sim.time * 1000, abs=150)
+    # Fitted but no laser: ambient light lights nothing (reflections aside).
+    dark, gcs = connect(SitlSettings(laser=LaserSettings(condition="sunny", reflection_rate=0)))
+    gcs.heartbeat()
+    run(dark, gcs, 3.0)
+    values = [m.value for m in gcs.of_type("NAMED_VALUE_INT") if m.name == MESSAGE_NAME]
+    assert len(values) >= 25 and set(values) == {0}
 
 
 # ----------------------------------------------------------------- GPS loss
