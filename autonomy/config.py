@@ -613,9 +613,10 @@ def _tree_problems(mission: Mission, root: yaml.Node, name: str) -> list[str]:
         document = read_tree(mission.tree)
     except TreeFileError as exc:
         return exc.problems
-    services = {"obstacle_watch"} if mission.landing.descent_watch.enabled else set()
+    from autonomy.runner.services import service_names
+
     return check_tree(document, mission_settings(mission.plan(), mission.lsm.match_radius),
-                      services)
+                      service_names(mission))
 
 
 def _validate(data: Any) -> tuple[Mission | None, list[dict[str, Any]]]:

@@ -530,8 +530,9 @@ _leaf("FlyApproachTrajectory", "Action", "flies to above the chosen site (landin
           acceptance_radius=v["acceptance_radius"],
           max_tracking_error=v["max_tracking_error"], command_timeout=v["command_timeout"]),
       [Port("min_height", "double", "m", "the trajectory ends at least this high above the "
-            "site", "10.0"),
-       Port("max_tracking_error", "double", "m", "farther from the trajectory fails", "5.0"),
+            "site", "{approach_min_height}"),
+       Port("max_tracking_error", "double", "m", "farther from the trajectory fails",
+            "{approach_max_tracking_error}"),
        _RADIUS, _COMMAND], requires=["approach_planner"])
 _leaf("WatchedDescent", "Action", "descends to `height` above the chosen site (landing_site) "
       "while the descent camera's optical flow watches for obstacles, stepping away from them",
@@ -560,6 +561,8 @@ def mission_settings(plan: MissionPlan, match_radius: float) -> dict[str, Any]:
         if isinstance(model, BaseModel):
             settings.update({f"{section}_{name}": value for name, value in model
                              if isinstance(value, (bool, int, float))})
+    # The approach's method is a word; the tree file asks whether it is the trajectory.
+    settings["approach_trajectory"] = plan.landing.approach.method == "trajectory"
     last = plan.waypoints[-1]
     settings.update(
         cruise_altitude=plan.cruise_altitude,

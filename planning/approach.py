@@ -16,7 +16,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from planning.grid_path import GridPath, _cell_of, clearance_grid, free_cells, plan_path
-from planning.min_snap import SAMPLES_PER_SEGMENT, Trajectory, min_snap_trajectory
+from planning.min_snap import (
+    SAMPLES_PER_SEGMENT,
+    Trajectory,
+    concatenate,
+    min_snap_trajectory,
+)
 
 
 @dataclass(frozen=True, slots=True)
@@ -41,7 +46,12 @@ class ApproachPlan:
 
 
 def _with_altitudes(xy: np.ndarray, z0: float, z1: float) -> np.ndarray:
-    """Waypoints in 3D, the altitude changing in proportion to the distance flown."""
+    """Waypoints in 3D: from below the goal's altitude a vertical climb over the start first,
+    then the path at the goal's altitude; from above it, the altitude falls in proportion to
+    the distance flown. Either way the path is never below ``z1``."""
+    if z0 < z1:
+        climbed = np.column_stack([xy, np.full(len(xy), z1)])
+        return np.vstack([[xy[0, 0], xy[0, 1], z0], climbed])
     along = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))])
     share = along / along[-1] if along[-1] > 0 else np.zeros_like(along)
     return np.column_stack([xy, z0 + (z1 - z0) * share])
@@ -105,8 +115,10 @@ def plan_approach(
     goal = np.asarray(goal, dtype=np.float64)
     origin = np.asarray(origin, dtype=np.float64)
     clearance = clearance_grid(top, variance, resolution, radius, k_sigma)
-    # The path is planned at the lower end's altitude, so it holds anywhere in between.
-    altitude = min(start[2], goal[2])
+    # The path is planned at the goal's altitude: the vehicle climbs to it over the start
+    # first, or comes down to it along the path, so it is never lower on the way.
+    altitude = goal[2]
+    climb = 1 if start[2] < goal[2] else 0  # the vertical climb is trajectory segment 0
     free = free_cells(clearance, altitude, margin)
     path = plan_path(free, origin, resolution, start[:2], goal[:2])
     if path is None:
@@ -120,10 +132,21 @@ def plan_approach(
         waypoints = _with_altitudes(centres[index], start[2], goal[2])
         if len(waypoints) < 2 or np.allclose(waypoints[0], waypoints[-1]):
             return ApproachPlan(None, path, None, "already above the site")
-        trajectory = min_snap_trajectory(waypoints, max_speed, max_acceleration)
+        if climb:
+            # Climb and stop, then go: one smooth piece through the corner would overshoot
+            # the climb by metres to keep its derivatives continuous.
+            trajectory = concatenate(
+                min_snap_trajectory(waypoints[:2], max_speed, max_acceleration),
+                min_snap_trajectory(waypoints[1:], max_speed, max_acceleration),
+            )
+        else:
+            trajectory = min_snap_trajectory(waypoints, max_speed, max_acceleration)
         segment = _first_collision(trajectory, clearance, origin, resolution, margin, start_cell)
         if segment is None:
             return ApproachPlan(trajectory, path, waypoints)
+        if segment < climb:
+            break  # the climb over the start itself grazes something
+        segment -= climb
         lo, hi = index[segment], index[segment + 1]
         if hi - lo < 2:
             break

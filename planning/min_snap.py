@@ -157,3 +157,11 @@ def min_snap_trajectory(
     speed, accel = trajectory.peaks()
     scale = max(speed / max_speed, math.sqrt(accel / max_acceleration), 1e-6)
     return solve_min_snap(waypoints, durations * scale)
+
+
+def concatenate(first: Trajectory, second: Trajectory) -> Trajectory:
+    """``first`` then ``second``: both rest to rest, so the joint is smooth (at rest)."""
+    return Trajectory(
+        coefficients=np.concatenate([first.coefficients, second.coefficients]),
+        durations=np.concatenate([first.durations, second.durations]),
+    )

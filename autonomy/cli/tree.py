@@ -25,6 +25,7 @@ class _OfflineVehicle:
 
 def run(args: argparse.Namespace) -> int:
     from autonomy.cli.validate import load_or_explain
+    from autonomy.runner.services import build_services, service_names
     from behaviors.display import render_ascii, write_dot
     from behaviors.tree import build_mission_tree, load_tree_file
     from behaviors.treexml import source_xml
@@ -37,6 +38,8 @@ def run(args: argparse.Namespace) -> int:
     tree = build_mission_tree(
         mission.plan(), _OfflineVehicle(), LandingSiteManager(mission.lsm, mission.weights),
         SimClock(), np.random.default_rng(mission.seed), document,
+        # Displayed only, never ticked: no map to plan over, no camera to watch with.
+        services={**dict.fromkeys(service_names(mission)), **build_services(mission, None)},
     )
     print(render_ascii(tree))
     if args.xml:

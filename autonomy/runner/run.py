@@ -115,6 +115,7 @@ def fly(
         UserError: a seed out of range, the vehicle cannot be reached, or the world cannot
             be built.
     """
+    from autonomy.runner.services import build_services
     from autonomy.vehicle import connect
     from behaviors.recording import TreeRecorder
     from behaviors.tree import build_mission_tree
@@ -175,7 +176,7 @@ def fly(
             bb.reset()
             tree = build_mission_tree(
                 plan, vehicle, lsm, clock, np.random.default_rng(seeds.tree), mission.tree,
-                services=services,
+                services={**services, **build_services(mission, source)},
             )
             tree.setup()
             if out is not None:

@@ -187,3 +187,21 @@ def test_unknown_terrain_or_a_closed_wall_gives_a_reason_instead_of_a_trajectory
                          np.zeros(2), RES, radius=1.0, margin=2.0, max_speed=5.0,
                          max_acceleration=2.0)
     assert not plan.ok and "no path" in plan.reason
+
+
+def test_from_below_the_goal_the_vehicle_climbs_over_its_start_before_it_goes():
+    """After a failed verification the vehicle hovers low; the next approach climbs to the
+    goal's altitude over where it is, then flies, never lower than that on the way."""
+    top, var = _flat(120)
+    top[40:80, 40:80] = 6.0  # a 6 m block between the two sites
+    top[60, 20] = 1.0  # a rock under the vehicle: the climb starts above it
+    origin = np.array([-30.0, -30.0])
+    start, goal = np.array([-20.0, 0.0, 3.5]), np.array([20.0, 0.0, 10.0])
+    plan = plan_approach(start, goal, top, var, origin, RES, radius=1.0, margin=2.0,
+                         max_speed=4.0, max_acceleration=2.0)
+    assert plan.ok, plan.reason
+    assert np.allclose(plan.waypoints[1], [-20.0, 0.0, 10.0])
+    p = plan.trajectory.sample(np.linspace(0.0, plan.trajectory.duration, 1000))
+    away = np.hypot(p[:, 0] + 20.0, p[:, 1]) > 0.5
+    assert p[away, 2].min() > 9.0  # left the start column only once up
+    assert p[:, 2].max() < 10.5  # and went over the 6 m block, not around or far above

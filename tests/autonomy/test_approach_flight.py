@@ -1,0 +1,77 @@
+"""The approach chosen by the mission (landing.approach.method): the trajectory of
+seed 003 over the vehicle's elevation map, with the thesis's climb-traverse-descent as its
+fallback, through the built-in tree, the runner and the CLI."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from autonomy.cli import main
+from autonomy.config import apply_overrides, load_mission
+from autonomy.perception.approach import MapApproachPlanner
+from autonomy.report import read_events
+from autonomy.runner import fly
+from behaviors.settings import ApproachSettings
+from lsd.elevation_map import ElevationMap
+from lsd.elevation_settings import ElevationMapSettings
+
+MISSIONS = Path(__file__).resolve().parents[2] / "missions"
+
+
+def test_the_tree_has_the_trajectory_approach_only_when_the_mission_asks(tmp_path, capsys):
+    mission = (MISSIONS / "demo.yaml").read_text()
+    chosen = tmp_path / "trajectory.yaml"
+    chosen.write_text(mission + "\nlanding:\n  approach:\n    method: trajectory\n"
+                      if "\nlanding:" not in mission else mission.replace(
+                          "\nlanding:\n", "\nlanding:\n  approach: {method: trajectory}\n", 1))
+    assert main(["validate", str(chosen)]) == 0
+    assert main(["tree", str(chosen)]) == 0
+    with_trajectory = capsys.readouterr().out
+    assert main(["tree", str(MISSIONS / "demo.yaml")]) == 0
+    default = capsys.readouterr().out
+    assert "FlyApproachTrajectory" in with_trajectory and "Approach" in with_trajectory
+    assert "FlyApproachTrajectory" not in default
+    assert default.count("NavigateToSite") == with_trajectory.count("NavigateToSite")
+
+
+def test_without_a_terrain_map_the_mission_flies_the_thesis_approach_and_lands(tmp_path):
+    """The scripted detector builds no map: each try's trajectory says why, the tree flies
+    the clear-altitude approach instead, and the flight lands as it does by default."""
+    mission = apply_overrides(load_mission(MISSIONS / "demo.yaml"),
+                              {"landing.approach.method": "trajectory"})
+    result = fly(mission, out_dir=tmp_path)
+    assert result.summary["outcome"] == "landed"
+    events = read_events(tmp_path / "events.jsonl")
+    tried = [e for e in events if e.get("behaviour") == "FlyApproachTrajectory"
+             and e.get("new") == "FAILURE"]
+    assert tried and all("no terrain map" in e["feedback"] for e in tried)
+    flown = [e for e in events if e.get("behaviour") == "NavigateToSite"
+             and e.get("new") == "SUCCESS"]
+    assert len(flown) >= len(tried)
+
+
+def _map_with_a_wall() -> ElevationMap:
+    m = ElevationMap(ElevationMapSettings(size=40.0, resolution=0.5))
+    m.origin_index[:] = (-40, -40)  # the window covers -20 .. 20 m
+    m.mean[:] = 0.0
+    m.top[:] = 0.1
+    m.variance[:] = 0.01
+    m.top[38:42, 10:70] = 25.0  # a 25 m wall across x = -1 .. 1 m, y = -15 .. 15 m
+    return m
+
+
+def test_the_map_planner_goes_around_what_the_map_shows_and_says_when_it_cannot():
+    planner = MapApproachPlanner(_map_with_a_wall(), ApproachSettings(method="trajectory"))
+    planned = planner.plan((-10.0, 0.0, 15.0), (10.0, 0.0, 15.0))
+    assert not isinstance(planned, str), planned
+    t = np.linspace(0.0, planned.duration, 400)
+    xs = np.array([planned.state_at(float(ti))[0] for ti in t])
+    crossing = xs[np.abs(xs[:, 0]) < 1.5]
+    assert len(crossing) and np.all(np.abs(crossing[:, 1]) > 15.0)  # around the wall's end
+    end, velocity = planned.state_at(planned.duration)
+    assert end == pytest.approx((10.0, 0.0, 15.0)) and np.allclose(velocity, 0.0, atol=1e-9)
+    assert "outside the mapped area" in planner.plan((0.0, -10.0, 15.0), (50.0, 0.0, 15.0))
+    assert "no path" in planner.plan((-10.0, 0.0, 15.0), (0.0, 0.0, 15.0))  # on the wall
