@@ -30,6 +30,7 @@ th { background: #eef1f4; } td.label, th.label { text-align: left; }
 .bar span { display: block; height: 100%; }
 .outcome { display: inline-block; padding: 0 6px; border-radius: 3px; color: #fff; }
 img { max-width: 100%; border: 1px solid #ddd; background: #fff; }
+.scroll { overflow-x: auto; }
 .legend span { margin-right: 12px; } .legend i { display: inline-block; width: 10px;
   height: 10px; margin-right: 4px; }
 """
@@ -123,10 +124,10 @@ def render_campaign_html(result: Any, runs_dir: str = "runs") -> str:
 <main>
 <h2>Outcomes per variant</h2>
 <div class="legend">{legend}</div>
-{_variants_table(result.rows)}
+<div class="scroll">{_variants_table(result.rows)}</div>
 {image}
 <h2>Runs</h2>
-{_runs_table(result.records, result.out_dir, runs_dir)}
+<div class="scroll">{_runs_table(result.records, result.out_dir, runs_dir)}</div>
 </main></body></html>
 """
 
