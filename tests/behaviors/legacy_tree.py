@@ -74,22 +74,7 @@ def legacy_mission_tree(
     clock: Clock,
     rng: np.random.Generator,
 ) -> py_trees.trees.BehaviourTree:
-    """The landing tree as the Python builder made it before the tree became data.
-
-    Every blackboard key of :mod:`behaviors.blackboard` is reset to its start value, so build
-    (and run) one mission at a time per process.
-
-    Args:
-        plan: waypoints, altitudes and landing settings.
-        vehicle: the vehicle port (non-blocking commands, state snapshots).
-        lsm: the Landing Site Manager the detector feeds; its ``settings.match_radius``
-            decides which retained site is the chosen one during verification.
-        clock: the injected clock every timeout and hover reads.
-        rng: seeded generator for the random search-pattern centres.
-
-    Returns:
-        the tree, not yet set up; tick it once per runner step.
-    """
+    """The landing tree as the Python builder made it before the tree became data."""
     s = plan.landing
     radius = s.acceptance_radius
     cmd = s.command_timeout

@@ -150,8 +150,11 @@ def test_behaviortree_cpp_numbers_our_tree_as_our_log_does_and_its_log_reads(tmp
     theirs = btcpp_tree(ours)
     logger = btcpp.FileLogger(theirs, str(tmp_path / "btcpp.btlog"))
     assert theirs.tick_once() == btcpp.NodeStatus.SUCCESS
-    time.sleep(0.05)  # its writer thread writes every 10 ms
-    logger.flush()
+    for _ in range(300):  # its writer thread writes every 10 ms
+        logger.flush()
+        if read_btlog(tmp_path / "btcpp.btlog").transitions:
+            break
+        time.sleep(0.01)
 
     data = (tmp_path / "btcpp.btlog").read_bytes()
     assert data.startswith(MAGIC + b"\x01")
