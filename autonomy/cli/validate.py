@@ -29,7 +29,7 @@ def run(args: argparse.Namespace) -> int:
     print(
         f"ok: {args.mission}: {waypoints} waypoint{'s' * (waypoints != 1)}, "
         f"{mission.world.kind} world, {mission.perception.detector} detector, "
-        f"{mission.vehicle.connection}"
+        f"{mission.vehicle.connection}" + (f", tree {mission.tree}" if mission.tree else "")
     )
     return 0
 

@@ -22,6 +22,7 @@ from behaviors.btlog import (
     BtlogError,
     NodeStatus,
     TickLogger,
+    Transition,
     node_status,
     read_btlog,
 )
@@ -183,6 +184,9 @@ def test_the_clock_not_the_wall_stamps_the_log(tmp_path):
     logger = TickLogger(tmp_path / "t.btlog", root, instance_xml(tree), clock.now).attach(tree)
     clock.advance(2.5)
     tree.tick()
+    # Each tick is on disk when it ends: a flight killed now leaves a whole log.
+    assert read_btlog(tmp_path / "t.btlog").transitions == [
+        Transition(pytest.approx(2.5), 1, NodeStatus.SUCCESS)]
     logger.close()
     log = read_btlog(tmp_path / "t.btlog")
     assert log.first_timestamp == 1000.0

@@ -244,6 +244,8 @@ def test_lander_validate_names_file_line_node_and_port_of_each_problem(tmp_path,
 def test_lander_tree_writes_the_tree_file_groot2_opens(tmp_path, capsys):
     from autonomy.cli import main
 
+    assert main(["validate", "missions/skip_search.yaml"]) == 0
+    assert capsys.readouterr().out.rstrip().endswith(", tree missions/skip_search.xml")
     assert main(["tree", "missions/demo.yaml", "--xml", str(tmp_path / "landing.xml")]) == 0
     assert (tmp_path / "landing.xml").read_text() == BUILTIN_TREE.read_text()
     assert "LandingSiteSearch within 300 s" in capsys.readouterr().out
