@@ -606,8 +606,12 @@ def _tree_problems(mission: Mission, root: yaml.Node, name: str) -> list[str]:
     from behaviors.loader import TreeFileError, check_tree, read_tree
     from behaviors.registry import mission_settings
 
-    if not Path(mission.tree).is_file():
-        reason = f"cannot read tree file {mission.tree}: no such file"
+    try:
+        readable = Path(mission.tree).is_file()
+    except (OSError, ValueError):  # e.g. a NUL in the name
+        readable = False
+    if not readable:
+        reason = f"cannot read tree file {mission.tree!r}: no such file"
         return [_locate({"type": "value_error", "loc": ("tree",), "msg": reason}, root, name)]
     try:
         document = read_tree(mission.tree)

@@ -43,6 +43,9 @@ from behaviors.registry import (
 BUILTIN_TREE = Path(__file__).with_name("landing_tree.xml")
 """The built-in landing tree, the one every mission flies unless it names ``tree:``."""
 
+MAX_DEPTH = 256
+"""Elements nest at most this deep, as in BehaviorTree.CPP."""
+
 MAX_TREE_BYTES = 5_000_000
 """A tree file is at most 5 MB (the built-in one is 5 kB)."""
 
@@ -89,6 +92,9 @@ def parse_xml(text: str, name: str) -> XmlNode:
     top: list[XmlNode] = []
 
     def start(tag: str, attrib: dict[str, str]) -> None:
+        if len(stack) >= MAX_DEPTH:
+            raise TreeFileError([f"{name}:{parser.CurrentLineNumber}: <{tag}>: nested deeper "
+                                 f"than {MAX_DEPTH} elements (BehaviorTree.CPP's limit)"])
         node = XmlNode(tag, dict(attrib), parser.CurrentLineNumber)
         (stack[-1].children if stack else top).append(node)
         stack.append(node)
@@ -159,9 +165,9 @@ def read_tree(path: str | Path) -> TreeDocument:
             raise TreeFileError([f"{path}: cannot read tree file: {size:,} bytes, more than "
                                  f"{MAX_TREE_BYTES:,}"])
         text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
+    except (OSError, ValueError) as exc:  # ValueError: not UTF-8, or a NUL in the name
         reason = ("not UTF-8 text" if isinstance(exc, UnicodeDecodeError)
-                  else exc.strerror or str(exc))
+                  else getattr(exc, "strerror", None) or str(exc))
         raise TreeFileError([f"{path}: cannot read tree file: {reason}"]) from None
     return parse_tree(text, str(path))
 
@@ -368,6 +374,10 @@ class _Builder:
         if tree_id not in self.doc.trees:
             self.problem(node, f"SubTree '{tree_id}'", "no <BehaviorTree> with this ID in "
                          f"the file (trees: {', '.join(self.doc.trees)})")
+            return []
+        if len(path) >= MAX_DEPTH // 8:
+            self.problem(node, f"SubTree '{tree_id}'", f"subtrees nested deeper than "
+                         f"{MAX_DEPTH // 8}")
             return []
         if tree_id in path:
             cycle = " -> ".join((*path[path.index(tree_id):], tree_id))

@@ -232,7 +232,11 @@ def test_lander_validate_names_file_line_node_and_port_of_each_problem(tmp_path,
     assert main(["validate", str(mission)]) == 2
     assert capsys.readouterr().err == (
         f"lander validate: error: {mission}:3: tree: cannot read tree file "
-        f"{tmp_path / 'nowhere.xml'}: no such file\n")
+        f"'{tmp_path / 'nowhere.xml'}': no such file\n")
+    mission.write_text('waypoints: [[0, 0, 20]]\ntree: "a\\0b.xml"\n')
+    assert main(["validate", str(mission)]) == 2
+    assert capsys.readouterr().err.startswith(
+        f"lander validate: error: {mission}:2: tree: cannot read tree file '")
     (tmp_path / "broken.xml").write_text("<root BTCPP_format='4'>\n<BehaviorTree ID='A'>\n")
     mission.write_text("waypoints: [[0, 0, 20]]\ntree: broken.xml\n")
     assert main(["validate", str(mission)]) == 2
