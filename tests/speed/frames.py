@@ -78,6 +78,9 @@ def main(argv: list[str] | None = None) -> int:
     got = frame_digests()
     if args.write:
         DATA.write_text(json.dumps(got, indent=1) + "\n")
+        from golden import write_libraries  # this script runs from its folder
+
+        write_libraries()
         print(f"recorded {len(got)} frames in {DATA}")
         return 0
     same = json.dumps(got) == json.dumps(json.loads(DATA.read_text()))

@@ -39,6 +39,30 @@ GOLDEN_FLIGHTS = [
 WALL_FIELDS = ("wall_time", "realtime_factor", "link")
 
 
+LIBRARIES = Path(__file__).resolve().parent / "data" / "libraries.json"
+
+
+def libraries() -> dict[str, str]:
+    """Versions of what decides the last bits of a flight (the numerical libraries and
+    Python): recordings compare bit for bit only under the versions they were made with."""
+    import platform
+
+    import cv2
+    import numpy
+    import scipy
+
+    return {"python": ".".join(platform.python_version_tuple()[:2]), "numpy": numpy.__version__,
+            "scipy": scipy.__version__, "opencv": cv2.__version__}
+
+
+def recorded_with() -> dict[str, str]:
+    return json.loads(LIBRARIES.read_text())
+
+
+def write_libraries() -> None:
+    LIBRARIES.write_text(json.dumps(libraries(), indent=1) + "\n")
+
+
 def _digest(value: Any) -> str:
     text = json.dumps(value, sort_keys=True, separators=(",", ":"), default=repr)
     return hashlib.sha256(text.encode()).hexdigest()
@@ -103,6 +127,7 @@ def main(argv: list[str] | None = None) -> int:
         old = load() if DATA.exists() else {}
         old.update(records)
         DATA.write_text(json.dumps(old, indent=1, sort_keys=True) + "\n")
+        write_libraries()
         print(f"recorded {len(records)} flights in {DATA}")
         return 0
     golden = load()
