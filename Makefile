@@ -24,10 +24,11 @@ $(STAMP): pyproject.toml Makefile | $(BIN)/python
 demo: $(STAMP)
 	$(BIN)/lander demo
 
+# The site is checked after the tests, so that a broken link never hides a test result.
 test: $(STAMP)
 	$(BIN)/ruff check .
-	$(BIN)/mkdocs build --strict --quiet
 	$(BIN)/python -m pytest -q
+	$(BIN)/mkdocs build --strict --quiet
 
 lint: $(STAMP)
 	$(BIN)/ruff check .
