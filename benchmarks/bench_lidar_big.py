@@ -55,7 +55,8 @@ def write_scene(path: Path, points: int, seed: int = 0) -> float:
 
 def run(args: list[str]) -> tuple[float, float, str]:
     """(seconds, peak MB, stdout) of one ``lander detect`` process (its own peak resident
-    memory, from wait4)."""
+    memory, from wait4); its CPU seconds are printed too (a shared machine stretches the
+    wall clock, not those)."""
     start = time.perf_counter()
     with tempfile.TemporaryFile("w+") as out, tempfile.TemporaryFile("w+") as err:
         child = subprocess.Popen(
@@ -70,6 +71,9 @@ def run(args: list[str]) -> tuple[float, float, str]:
         err.seek(0)
         if child.returncode != 0:
             raise SystemExit(f"lander detect failed: {err.read().strip()}")
+        cpu = usage.ru_utime + usage.ru_stime
+        print(f"    (lander detect {' '.join(args[:1] + args[2:])}: {seconds:.1f} s wall, "
+              f"{cpu:.1f} s CPU)")
         return seconds, usage.ru_maxrss / 1024.0, out.read()
 
 
