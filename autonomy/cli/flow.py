@@ -16,7 +16,10 @@ import argparse
 import math
 from pathlib import Path
 
+from autonomy.cli import args as types
 from autonomy.errors import UserError
+
+_METRES = types.number(0.0, 10_000.0, low_open=True)  # m or m/s above 0, up to 10 km
 
 
 def _point(text: str) -> tuple[float, float]:
@@ -29,17 +32,6 @@ def _point(text: str) -> tuple[float, float]:
     return values[0], values[1]
 
 
-def _positive(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        value = math.nan
-    if not (math.isfinite(value) and 0 < value <= 10_000):
-        raise argparse.ArgumentTypeError(f"{text!r}: expected a number of metres (or m/s) "
-                                         "above 0, up to 10,000")
-    return value
-
-
 def register(subparsers) -> None:
     parser = subparsers.add_parser(
         "flow-calibrate", help="derive the descent watch's O_T and V_T from an open descent",
@@ -48,13 +40,13 @@ def register(subparsers) -> None:
     parser.add_argument("mission", type=Path, help="mission YAML (its world and camera)")
     parser.add_argument("--at", type=_point, required=True, metavar="X,Y",
                         help="open ground to descend over, m east and north of home")
-    parser.add_argument("--top", type=_positive, default=25.0, help="start, m above the "
+    parser.add_argument("--top", type=_METRES, default=25.0, help="start, m above the "
                         "ground (default 25)")
-    parser.add_argument("--bottom", type=_positive, default=2.5, help="end, m above the "
+    parser.add_argument("--bottom", type=_METRES, default=2.5, help="end, m above the "
                         "ground (default 2.5, the verification altitude)")
-    parser.add_argument("--speed", type=_positive, default=1.5, help="descent speed, m/s "
+    parser.add_argument("--speed", type=_METRES, default=1.5, help="descent speed, m/s "
                         "(default 1.5, the embedded SITL's)")
-    parser.add_argument("--seed", type=int, default=None, help="world seed (default: the "
+    parser.add_argument("--seed", type=types.seed, default=None, help="world seed (default: the "
                         "mission's)")
     parser.add_argument("--out", type=Path, default=None, help="write the first and last "
                         "frames here (PNG)")
@@ -62,14 +54,12 @@ def register(subparsers) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from autonomy.config import MAX_SEED, load_mission
+    from autonomy.config import load_mission
     from autonomy.perception.descent_flow import DescentFlow, calibrate_descent
     from autonomy.runner.world import FlightSeeds, build_terrain
 
     mission = load_mission(args.mission)
     seed = mission.seed if args.seed is None else args.seed
-    if not 0 <= seed <= MAX_SEED:
-        raise UserError(f"--seed {seed}: must be 0 .. 2**32-1")
     if args.top <= args.bottom:
         raise UserError(f"--top {args.top:g} m must be above --bottom {args.bottom:g} m")
     seeds = FlightSeeds.derive(seed)
