@@ -116,7 +116,8 @@ def main() -> int:
         if family == "fly":
             return lambda data: data.draw(harness.fly_cases(files))
         if family == "cli":
-            commands = (["validate", "tree", "sitl", "link", "detect"] if variant == "quick"
+            commands = (["validate", "tree", "sitl", "link", "detect", "replay"]
+                        if variant == "quick"
                         else ["fly", "campaign", "terrain", "demo"])
             return lambda data: data.draw(
                 harness.cli_cases(files, port, data.draw(st.sampled_from(commands))))

@@ -981,7 +981,8 @@ def _actions(command: str) -> tuple[list[Any], list[Any]]:
     return options, positionals
 
 
-COMMANDS = ("fly", "demo", "validate", "tree", "campaign", "sitl", "detect", "link", "terrain")
+COMMANDS = ("fly", "demo", "validate", "tree", "campaign", "sitl", "detect", "link", "terrain",
+            "replay")
 
 
 @st.composite

@@ -45,7 +45,7 @@ def test_mutated_missions_fly_or_are_refused_clearly(fuzz, data):
 @settings(FAST, max_examples=40)
 @given(data=st.data())
 def test_argument_lists_of_the_quick_commands(fuzz, data):
-    command = data.draw(st.sampled_from(["validate", "tree", "sitl", "link", "detect"]))
+    command = data.draw(st.sampled_from(["validate", "tree", "sitl", "link", "detect", "replay"]))
     check(fuzz, data.draw(harness.cli_cases(fuzz[1], fuzz[2], command)))
 
 
