@@ -53,9 +53,9 @@ from behaviors.settings import (
     LandingSettings,
     MissionPlan,
 )
-from lsd.depth_costmap_settings import DepthCostmapSettings
-from lsd.elevation_settings import DetectorSettings, ElevationMapSettings
-from lsd.lidar_pca_settings import LidarPcaSettings
+from lsd.depth_costmap.settings import DepthCostmapSettings
+from lsd.elevation.settings import DetectorSettings, ElevationMapSettings
+from lsd.lidar_pca.settings import LidarPcaSettings
 from lsm.settings import LossWeights, LsmSettings
 from sitl import SitlSettings
 from sitl.copter import HomeSettings

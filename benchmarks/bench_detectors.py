@@ -48,14 +48,14 @@ from scipy import sparse
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from lsd.depth_costmap import (  # noqa: E402
+from lsd.depth_costmap.detector import (  # noqa: E402
     DepthCostmapDetector,
     DepthCostmapSettings,
     compute_costmaps,
     dense_sites,
 )
 from lsd.frames import DepthFrame, Intrinsics  # noqa: E402
-from lsd.lidar_pca import LidarPcaSettings, detect_planes  # noqa: E402
+from lsd.lidar_pca.detector import LidarPcaSettings, detect_planes  # noqa: E402
 from lsd.pointcloud import voxel_grid  # noqa: E402
 from sitl.sensors import DepthCamera, DepthCameraSettings  # noqa: E402
 from sitl.sensors.lidar import LidarScanner, LidarSettings  # noqa: E402

@@ -22,7 +22,7 @@ from pathlib import Path
 import laspy
 import numpy as np
 
-from lsd.lidar_pca_scenes import scene
+from lsd.lidar_pca.scenes import scene
 
 DENSITY = 16.0  # points per m^2, a dense airborne survey
 BLOCK = 100.0  # m: the scene is written a block at a time

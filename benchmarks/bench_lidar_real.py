@@ -1,10 +1,10 @@
 """How safe are the LiDAR detector's sites? Each cloud's sites are judged against the
-cloud's own ASPRS labels and a least-squares plane fit (lsd.lidar_pca_judge: disc and 1 m
+cloud's own ASPRS labels and a least-squares plane fit (lsd.lidar_pca.judge: disc and 1 m
 clearance ring of ground only, slope <= 15 deg, RMS residual <= 5 cm, no step over 15 cm,
 nothing over 0.5 m in the ring), beside random discs of r_min on the same cloud.
 
 Clouds: the real classified tiles in tests/data/real (see the README there) and synthetic
-classified scenes (urban, farmland, forest: lsd.lidar_pca_scenes). Rows:
+classified scenes (urban, farmland, forest: lsd.lidar_pca.scenes). Rows:
 
 - ``detector``: the defaults of ``lander detect`` (grid seeding, class rules, site rules);
 - ``no classes``: the same without the file's classification (geometry alone);
@@ -23,11 +23,11 @@ from pathlib import Path
 import numpy as np
 
 from lsd.io import read_point_cloud
-from lsd.lidar_pca import detect_planes, spot_grades
-from lsd.lidar_pca_judge import Judge, JudgeRules, random_discs
-from lsd.lidar_pca_scenes import scene
-from lsd.lidar_pca_settings import LidarPcaSettings
-from lsd.lidar_pca_sites import find_sites, finish_sites
+from lsd.lidar_pca.detector import detect_planes, spot_grades
+from lsd.lidar_pca.judge import Judge, JudgeRules, random_discs
+from lsd.lidar_pca.scenes import scene
+from lsd.lidar_pca.settings import LidarPcaSettings
+from lsd.lidar_pca.sites import find_sites, finish_sites
 from lsd.pointcloud import thin_by_distance, voxel_grid
 
 REAL = Path(__file__).resolve().parents[1] / "tests" / "data" / "real"

@@ -36,8 +36,8 @@ import cv2  # noqa: E402
 import numpy as np  # noqa: E402
 
 from autonomy.perception.camera import to_depth_frame  # noqa: E402
-from lsd.elevation import ElevationDetector  # noqa: E402
-from lsd.elevation_settings import DetectorSettings  # noqa: E402
+from lsd.elevation.detector import ElevationDetector  # noqa: E402
+from lsd.elevation.settings import DetectorSettings  # noqa: E402
 from lsm.records import SiteObservation  # noqa: E402
 from sitl.sensors import DepthCamera, DepthCameraSettings  # noqa: E402
 from sitl.terrain import Terrain, is_safe, make_terrain  # noqa: E402

@@ -38,7 +38,7 @@ def _targets() -> list[tuple[str, object, str]]:
     """(part, owner, attribute) of every timed entry point."""
     from autonomy.runner import run as run_module
     from autonomy.vehicle.driver import MavlinkVehicle
-    from lsd.elevation import ElevationDetector
+    from lsd.elevation.detector import ElevationDetector
     from lsm import LandingSiteManager
     from sitl.copter.simulator import Sitl
     from sitl.sensors.camera import DepthCamera

@@ -29,7 +29,7 @@ from pydantic import ValidationError  # noqa: E402
 from autonomy.config import load_mission  # noqa: E402
 from autonomy.perception.elevation import ElevationMapSource  # noqa: E402
 from behaviors.ports import VehicleState  # noqa: E402
-from lsd.elevation import ElevationDetector  # noqa: E402
+from lsd.elevation.detector import ElevationDetector  # noqa: E402
 from lsd.site_selection import step_hazards  # noqa: E402
 from sitl.terrain import is_safe, make_terrain  # noqa: E402
 

@@ -9,7 +9,7 @@ import cv2
 import numpy as np
 from scipy import ndimage
 
-from lsd.elevation_settings import DetectorSettings
+from lsd.elevation.settings import DetectorSettings
 from lsd.plane_fit import PlaneFit, copy_where
 
 

@@ -3,7 +3,7 @@ minimum-snap trajectory through it (Mittal, Valada and Burgard, section III-D).
 
 A leaf package: numpy and scipy only, no other package of the project. Positions are local
 ENU metres, times seconds, grids indexed ``[i, j]`` with axis 0 along x (east) and axis 1
-along y (north), as :mod:`lsd.elevation_map` lays them out.
+along y (north), as :mod:`lsd.elevation.map` lays them out.
 """
 
 from planning.approach import ApproachPlan, plan_approach

@@ -1,7 +1,7 @@
 """A collision-free path over an elevation grid at a given altitude, shortened by line of sight.
 
 The vehicle's knowledge of the terrain is a 2.5D grid: each cell's obstacle top and the
-variance of that estimate (:class:`lsd.elevation_map.ElevationMap` keeps both). A cell is
+variance of that estimate (:class:`lsd.elevation.map.ElevationMap` keeps both). A cell is
 passable at an altitude when the highest obstacle within the vehicle's radius, raised by
 ``k_sigma`` standard deviations and a margin, is below that altitude. Unobserved cells are
 never passable: the vehicle does not fly where it has not looked.

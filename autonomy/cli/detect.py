@@ -239,8 +239,8 @@ def _overlay_depth(path: Path, frame: DepthFrame, obs: list[SiteObservation]) ->
 
 def run_lidar(args: argparse.Namespace, out_dir: Path) -> int:
     from lsd.io import DataFileError, open_las, read_point_cloud
-    from lsd.lidar_pca import LidarPcaDetector, LidarPcaSettings, spot_grades
-    from lsd.lidar_pca_sites import find_sites, finish_sites, is_classified
+    from lsd.lidar_pca.detector import LidarPcaDetector, LidarPcaSettings, spot_grades
+    from lsd.lidar_pca.sites import find_sites, finish_sites, is_classified
     from lsd.pointcloud import clean_points
 
     settings = _settings(
@@ -294,7 +294,7 @@ def run_lidar(args: argparse.Namespace, out_dir: Path) -> int:
             finite = (np.abs(raw) <= 1e8).all(axis=1)
             codes = None if data.classification is None else data.classification[finite]
             if settings.seeding == "grid" and (args.tile_size or len(cloud) > TILE_ABOVE):
-                from lsd.lidar_pca_tiles import detect_in_tiles, stderr_progress
+                from lsd.lidar_pca.tiles import detect_in_tiles, stderr_progress
 
                 spots, counts = detect_in_tiles(
                     cloud, codes, settings, rng, tile_size=args.tile_size or 200.0,
@@ -342,7 +342,7 @@ def run_lidar(args: argparse.Namespace, out_dir: Path) -> int:
 
 
 def _run_tiled(args, path: Path, settings, rng):
-    from lsd.lidar_pca_tiles import detect_tiled, stderr_progress
+    from lsd.lidar_pca.tiles import detect_tiled, stderr_progress
 
     if settings.seeding != "grid":
         raise UserError("--seeding: a tiled (streamed) cloud needs grid seeding")
@@ -382,7 +382,7 @@ def _why_none(counts) -> str:
 def _judge(points, codes, spots, settings, seed: int) -> None:
     """Score the sites against the cloud's labels and a plane fit, with random discs of
     r_min on the same cloud as the baseline."""
-    from lsd.lidar_pca_judge import Judge, JudgeRules, random_discs, score
+    from lsd.lidar_pca.judge import Judge, JudgeRules, random_discs, score
 
     judge = Judge(points, codes, JudgeRules.from_settings(settings))
     safe, why = judge.judge(spots.centre[:, :2], spots.radius)
@@ -411,7 +411,7 @@ def _write_geojson(path: Path, rows: list[dict], georef) -> None:
 
 
 def run_depth(args: argparse.Namespace, out_dir: Path) -> int:
-    from lsd.depth_costmap import DepthCostmapDetector, DepthCostmapSettings
+    from lsd.depth_costmap.detector import DepthCostmapDetector, DepthCostmapSettings
     from lsd.frames import DepthFrame, Intrinsics
     from lsd.io import DataFileError, read_depth_image
 

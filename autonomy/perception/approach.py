@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from behaviors.settings import ApproachSettings
-from lsd.elevation_map import ElevationMap
+from lsd.elevation.map import ElevationMap
 from planning import Trajectory, plan_approach
 
 Vector = tuple[float, float, float]

@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from autonomy.perception.camera import DepthCameraSource, depth_camera_over
-from lsd.depth_costmap import DepthCostmapDetector, DepthCostmapSettings
+from lsd.depth_costmap.detector import DepthCostmapDetector, DepthCostmapSettings
 from lsd.frames import DepthFrame
 from lsm.records import SiteObservation
 from sitl.sensors import DepthCamera, DepthCameraSettings, RangeFinderSettings

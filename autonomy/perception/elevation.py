@@ -13,8 +13,8 @@ from typing import Any
 import numpy as np
 
 from autonomy.perception.camera import DepthCameraSource, depth_camera_over
-from lsd.elevation import ElevationDetector
-from lsd.elevation_settings import DetectorSettings, ElevationMapSettings
+from lsd.elevation.detector import ElevationDetector
+from lsd.elevation.settings import DetectorSettings, ElevationMapSettings
 from lsd.frames import DepthFrame
 from lsm.records import SiteObservation
 from sitl.sensors import DepthCamera, DepthCameraSettings, RangeFinderSettings

@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from behaviors.ports import VehicleState
-from lsd.lidar_pca import LidarPcaDetector, LidarPcaSettings
+from lsd.lidar_pca.detector import LidarPcaDetector, LidarPcaSettings
 from lsm.records import SiteObservation
 from sitl.sensors.lidar import LidarScanner, LidarSettings
 from sitl.terrain import Terrain

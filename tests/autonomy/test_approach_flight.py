@@ -15,8 +15,8 @@ from autonomy.perception.approach import MapApproachPlanner
 from autonomy.report import read_events
 from autonomy.runner import fly
 from behaviors.settings import ApproachSettings
-from lsd.elevation_map import ElevationMap
-from lsd.elevation_settings import ElevationMapSettings
+from lsd.elevation.map import ElevationMap
+from lsd.elevation.settings import ElevationMapSettings
 
 MISSIONS = Path(__file__).resolve().parents[2] / "missions"
 

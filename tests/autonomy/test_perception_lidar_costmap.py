@@ -8,8 +8,8 @@ from autonomy.perception.base import SiteSource
 from autonomy.perception.costmap import DepthCostmapSource
 from autonomy.perception.lidar import LidarPcaSource
 from behaviors.ports import VehicleState
-from lsd.depth_costmap import DepthCostmapSettings
-from lsd.lidar_pca import LidarPcaSettings
+from lsd.depth_costmap.detector import DepthCostmapSettings
+from lsd.lidar_pca.detector import LidarPcaSettings
 from sitl.sensors import DepthCameraSettings
 from sitl.sensors.lidar import LidarSettings
 from sitl.terrain import is_safe, make_terrain

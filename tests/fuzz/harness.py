@@ -138,10 +138,10 @@ def _preload() -> None:
     """Import what the commands import, once, before forking workers."""
     import autonomy.cli
     import autonomy.runner  # noqa: F401
-    import lsd.depth_costmap  # noqa: F401
-    import lsd.elevation  # noqa: F401
+    import lsd.depth_costmap.detector  # noqa: F401
+    import lsd.elevation.detector  # noqa: F401
     import lsd.io  # noqa: F401
-    import lsd.lidar_pca  # noqa: F401
+    import lsd.lidar_pca.detector  # noqa: F401
     import sitl.terrain  # noqa: F401
 
     autonomy.cli.build_parser()

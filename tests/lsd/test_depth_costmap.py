@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from pydantic import ValidationError
 
-from lsd.depth_costmap import (
+from lsd.depth_costmap.detector import (
     DenseSites,
     DepthCostmapDetector,
     DepthCostmapSettings,

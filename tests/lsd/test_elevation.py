@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 from pydantic import ValidationError
 
-from lsd.elevation import ElevationDetector
-from lsd.elevation_map import ElevationMap
-from lsd.elevation_settings import DetectorSettings, ElevationMapSettings
+from lsd.elevation.detector import ElevationDetector
+from lsd.elevation.map import ElevationMap
+from lsd.elevation.settings import DetectorSettings, ElevationMapSettings
 from lsd.frames import DepthFrame, Intrinsics
 from sitl.sensors import DepthCamera, DepthCameraSettings
 from sitl.terrain import is_safe, make_terrain

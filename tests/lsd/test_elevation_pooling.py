@@ -7,9 +7,9 @@ import math
 import numpy as np
 import pytest
 
-from lsd.elevation import ElevationDetector
-from lsd.elevation_map import ElevationMap, pooled_level
-from lsd.elevation_settings import DetectorSettings, ElevationMapSettings
+from lsd.elevation.detector import ElevationDetector
+from lsd.elevation.map import ElevationMap, pooled_level
+from lsd.elevation.settings import DetectorSettings, ElevationMapSettings
 from tests.lsd.test_elevation import assert_valid, flat, render
 
 BOX = (10.0, 6.0)  # centre of a 6 m x 6 m, 3 m high block, world x/y

@@ -7,7 +7,7 @@ import dataclasses
 import numpy as np
 from scipy import ndimage
 
-from lsd.elevation_settings import DetectorSettings
+from lsd.elevation.settings import DetectorSettings
 from lsd.plane_fit import PlaneFit
 from lsd.site_selection import site_size, step_room
 

@@ -13,7 +13,7 @@ import pytest
 
 import autonomy.cli as cli
 from lsd.io import read_point_cloud, write_las
-from lsd.lidar_pca_scenes import scene
+from lsd.lidar_pca.scenes import scene
 
 REAL = Path(__file__).resolve().parents[1] / "data" / "real"
 US_FOOT = 1200.0 / 3937.0  # metres

@@ -9,7 +9,7 @@ import pytest
 from pydantic import ValidationError
 from scipy.spatial import cKDTree
 
-from lsd.lidar_pca import LidarPcaDetector, LidarPcaSettings, detect_planes, spot_grades
+from lsd.lidar_pca.detector import LidarPcaDetector, LidarPcaSettings, detect_planes, spot_grades
 from lsd.pointcloud import (
     CloudAccumulator,
     ColumnIndex,

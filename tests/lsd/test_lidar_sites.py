@@ -1,5 +1,5 @@
 """Sites a 1 m footprint can live with, judged against classified clouds' own labels and a
-plane fit (lsd.lidar_pca_judge, written apart from the detector): synthetic urban,
+plane fit (lsd.lidar_pca.judge, written apart from the detector): synthetic urban,
 farmland and forest scenes and the real tiles in tests/data/real (issue 16)."""
 
 from __future__ import annotations
@@ -11,10 +11,10 @@ import pytest
 
 import autonomy.cli as cli
 from lsd.io import read_point_cloud
-from lsd.lidar_pca_judge import Judge, JudgeRules, random_discs
-from lsd.lidar_pca_scenes import HIGH_VEG, LOW_VEG, MEDIUM_VEG, scene
-from lsd.lidar_pca_settings import LidarPcaSettings
-from lsd.lidar_pca_sites import find_sites, finish_sites, thin_discs
+from lsd.lidar_pca.judge import Judge, JudgeRules, random_discs
+from lsd.lidar_pca.scenes import HIGH_VEG, LOW_VEG, MEDIUM_VEG, scene
+from lsd.lidar_pca.settings import LidarPcaSettings
+from lsd.lidar_pca.sites import find_sites, finish_sites, thin_discs
 
 REAL = Path(__file__).resolve().parents[1] / "data" / "real"
 SETTINGS = LidarPcaSettings(seeding="grid")

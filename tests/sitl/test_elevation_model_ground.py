@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from autonomy.perception.camera import to_depth_frame
-from lsd.elevation import ElevationDetector
+from lsd.elevation.detector import ElevationDetector
 from sitl.sensors import DepthCamera, DepthCameraSettings
 from sitl.sensors.lidar import LidarScanner, LidarSettings
 from sitl.sensors.rangefinder import RangeFinder

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from pydantic import ValidationError
 
-from lsd.lidar_pca import LidarPcaDetector, LidarPcaSettings
+from lsd.lidar_pca.detector import LidarPcaDetector, LidarPcaSettings
 from sitl.sensors.lidar import LidarScanner, LidarSettings, beam_directions
 from sitl.terrain import Terrain, make_terrain
 

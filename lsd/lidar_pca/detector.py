@@ -36,7 +36,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial import cKDTree
 
-from lsd.lidar_pca_settings import LidarPcaSettings, SpotWeights
+from lsd.lidar_pca.settings import LidarPcaSettings, SpotWeights
 from lsd.pointcloud import (
     CloudAccumulator,
     ColumnIndex,
@@ -612,7 +612,7 @@ def _dedupe(spots: SpotTable, settings: LidarPcaSettings) -> SpotTable:
     better-graded ones (greedy, best first)."""
     if len(spots) < 2:
         return spots
-    from lsd.lidar_pca_sites import thin_discs
+    from lsd.lidar_pca.sites import thin_discs
 
     ranked = spots.take(np.argsort(-spot_grades(spots, settings), kind="stable"))
     return ranked.take(thin_discs(ranked.centre[:, :2], ranked.radius, settings.merge_distance))
@@ -700,7 +700,7 @@ class LidarPcaDetector:
         self.counters["planes_accepted"] += search.n_accepted
         self.counters["planes_rejected"] += search.n_rejected
         # The site rules (geometry: step, residual, clearance ring) on the voxel centroids.
-        from lsd.lidar_pca_sites import apply_site_rules
+        from lsd.lidar_pca.sites import apply_site_rules
 
         found = _dedupe(apply_site_rules(search.spots, grid.points, None, s)[0], s)
         self.counters["spots_registered"] += len(self._register(found))

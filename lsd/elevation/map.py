@@ -14,7 +14,7 @@ import math
 import cv2
 import numpy as np
 
-from lsd.elevation_settings import ElevationMapSettings
+from lsd.elevation.settings import ElevationMapSettings
 from lsd.plane_fit import copy_where
 
 TOP_QUANTILE = 0.9  # which percentile of a cell's points is its top

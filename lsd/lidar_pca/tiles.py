@@ -23,9 +23,9 @@ import numpy as np
 
 from lsd.georef import Georeference
 from lsd.io import iter_las_chunks, open_las
-from lsd.lidar_pca import SpotTable
-from lsd.lidar_pca_settings import LidarPcaSettings
-from lsd.lidar_pca_sites import SiteCounts, find_sites, finish_sites
+from lsd.lidar_pca.detector import SpotTable
+from lsd.lidar_pca.settings import LidarPcaSettings
+from lsd.lidar_pca.sites import SiteCounts, find_sites, finish_sites
 from lsd.pointcloud import MAX_COORDINATE
 
 _RECORD = np.dtype([("xyz", "<f8", (3,)), ("cls", "<i2")])

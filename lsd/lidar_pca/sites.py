@@ -11,7 +11,7 @@ plane:
   ``residual_max``, at least ``n_min`` points;
 - clearance ring (radius < distance <= radius + obstacle_margin): no point higher than
   ``obstacle_height`` above the plane (the obstacle altitude the site reports);
-- classified clouds (:class:`~lsd.lidar_pca_settings.ClassRules`): disc and ring hold
+- classified clouds (:class:`~lsd.lidar_pca.settings.ClassRules`): disc and ring hold
   only ground points (2), or, with ``roofs``, only building points (6) for a site on a roof;
   vegetation (3-5), water (9), noise (7, 18), unclassified (1) and every other class
   reject it.
@@ -27,8 +27,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from lsd.lidar_pca import PlaneSearch, SpotTable, detect_planes, spot_grades
-from lsd.lidar_pca_settings import LidarPcaSettings
+from lsd.lidar_pca.detector import PlaneSearch, SpotTable, detect_planes, spot_grades
+from lsd.lidar_pca.settings import LidarPcaSettings
 from lsd.pointcloud import ColumnIndex, thin_by_distance, voxel_grid
 
 # Pairs (spot, point) handled at once: bounds the temporaries of the rule checks.

@@ -50,7 +50,7 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 from scipy.spatial.distance import pdist
 
-from lsd.depth_costmap_settings import CostmapWeights, DepthCostmapSettings
+from lsd.depth_costmap.settings import CostmapWeights, DepthCostmapSettings
 from lsd.frames import DepthFrame
 from lsd.pointcloud import thin_by_distance
 from lsm.records import SiteObservation

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from lsd.lidar_pca_settings import LidarPcaSettings
+from lsd.lidar_pca.settings import LidarPcaSettings
 
 
 @dataclass(frozen=True)

@@ -1,7 +1,7 @@
 """The elevation-map landing-site detector (thesis section 3; DESIGN.md section 7).
 
 Each depth frame is checked, its valid pixels are back-projected and fused into a
-robot-centric :class:`~lsd.elevation_map.ElevationMap`; the map is then analysed: a plane fit
+robot-centric :class:`~lsd.elevation.map.ElevationMap`; the map is then analysed: a plane fit
 over the vehicle footprint around every cell gives slope, roughness and uncertainty, a
 threshold test gives the safe mask, one Euclidean distance transform gives every cell's
 size, non-maximum suppression picks sites, and a maximum filter gives each site's obstacle
@@ -37,8 +37,8 @@ from typing import Any
 import cv2
 import numpy as np
 
-from lsd.elevation_map import ElevationMap, pooled_level
-from lsd.elevation_settings import DetectorSettings, ElevationMapSettings
+from lsd.elevation.map import ElevationMap, pooled_level
+from lsd.elevation.settings import DetectorSettings, ElevationMapSettings
 from lsd.frames import DepthFrame
 from lsd.plane_fit import PlaneFit, copy_where, fit_planes
 from lsd.site_selection import (
