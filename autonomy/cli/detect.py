@@ -6,6 +6,9 @@
 Prints a table of sites (best first) and writes ``sites.csv`` and ``overlay.png`` (points or
 depth coloured by height, sites drawn with their radii) into ``--out``; a LAS/LAZ file with
 a CRS also gets ``sites.geojson`` (WGS84). See docs/lidar-and-elevation-models.md.
+
+Longer than 500 lines: two inputs (point clouds and depth images) with their tables,
+CSV/GeoJSON and overlays; one module per input is the next step.
 """
 
 from __future__ import annotations

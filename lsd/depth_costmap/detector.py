@@ -33,6 +33,9 @@ Observation fields: size = J_FL * D / f (metric radius of the inscribed circle);
 1 - J_N (0 on level ground); uncertainty = sigma / sigma_ref when the frame carries depth
 sigma, else the raw eq. 1 term (D^2 - min D^2) / max D^2; obstacle altitude = highest world z
 within the footprint + margin around the site.
+
+Longer than 500 lines: eq. 1-8 are one pipeline whose stages share array layouts and
+incremental clustering state; the settings live beside it in settings.py.
 """
 
 from __future__ import annotations

@@ -24,6 +24,9 @@ site beyond either limit is not emitted, both lie in [0, 1].
 
 Bad input never raises: bad pixels are dropped and counted, a frame that cannot be used
 (empty, NaN pose, inconsistent shapes) is skipped, counted and reported as an event.
+
+Longer than 500 lines: the analysis of the coarse and fine maps (roughness, uncertainty,
+footprints, site selection) shares its windows and masks; the map itself is map.py.
 """
 
 from __future__ import annotations

@@ -27,6 +27,10 @@ Observation fields: size = accepted radius; roughness = sigma / sigma_max; uncer
 planar (smallest PCA eigenvalue l0 relative to the total; 3 l0 / sum = 1 for isotropic
 scatter) or holds barely n_min points; obstacle altitude = highest point within
 radius + obstacle_margin horizontally.
+
+Longer than 500 lines: Algorithm 1's vectorised plane search and its growing-radius
+state are one loop; site rules, tiles and judging live beside it (sites.py, tiles.py,
+judge.py).
 """
 
 from __future__ import annotations

@@ -4,7 +4,11 @@
 :func:`cast_pinhole_rays` (or :meth:`PinholeRays.cast`, keeping what it derives from the
 rays between frames) renders a downward pinhole camera's image many times faster, from
 bounds on the ground a :class:`HeightBounds` pyramid gives per image tile;
-:func:`coarse_terrain` gives the mean-height levels of detail a distant camera renders."""
+:func:`coarse_terrain` gives the mean-height levels of detail a distant camera renders.
+
+Longer than 500 lines: the general ray march and the camera's tiled march share the
+height-bounds pyramid and the refinement of hits.
+"""
 
 from __future__ import annotations
 
