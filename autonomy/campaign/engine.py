@@ -2,9 +2,11 @@
 
     from autonomy.config import load_mission
     from autonomy.campaign import run_campaign
-    result = run_campaign(load_mission("missions/demo.yaml"), runs=20, seed=1,
-                          vary=["landing.verification_altitude=2.5,5"], out_dir="out/demo")
-    print(result.table())
+
+    if __name__ == "__main__":  # worker processes import this script: run only once
+        result = run_campaign(load_mission("missions/demo.yaml"), runs=20, seed=1,
+                              vary=["landing.verification_altitude=2.5,5"], out_dir="out/demo")
+        print(result.table())
 
 Output directory: ``runs.jsonl`` (one record per finished run, appended as runs finish),
 ``summary.json`` (per-variant table), ``campaign.png``, ``campaign.html`` (outcomes per
