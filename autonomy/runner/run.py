@@ -157,7 +157,7 @@ def fly(
     source = build_source(mission, terrain, np.random.default_rng(seeds.perception))
     sitl = build_sitl(mission, terrain, seeds.sitl) if lockstep else None
     descent_flow = build_descent_flow(mission, terrain, seeds.descent_flow)
-    services = {} if descent_flow is None else {"obstacle_watch": descent_flow}
+    services = build_services(mission, source, obstacle_watch=descent_flow)
     vehicle = None
     refusal: HomeMismatch | None = None
     failure: BaseException | None = None
@@ -176,7 +176,7 @@ def fly(
             bb.reset()
             tree = build_mission_tree(
                 plan, vehicle, lsm, clock, np.random.default_rng(seeds.tree), mission.tree,
-                services={**services, **build_services(mission, source)},
+                services=services,
             )
             tree.setup()
             if out is not None:

@@ -30,12 +30,16 @@ def service_names(mission: Any) -> frozenset[str]:
     return frozenset(names)
 
 
-def build_services(mission: Any, source: Any) -> dict[str, Any]:
-    """The services for one flight, over ``source``'s maps where it has them."""
+def build_services(mission: Any, source: Any, obstacle_watch: Any = None) -> dict[str, Any]:
+    """The services for one flight: the approach planner over ``source``'s map where it has
+    one, and the descent camera's ``obstacle_watch`` when the flight has one."""
     detector = getattr(source, "detector", None)
     elevation_map = getattr(detector, "map", None)
     if elevation_map is not None and hasattr(elevation_map, "top"):
         planner: Any = MapApproachPlanner(elevation_map, mission.landing.approach)
     else:
         planner = NoTerrainMap(mission.perception.detector)
-    return {"approach_planner": planner}
+    services: dict[str, Any] = {"approach_planner": planner}
+    if obstacle_watch is not None:
+        services["obstacle_watch"] = obstacle_watch
+    return services
