@@ -562,6 +562,10 @@ class LandingSiteManager:
 
     def _push(self, slot: int) -> None:
         self._version[slot] += 1
+        if self._size_max != self._keyed_size_max:
+            # This key is made under another size_max than the rest of the heap: the heap is
+            # no longer one ordering, so the next eviction must re-key it all.
+            self._keyed_size_max = math.nan
         entry = (-self._loss_of_slot(slot), -int(self._ids[slot]), self._version[slot], slot)
         heapq.heappush(self._heap, entry)
         if len(self._heap) > 2 * len(self._slot_of) + 64:

@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 import lsm.manager
@@ -121,6 +121,13 @@ def lookup(request, monkeypatch):
 @settings(max_examples=300, deadline=None,
           suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(steps=st.lists(step, min_size=5, max_size=60))
+# Found by this test: a ban lowers size_max, a site keyed under the lower size_max joins the
+# heap, then a large newcomer restores the old size_max and the eviction used the stale key.
+@example(steps=[("obs", SiteObservation(0.0, y, 0.0, 0.0, 0.0, size, 1.0, 2.5))
+                for y, size in ((0.0, 0.0), (0.0, 0.0), (3.0, 4.0), (6.0, 0.0), (-6.0, 0.0),
+                                (9.0, 0.0))]
+         + [("ban", 0), ("obs", SiteObservation(0.0, -3.0, 0.0, 0.0, 0.0, 1.0, 1.0, 40.0)),
+            ("obs", SiteObservation(0.0, 9.0, 0.0, 0.0, 0.0, 4.0, 1.0, 2.5))])
 def test_same_retained_sites_and_ranking_as_the_reference(lookup, steps):
     m = LandingSiteManager(SETTINGS, WEIGHTS)
     ref = ReferenceLsm()
