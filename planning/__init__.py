@@ -7,7 +7,8 @@ along y (north), as :mod:`lsd.elevation.map` lays them out.
 """
 
 from planning.approach import ApproachPlan, plan_approach
-from planning.grid_path import GridPath, clearance_grid, free_cells, plan_path
+from planning.clearance import clearance_grid
+from planning.grid_path import GridPath, free_cells, plan_path
 from planning.min_snap import Trajectory, min_snap_trajectory
 
 __all__ = [

@@ -2,11 +2,16 @@
 
 :func:`plan_approach` is the whole of section III-D for a 2.5D map: a path over the cells the
 vehicle can pass at its altitude, its line-of-sight waypoints, and a minimum-snap trajectory
-through them within the speed and acceleration limits. A smooth trajectory can cut a corner
-that the straight segments did not; each sample is therefore checked against the map, and a
-segment that grazes an obstacle gets the path's middle cell as an extra waypoint (Richter et
-al.'s remedy), a few times at most. When no path or no clean trajectory exists the answer says
-why, and the caller keeps the thesis's climb, traverse and descent.
+through them within the speed and acceleration limits. Most approaches cross open ground, so
+the straight line is tried first and checked cell by cell; only when it is blocked is a graph
+searched, first on a coarser grid whose cells are at least as high as the fine cells they cover
+(so a coarse path is a fine path too), then, if that finds none, on the map's own cells.
+
+A smooth trajectory can cut a corner that the straight segments did not; each sample is
+therefore checked against the map's own cells, and a segment that grazes an obstacle gets the
+path's middle cell as an extra waypoint (Richter et al.'s remedy), a few times at most.
+When no path or no clean trajectory exists the answer says why, and the caller keeps the
+thesis's climb, traverse and descent.
 """
 
 from __future__ import annotations
@@ -15,7 +20,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from planning.grid_path import GridPath, _cell_of, clearance_grid, free_cells, plan_path
+from planning.clearance import ObstacleHeights, clearance_at, pooled_clearance
+from planning.grid_path import GridPath, _cell_of, free_cells, line_cells, plan_path
 from planning.min_snap import (
     SAMPLES_PER_SEGMENT,
     Trajectory,
@@ -57,18 +63,24 @@ def _with_altitudes(xy: np.ndarray, z0: float, z1: float) -> np.ndarray:
     return np.column_stack([xy, z0 + (z1 - z0) * share])
 
 
+def search_factors(radius: float, resolution: float) -> tuple[int, ...]:
+    """Coarsening factors of the graph search, tried in turn (1: the map's own cells). A
+    coarse cell of about half the vehicle's radius keeps the search ~10 times smaller at the
+    cost of about a coarse cell of extra lateral margin (see
+    :func:`planning.clearance.pooled_clearance`)."""
+    factor = max(1, int(round(radius / (2.0 * resolution))))
+    return (factor, 1) if factor > 1 else (1,)
+
+
 def _first_collision(
-    trajectory: Trajectory, clearance: np.ndarray, origin: np.ndarray, resolution: float,
-    margin: float, start_cell: np.ndarray,
+    trajectory: Trajectory, height: ObstacleHeights, reach: float, origin: np.ndarray,
+    resolution: float, margin: float, start_cell: np.ndarray,
 ) -> int | None:
     """The segment of the first sample below the clearance (+ margin), or None."""
     t = np.linspace(0.0, trajectory.duration, SAMPLES_PER_SEGMENT * len(trajectory.durations))
     p = trajectory.sample(t)
     cells = _cell_of(p[:, :2], origin, resolution)
-    n0, n1 = clearance.shape
-    inside = (cells[:, 0] >= 0) & (cells[:, 0] < n0) & (cells[:, 1] >= 0) & (cells[:, 1] < n1)
-    needed = np.full(len(p), np.inf)
-    needed[inside] = clearance[cells[inside, 0], cells[inside, 1]] + margin
+    needed = clearance_at(height, cells, reach) + margin
     # The start column is where the vehicle already is: it is not an obstacle to itself.
     at_start = np.all(cells == start_cell, axis=1)
     hit = (p[:, 2] <= needed) & ~at_start
@@ -76,6 +88,22 @@ def _first_collision(
         return None
     first = int(np.flatnonzero(hit)[0])
     return int(np.searchsorted(trajectory.knots, t[first], side="right") - 1)
+
+
+def _straight_path(
+    height: ObstacleHeights, reach: float, origin: np.ndarray, resolution: float,
+    start: np.ndarray, goal: np.ndarray, altitude: float, margin: float,
+) -> GridPath | None:
+    """The direct line from ``start`` to ``goal`` as a path, when every cell it passes over is
+    free at ``altitude`` (the two end cells count as free, as in :func:`plan_path`)."""
+    cells = line_cells(origin, resolution, start, goal)
+    ends = np.all(cells == cells[0], axis=1) | np.all(cells == cells[-1], axis=1)
+    clear = clearance_at(height, cells, reach) + margin < altitude
+    if not np.all(clear | ends):
+        return None
+    return GridPath(cells=cells, waypoints=np.array([start, goal]),
+                    waypoint_cells=np.array([0, len(cells) - 1], dtype=np.int64),
+                    length=float(np.hypot(*(goal - start))))
 
 
 def plan_approach(
@@ -114,18 +142,29 @@ def plan_approach(
     start = np.asarray(start, dtype=np.float64)
     goal = np.asarray(goal, dtype=np.float64)
     origin = np.asarray(origin, dtype=np.float64)
-    clearance = clearance_grid(top, variance, resolution, radius, k_sigma)
+    height = ObstacleHeights(top, variance, k_sigma)
+    reach = radius / resolution
     # The path is planned at the goal's altitude: the vehicle climbs to it over the start
     # first, or comes down to it along the path, so it is never lower on the way.
     altitude = goal[2]
     climb = 1 if start[2] < goal[2] else 0  # the vertical climb is trajectory segment 0
-    free = free_cells(clearance, altitude, margin)
-    path = plan_path(free, origin, resolution, start[:2], goal[:2])
+    n0, n1 = height.shape
+    path, cell_size = None, resolution
+    if all(0 <= c[0] < n0 and 0 <= c[1] < n1
+           for c in (_cell_of(p[:2], origin, resolution) for p in (start, goal))):
+        path = _straight_path(height, reach, origin, resolution, start[:2], goal[:2],
+                              altitude, margin)
+        for factor in search_factors(radius, resolution) if path is None else ():
+            free = free_cells(pooled_clearance(height.grid(), reach, factor), altitude, margin)
+            path = plan_path(free, origin, resolution * factor, start[:2], goal[:2])
+            if path is not None:
+                cell_size = resolution * factor
+                break
     if path is None:
         return ApproachPlan(None, None, None, f"no path over the known terrain at "
                             f"{altitude:.1f} m (radius {radius:g} m, margin {margin:g} m)")
     index = list(path.waypoint_cells)
-    centres = origin + (path.cells + 0.5) * resolution
+    centres = origin + (path.cells + 0.5) * cell_size
     centres[0], centres[-1] = start[:2], goal[:2]
     start_cell = _cell_of(start[:2], origin, resolution)
     for _ in range(refinements + 1):
@@ -141,7 +180,8 @@ def plan_approach(
             )
         else:
             trajectory = min_snap_trajectory(waypoints, max_speed, max_acceleration)
-        segment = _first_collision(trajectory, clearance, origin, resolution, margin, start_cell)
+        segment = _first_collision(trajectory, height, reach, origin, resolution, margin,
+                                   start_cell)
         if segment is None:
             return ApproachPlan(trajectory, path, waypoints)
         if segment < climb:

@@ -6,7 +6,8 @@ passable at an altitude when the highest obstacle within the vehicle's radius, r
 ``k_sigma`` standard deviations and a margin, is below that altitude. Unobserved cells are
 never passable: the vehicle does not fly where it has not looked.
 
-The shortest path between two cells over the passable ones is a graph search
+The clearance itself is :mod:`planning.clearance`. The shortest path between two cells over
+the passable ones is a graph search
 (:func:`scipy.sparse.csgraph.dijkstra` over the 8-connected grid), then shortened to the
 fewest waypoints that still see each other (the line-of-sight step of section III-D).
 """
@@ -17,7 +18,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import ndimage
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import dijkstra
 
@@ -43,39 +43,6 @@ class GridPath:
     waypoints: np.ndarray
     waypoint_cells: np.ndarray
     length: float
-
-
-def clearance_grid(
-    top: np.ndarray,
-    variance: np.ndarray,
-    resolution: float,
-    radius: float,
-    k_sigma: float = 2.0,
-) -> np.ndarray:
-    """The altitude (ENU z, m) a vehicle of ``radius`` must stay above over each cell.
-
-    Args:
-        top: (n0, n1) obstacle top per cell, ENU z metres; NaN where unobserved.
-        variance: (n0, n1) variance of ``top``, m^2 (inf where unobserved).
-        resolution: cell size, m.
-        radius: the vehicle's radius plus any lateral margin, m: each cell takes the highest
-            top within this distance (a disc footprint).
-        k_sigma: standard deviations added to each top for its uncertainty.
-
-    Returns:
-        (n0, n1) float64: the highest ``top + k_sigma * sqrt(variance)`` within ``radius`` of
-        each cell; +inf where any cell of that disc is unobserved.
-    """
-    top = np.asarray(top, dtype=np.float64)
-    sigma = np.sqrt(np.where(np.isfinite(variance), variance, 0.0))
-    height = np.where(np.isfinite(top), top + k_sigma * sigma, np.inf)
-    reach = int(math.ceil(radius / resolution))
-    if reach <= 0:
-        return height
-    offsets = np.arange(-reach, reach + 1) * resolution
-    disc = np.hypot(offsets[:, None], offsets[None, :]) <= radius + 1e-9
-    # Outside the grid is unknown too: pad with +inf rather than repeating the edge.
-    return ndimage.maximum_filter(height, footprint=disc, mode="constant", cval=np.inf)
 
 
 def free_cells(clearance: np.ndarray, altitude: float, margin: float) -> np.ndarray:
@@ -120,6 +87,19 @@ def visible(
     t = np.linspace(0.0, 1.0, samples)[:, None, None]
     points = a + t * (b - a)[None, :, :]
     return _lookup(free, _cell_of(points, origin, resolution)).all(axis=0)
+
+
+def line_cells(origin: np.ndarray, resolution: float, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(N, 2) int64 the cells the segment from ``a`` to ``b`` (world m) passes over, in order
+    from ``a``, sampled as :func:`visible` samples it."""
+    a = np.asarray(a, dtype=np.float64)
+    b = np.asarray(b, dtype=np.float64)
+    samples = max(2, int(math.ceil(np.hypot(*(b - a)) / resolution * _SAMPLES_PER_CELL)) + 1)
+    t = np.linspace(0.0, 1.0, samples)[:, None]
+    cells = _cell_of(a + t * (b - a), origin, resolution)
+    changed = np.ones(len(cells), dtype=bool)
+    changed[1:] = np.any(cells[1:] != cells[:-1], axis=1)
+    return cells[changed]
 
 
 def _grid_graph(free: np.ndarray, resolution: float) -> coo_matrix:

@@ -36,6 +36,16 @@ def _derivative_row(order: int, tau: float) -> np.ndarray:
     return np.where(n >= order, factor * tau**power, 0.0)
 
 
+# Derivatives 0..6 of the monomials at the two ends of a segment (rows: order), and the
+# monomials' first two derivatives on a fixed grid of normalised times (for the peaks): built
+# once, so that assembling and measuring a trajectory is array arithmetic only.
+_AT_START = np.array([_derivative_row(r, 0.0) for r in range(DEGREE)])
+_AT_END = np.array([_derivative_row(r, 1.0) for r in range(DEGREE)])
+_TAU = np.linspace(0.0, 1.0, SAMPLES_PER_SEGMENT + 1)
+_VELOCITY_BASIS = np.array([_derivative_row(1, t) for t in _TAU])
+_ACCELERATION_BASIS = np.array([_derivative_row(2, t) for t in _TAU])
+
+
 @dataclass(frozen=True, slots=True)
 class Trajectory:
     """A piecewise-polynomial trajectory.
@@ -83,10 +93,13 @@ class Trajectory:
         return values / T[:, None] ** order
 
     def peaks(self) -> tuple[float, float]:
-        """(highest speed m/s, highest acceleration m/s^2), sampled densely."""
-        t = np.linspace(0.0, self.duration, SAMPLES_PER_SEGMENT * len(self.durations) + 1)
-        speed = np.linalg.norm(self.sample(t, 1), axis=1).max()
-        accel = np.linalg.norm(self.sample(t, 2), axis=1).max()
+        """(highest speed m/s, highest acceleration m/s^2), sampled at
+        ``SAMPLES_PER_SEGMENT + 1`` evenly spaced times of every segment."""
+        T = self.durations[:, None, None]
+        velocity = (_VELOCITY_BASIS @ self.coefficients) / T
+        acceleration = (_ACCELERATION_BASIS @ self.coefficients) / T**2
+        speed = np.sqrt((velocity**2).sum(axis=2)).max()
+        accel = np.sqrt((acceleration**2).sum(axis=2)).max()
         return float(speed), float(accel)
 
 
@@ -106,28 +119,26 @@ def solve_min_snap(waypoints: np.ndarray, durations: np.ndarray) -> Trajectory:
     size = N_COEFF * m
     A = np.zeros((size, size))
     b = np.zeros((size, waypoints.shape[1]))
-    row = 0
-
-    def block(k: int) -> slice:
-        return slice(N_COEFF * k, N_COEFF * (k + 1))
-
-    for k in range(m):
-        A[row, block(k)] = _derivative_row(0, 0.0)
-        b[row] = waypoints[k]
-        A[row + 1, block(k)] = _derivative_row(0, 1.0)
-        b[row + 1] = waypoints[k + 1]
-        row += 2
-    for order in (1, 2, 3):  # at rest at both ends
-        A[row, block(0)] = _derivative_row(order, 0.0)
-        A[row + 1, block(m - 1)] = _derivative_row(order, 1.0)
-        row += 2
-    for k in range(1, m):
-        # d^r/dt^r continuous: row scaled by T_{k-1}^r to keep the system well conditioned.
-        ratio = durations[k - 1] / durations[k]
-        for order in range(1, DEGREE):
-            A[row, block(k - 1)] = _derivative_row(order, 1.0)
-            A[row, block(k)] = -_derivative_row(order, 0.0) * ratio**order
-            row += 1
+    # Rows 0 .. 2M-1: each segment starts at its waypoint and ends at the next.
+    blocks = A[: 2 * m].reshape(m, 2, m, N_COEFF)
+    k = np.arange(m)
+    blocks[k, 0, k] = _AT_START[0]
+    blocks[k, 1, k] = _AT_END[0]
+    b[0 : 2 * m : 2] = waypoints[:-1]
+    b[1 : 2 * m : 2] = waypoints[1:]
+    # Rows 2M .. 2M+5: at rest at both ends (velocity, acceleration, jerk zero).
+    ends = A[2 * m : 2 * m + 6].reshape(3, 2, m, N_COEFF)
+    ends[:, 0, 0] = _AT_START[1:4]
+    ends[:, 1, m - 1] = _AT_END[1:4]
+    if m > 1:
+        # d^r/dt^r (r = 1 .. 6) continuous at each interior waypoint, each row scaled by
+        # T_{k-1}^r to keep the system well conditioned.
+        joints = A[2 * m + 6 :].reshape(m - 1, DEGREE - 1, m, N_COEFF)
+        ratio = durations[:-1] / durations[1:]
+        orders = np.arange(1, DEGREE)
+        j = np.arange(m - 1)
+        joints[j, :, j] = _AT_END[1:]
+        joints[j, :, j + 1] = -_AT_START[1:] * ratio[:, None, None] ** orders[None, :, None]
     coefficients = np.linalg.solve(A, b).reshape(m, N_COEFF, -1)
     return Trajectory(coefficients=coefficients, durations=durations)
 
@@ -156,7 +167,9 @@ def min_snap_trajectory(
     trajectory = solve_min_snap(waypoints, durations)
     speed, accel = trajectory.peaks()
     scale = max(speed / max_speed, math.sqrt(accel / max_acceleration), 1e-6)
-    return solve_min_snap(waypoints, durations * scale)
+    # Stretching every duration by one factor keeps the ratios the joints' rows depend on,
+    # so the normalised-time coefficients stay the optimum: no second solve.
+    return Trajectory(coefficients=trajectory.coefficients, durations=durations * scale)
 
 
 def concatenate(first: Trajectory, second: Trajectory) -> Trajectory:
