@@ -157,6 +157,9 @@ class LandingSiteVerification(VehicleAction):
     On success the fresh record replaces LANDING_SITE; on failure the site is banned
     (``lsm.ban``) so that high-altitude detections of it are rejected from now on.
 
+    With ``fresh`` only a re-detection during this hover counts (``last_seen`` since it
+    began): a site seen low before, e.g. on takeoff, may since have been walked onto.
+
     * SUCCESS: the chosen site is verified
     * FAILURE: not verified within ``duration`` (site banned), no site chosen, or a
       re-centring goto denied / unanswered
@@ -176,10 +179,13 @@ class LandingSiteVerification(VehicleAction):
         recentre_distance: float = 0.5,
         command_timeout: float = 5.0,
         site_key: str = keys.LANDING_SITE,
+        fresh: bool = False,
     ) -> None:
         super().__init__(
             name, vehicle, clock, command_timeout=command_timeout, phase="verification"
         )
+        self.fresh = bool(fresh)
+        self.started = 0.0
         self.lsm = lsm
         self.duration = float(duration)
         self.match_radius = float(match_radius)
@@ -197,7 +203,8 @@ class LandingSiteVerification(VehicleAction):
     def initialise(self) -> None:
         super().initialise()
         self.site = self.blackboard.get(self.site_key)
-        self.deadline = self.clock.now() + self.duration
+        self.started = self.clock.now()
+        self.deadline = self.started + self.duration
         # The descent flew to this point above the site as chosen.
         self.hover = None if self.site is None else self._above(self.site)
         self.recentred = 0
@@ -242,7 +249,8 @@ class LandingSiteVerification(VehicleAction):
         if problem is not None:
             return self.fail(problem)
         record = self.current_record()
-        if record is not None and self.lsm.is_verified(record):
+        if record is not None and self.lsm.is_verified(record) and (
+                not self.fresh or record.last_seen >= self.started):
             self.blackboard.set(self.site_key, record)
             self.feedback_message = (
                 f"site {record.id} verified (seen from {record.verification_altitude:.1f} m)"

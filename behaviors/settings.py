@@ -118,6 +118,11 @@ class LandingSettings(BaseModel):
         True, description="re-detect the chosen site from the verification altitude before "
         "landing (thesis 3.3.1); false lands after the blind descent, for comparisons"
     )
+    verify_fresh: bool = Field(
+        False, description="count only a re-detection made during this hover: a site seen "
+        "low earlier (e.g. on takeoff) may since have been walked or driven onto (worlds "
+        "with moving obstacles); false: any earlier low look verifies at once"
+    )
     verification_duration: float = Field(
         10.0, gt=0, le=MAX_WAIT, description="s of clock time to wait for the site's "
         "re-detection, up to an hour (more than a battery hovers)"

@@ -23,6 +23,7 @@ SUMMARY_FIELDS: tuple[str, ...] = (
     "outcome",
     "outcome_hint",  # why the landing phase ended (no_site, battery_critical, gps_lost, ...)
     "touchdown_safe",
+    "collisions",  # contacts with raised ground or moving obstacles (sitl.terrain.contact)
     "time_to_land",
     "distance",
     "energy",

@@ -65,7 +65,7 @@ class LidarPcaSource:
             self._counters["no_position"] += 1
             return []
         position = np.asarray(state.position, dtype=np.float64)
-        scan = self.scanner.scan(position, state.yaw)
+        scan = self.scanner.scan(position, state.yaw, time=now)
         if len(scan) == 0:
             self._counters["empty_scans"] += 1
         observations = self.detector.add_scan(scan, position, now)

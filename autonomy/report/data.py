@@ -107,3 +107,5 @@ class FlightData:
     weights: Any = None  # lsm.settings.LossWeights of the mission (report.html's loss terms)
     verified_ids: list[int] = field(default_factory=list)  # retained sites counted verified
     extra: dict[str, Any] = field(default_factory=dict)
+    collisions: int | None = None  # contacts with raised ground or moving obstacles (lockstep)
+    first_collision: dict[str, Any] | None = None  # sitl.terrain.contact.Contact.as_dict()

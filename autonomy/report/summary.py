@@ -122,6 +122,8 @@ def build_summary(data: FlightData) -> dict[str, Any]:
         },
         "touchdown_error": error,
         "touchdown_safe": data.touchdown_safe,
+        "collisions": data.collisions,
+        "first_collision": data.first_collision,
         "mission_time": data.end_time,
         "mission_end_time": mission_end,
         "time_to_land": time_to_land,
@@ -179,6 +181,10 @@ def format_summary(summary: dict[str, Any]) -> str:
             where += (f"; {num(summary['touchdown_error'], '.2f', ' m')} from site "
                       f"{site['id']}")
         lines.append(where)
+    if summary.get("collisions"):
+        first = summary["first_collision"]
+        lines.append(f"COLLISIONS: {summary['collisions']}, the first with the "
+                     f"{first['obstacle']} at {first['t']:.1f} s")
     energy = summary["energy"]
     lines.append(
         f"mission time {num(summary['mission_time'], '.1f', ' s')}, time to land "

@@ -78,6 +78,8 @@ class Flight:
         descent_flow: the descent watch's camera
             (:class:`autonomy.perception.descent_flow.DescentFlow`), updated every
             ``descent_flow_every`` ticks before the tree ticks; None without the watch.
+        collisions: judges the true position every tick
+            (:class:`autonomy.runner.collisions.CollisionWatch`); None when flying live.
     """
 
     def __init__(
@@ -86,7 +88,7 @@ class Flight:
         perception_every: int, truth: Callable[[], Any] | None, lockstep: bool,
         console: PhaseConsole | None = None, low_altitude_every: int | None = None,
         low_altitude: float = 0.0, loss_wait: float = 30.0,
-        descent_flow: Any = None, descent_flow_every: int = 1,
+        descent_flow: Any = None, descent_flow_every: int = 1, collisions: Any = None,
     ) -> None:
         self.vehicle = vehicle
         self.lsm = lsm
@@ -102,6 +104,7 @@ class Flight:
         self.console = console
         self.descent_flow = descent_flow
         self.descent_flow_every = max(1, int(descent_flow_every))
+        self.collisions = collisions
         self.trace = FlightTrace()
         self.ticks = 0
         self.phase: str | None = None
@@ -224,6 +227,8 @@ class Flight:
             xyz = state.position
             battery = state.battery_percent
         self.trace.append(now, xyz, battery)
+        if self.collisions is not None and truth is not None:
+            self.collisions.update(now, xyz)
         self._track_touchdown(now, truth, state)
         phase = self.read(bb.PHASE)
         if phase != self.phase and phase is not None:

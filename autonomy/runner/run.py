@@ -37,6 +37,7 @@ from autonomy.runner.interrupt import ctrl_c_flag
 from autonomy.runner.progress import FlightProgress
 from autonomy.runner.world import (
     FlightSeeds,
+    build_collision_watch,
     build_descent_flow,
     build_sitl,
     build_source,
@@ -199,6 +200,7 @@ def fly(
             descent_flow_every=_ticks_per_update(
                 mission.tick_rate, mission.perception.descent_flow.rate
             ),
+            collisions=build_collision_watch(terrain, log) if sitl is not None else None,
         )
         try:
             if lockstep:
@@ -319,7 +321,7 @@ def _flight_data(mission: Mission, seed: int, flight: Flight, terrain: Any,
     touchdown = flight.touchdown
     safe = None
     if touchdown is not None and lockstep:
-        safe = judge_touchdown(terrain, touchdown[0], touchdown[1])
+        safe = judge_touchdown(terrain, touchdown[0], touchdown[1], flight.touchdown_time)
     chosen = flight.read(bb.LANDING_SITE)
     energy = None
     _, _, battery = flight.trace.arrays()
@@ -362,6 +364,8 @@ def _flight_data(mission: Mission, seed: int, flight: Flight, terrain: Any,
         link=_link_stats(flight.vehicle),
         link_lost=flight.link_gave_up,
         home=None if flight.home is None else flight.home.as_dict(),
+        collisions=None if flight.collisions is None else flight.collisions.count,
+        first_collision=None if flight.collisions is None else flight.collisions.first,
     )
 
 

@@ -99,12 +99,28 @@ def build_sitl(mission: Mission, terrain: Any, seed: int) -> Any:
                 signing_key=mission.vehicle.signing_key_bytes())
 
 
-def judge_touchdown(terrain: Any, x: float, y: float) -> bool | None:
-    """Ground-truth safety of a touchdown point, or None when it cannot be judged."""
+def judge_touchdown(terrain: Any, x: float, y: float, t: float | None = None) -> bool | None:
+    """Ground-truth safety of a touchdown point (at clock time ``t``: a moving obstacle
+    within the clearance then makes it unsafe), or None when it cannot be judged."""
     if terrain is None:
         return None
     try:
+        from sitl.terrain.contact import clear_of_moving
         from sitl.terrain.safety import SafetySettings, is_safe
     except ImportError:  # the safety model is not there: nothing to judge with
         return None
-    return bool(is_safe(terrain, x, y, SafetySettings()))
+    safe = bool(is_safe(terrain, x, y, SafetySettings()))
+    if safe and t is not None and getattr(terrain, "moving", None) is not None:
+        safe = clear_of_moving(terrain, x, y, t, SafetySettings())
+    return safe
+
+
+def build_collision_watch(terrain: Any, log: Any) -> Any:
+    """The lockstep flight's collision counter against ``terrain``'s ground truth
+    (:class:`autonomy.runner.collisions.CollisionWatch`), or None without a world."""
+    if terrain is None or not hasattr(terrain, "grid"):
+        return None
+    from autonomy.runner.collisions import CollisionWatch
+    from sitl.terrain.contact import ContactJudge
+
+    return CollisionWatch(ContactJudge(terrain), log)

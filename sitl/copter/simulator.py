@@ -9,6 +9,7 @@ from typing import NamedTuple
 import numpy as np
 
 from sitl.sensors.laser import MESSAGE_NAME, LightSensorRing
+from sitl.terrain.moving_hits import obstacle_below
 
 from .battery import Battery
 from .geo import GeoFrame, heading_to_enu_yaw
@@ -177,6 +178,10 @@ class Sitl:
         if (m.x, m.y) != self._ground_xy:
             self._ground_xy = (m.x, m.y)
             self._ground_now = self._height(m.x, m.y)
+        moving = getattr(self.terrain, "moving", None)
+        if moving is not None:  # a person or a car under the vehicle returns first
+            return min(m.z - self._ground_now, obstacle_below(moving, (m.x, m.y, m.z),
+                                                              self._time))
         return m.z - self._ground_now
 
     # --------------------------------------------------------------------- API

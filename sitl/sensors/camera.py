@@ -14,6 +14,7 @@ from sitl.sensors.rangefinder import RangeFinder
 from sitl.sensors.raycast import HeightBounds, PinholeRays, coarse_terrain
 from sitl.sensors.settings import DepthCameraSettings
 from sitl.terrain import Terrain
+from sitl.terrain.moving_hits import see_moving
 
 STEREO = "stereo"
 SFM = "sfm"
@@ -60,6 +61,10 @@ class RenderedDepth:
     timestamp: float
     source: str
     baseline: float = 0.0
+    moving: Any = None
+    """Moving obstacles in view: (:class:`sitl.terrain.moving.ObstacleSnapshot` at
+    ``timestamp``, (height, width) int16 index of the obstacle each pixel sees, -1 where
+    none); None when the world has none in view."""
 
 
 def nadir_rotation(yaw: float) -> np.ndarray:
@@ -212,7 +217,7 @@ class DepthCamera:
             return self._skip("invalid_pose")
         self.observe_pose(p, yaw, timestamp)
         if agl is None or not np.isfinite(agl):
-            agl = self.rangefinder.measure(p, yaw)
+            agl = self.rangefinder.measure(p, yaw, time=timestamp)
         if self.selector.update(agl):
             self._events.append(
                 {
@@ -242,6 +247,10 @@ class DepthCamera:
             rays = self._rays[1]
             hit_x, hit_y = p[0] + depth * rays.dx, p[1] + depth * rays.dy
             depth[~self.terrain.has_ground(hit_x, hit_y)] = np.nan
+        moving = None
+        if self.terrain.moving is not None:  # the nearer of the terrain and what moves
+            moving = see_moving(self.terrain.moving.at(timestamp), p, rotation, self, depth,
+                                max_range)
         sigma = depth_sigma(
             depth, np.float32(s.focal_px), np.float32(baseline), np.float32(s.disparity_sigma_px)
         )
@@ -266,6 +275,7 @@ class DepthCamera:
             timestamp=float(timestamp),
             source=self.selector.source or "",
             baseline=float(baseline),
+            moving=moving,
         )
 
     def _height_bounds(self, agl: float) -> tuple[HeightBounds, int]:

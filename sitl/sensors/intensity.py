@@ -6,7 +6,9 @@ axis and the camera's pose; the pixel's ray then hits the terrain at
 The frame is the world's shaded albedo there (:class:`sitl.terrain.albedo.AlbedoMap`, its
 grain band-limited to the pixel footprint ``depth / fx``), times an exposure gain, plus
 Gaussian read noise, quantised to 8 bits. Pixels without a return (NaN depth: beyond the
-far clip, off an elevation model) are black.
+far clip, off an elevation model) are black. Pixels that see a moving obstacle show its own
+shaded surface and grain (:func:`sitl.terrain.moving_hits.obstacle_radiance`), which
+travel with it.
 """
 
 from __future__ import annotations
@@ -17,6 +19,7 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
 from sitl.sensors.camera import RenderedDepth
+from sitl.terrain.moving_hits import obstacle_radiance
 
 if TYPE_CHECKING:  # OpenCV is loaded only by whoever builds an albedo map
     from sitl.terrain.albedo import AlbedoMap
@@ -74,6 +77,12 @@ def render_intensity(
     if seen.any():
         footprint = rendered.depth[seen].astype(np.float64) / rendered.fx
         frame[seen] = s.gain * albedo.radiance(x[seen], y[seen], z[seen], footprint)
+    if rendered.moving is not None:  # what moves carries its own texture along
+        snapshot, index = rendered.moving
+        on = seen & (index >= 0)
+        footprint = rendered.depth[on].astype(np.float64) / rendered.fx
+        frame[on] = s.gain * obstacle_radiance(snapshot, index[on], x[on], y[on], z[on],
+                                               footprint, albedo)
     if s.noise_std > 0:
         frame += rng.standard_normal(frame.shape, dtype=np.float32) * np.float32(s.noise_std)
     frame = np.clip(np.rint(frame), 0, 255).astype(np.uint8)

@@ -24,6 +24,7 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from sitl.sensors.raycast import BlockMax, cast_rays
 from sitl.terrain import Terrain
+from sitl.terrain.moving_hits import nearer, ray_hits
 
 MAX_RAYS = 2_000_000
 """Rays of one scan: each is marched over the terrain every scan (a VLP-16 fires 28,800 a
@@ -114,9 +115,10 @@ class LidarScanner:
         self._block_max = BlockMax(terrain)
         self.skipped = 0  # scans refused for a bad pose
 
-    def scan(self, position, yaw: float) -> np.ndarray:
+    def scan(self, position, yaw: float, time: float | None = None) -> np.ndarray:
         """World points (N, 3) ENU metres hit by one scan from ``position`` (3,) with heading
-        ``yaw`` (rad); an empty (0, 3) array for a non-finite pose."""
+        ``yaw`` (rad); an empty (0, 3) array for a non-finite pose. With the simulated
+        ``time`` (s) the world's moving obstacles are where they are then."""
         p = np.asarray(position, dtype=np.float64).reshape(-1)
         if p.size != 3 or not (np.isfinite(p).all() and math.isfinite(yaw)):
             self.skipped += 1
@@ -132,6 +134,9 @@ class LidarScanner:
             step=self.settings.march_step,
             block_max=self._block_max,
         )
+        if time is not None and self.terrain.moving is not None:  # the nearer hit
+            nearer(r, *ray_hits(self.terrain.moving.at(time), p, *dirs.T,
+                                t_max=self.settings.max_range))
         hit = np.isfinite(r) & (r >= self.settings.min_range)
         if self.terrain.known is not None:  # an elevation model: no return off it or on nodata
             ends = p + dirs * np.where(hit, r, 0.0)[:, None]

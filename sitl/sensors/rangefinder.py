@@ -6,6 +6,7 @@ import numpy as np
 
 from sitl.sensors.settings import RangeFinderSettings
 from sitl.terrain import Terrain
+from sitl.terrain.moving_hits import obstacle_below
 
 
 class RangeFinder:
@@ -33,16 +34,19 @@ class RangeFinder:
         x, y, z = (float(v) for v in position)
         return z - float(self.terrain.height(x, y))
 
-    def measure(self, position, yaw: float = 0.0) -> float | None:
+    def measure(self, position, yaw: float = 0.0, time: float | None = None) -> float | None:
         """Measured AGL (m) at ``position`` (3,) ENU, or None when there is no valid
         return: beyond ``max_range``, below ``min_range``, a non-finite pose, or no ground
-        below (off an elevation model, or over its nodata cells)."""
+        below (off an elevation model, or over its nodata cells). With the simulated
+        ``time`` (s), a moving obstacle under the sensor returns first."""
         p = np.asarray(position, dtype=np.float64).reshape(-1)
         if p.size != 3 or not np.all(np.isfinite(p)) or not np.isfinite(yaw):
             return None
         if not self.terrain.has_ground(p[0], p[1]):
             return None  # off an elevation model or over its nodata: no return
         agl = self.true_agl(p)
+        if time is not None and self.terrain.moving is not None:
+            agl = min(agl, obstacle_below(self.terrain.moving, p, time))
         if self.settings.noise_std > 0:
             agl += self.settings.noise_std * float(self.rng.standard_normal())
         if not (self.settings.min_range <= agl <= self.settings.max_range):

@@ -29,6 +29,10 @@ class Terrain:
             (a procedural world, continued with its edge values beyond the grid).
     """
 
+    moving = None
+    """:class:`sitl.terrain.moving.MovingObstacles` of the world, or None (nothing moves):
+    sensors and the ground truth ask it where everything is at the time they look."""
+
     def __init__(
         self,
         grid: np.ndarray,

@@ -54,6 +54,109 @@ class _GridSettings(BaseModel):
     )
 
 
+MAX_MOVING = 500
+"""Moving obstacles of one world: each is intersected with every sensor ray of every frame."""
+
+Point = tuple[
+    Annotated[float, Field(ge=-MAX_EXTENT / 2, le=MAX_EXTENT / 2)],
+    Annotated[float, Field(ge=-MAX_EXTENT / 2, le=MAX_EXTENT / 2)],
+]
+
+
+class MovingPathSettings(BaseModel):
+    """One moving obstacle on a path given point by point."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+
+    kind: Literal["person", "vehicle"] = Field(description="person or vehicle")
+    path: list[Point] = Field(
+        min_length=1, max_length=100, description="ENU (x, y) points (m) it walks through, "
+        "1 .. 100; one point: it stands there"
+    )
+    speed: float = Field(
+        0.0, ge=0, le=40, description="m/s along the path, up to 40 (a car in town drives "
+        "under 15); 0: it stands at the path's first point"
+    )
+    closed: bool = Field(
+        False, description="walk round (back to the first point) instead of back and forth"
+    )
+    once: bool = Field(
+        False, description="walk the path once and stay at its end (e.g. someone walking "
+        "onto a landing site)"
+    )
+    start: float = Field(
+        0.0, ge=0, le=MAX_EXTENT, description="metres along the path at t = 0"
+    )
+
+
+class MovingObstaclesSettings(BaseModel):
+    """People and vehicles walking or driving seeded paths (sitl.terrain.moving). Random
+    paths draw from a stream of their own: the static world is the same with or without
+    them."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+
+    count: int = Field(
+        0, ge=0, le=MAX_MOVING, description=f"random obstacles, up to {MAX_MOVING} with the "
+        "given paths (every sensor ray is tested against each)"
+    )
+    vehicle_fraction: float = Field(
+        0.3, ge=0, le=1, description="share of the random obstacles that are vehicles (the "
+        "rest are people)"
+    )
+    person_speed: Range = Field(
+        (0.8, 1.6), description="walking speed range (m/s) of random people"
+    )
+    vehicle_speed: Range = Field(
+        (2.0, 8.0), description="driving speed range (m/s) of random vehicles"
+    )
+    path_length: Range = Field(
+        (20.0, 120.0), description="length range (m) of a random path"
+    )
+    legs: int = Field(3, ge=1, le=50, description="straight legs of a random path, 1 .. 50")
+    closed_fraction: float = Field(
+        0.5, ge=0, le=1, description="share of random paths walked round (the rest back "
+        "and forth)"
+    )
+    area: tuple[
+        Annotated[float, Field(ge=-MAX_EXTENT / 2, le=MAX_EXTENT / 2)],
+        Annotated[float, Field(ge=-MAX_EXTENT / 2, le=MAX_EXTENT / 2)],
+        Annotated[float, Field(gt=0, le=MAX_EXTENT)],
+    ] | None = Field(
+        None, description="(x, y, radius) m: random paths start in this disc (e.g. around "
+        "the landing sites); None: anywhere in the world"
+    )
+    person_radius: float = Field(0.3, gt=0, le=5, description="a person's footprint radius (m)")
+    person_height: float = Field(1.8, gt=0, le=5, description="a person's height (m)")
+    vehicle_length: float = Field(4.5, gt=0, le=30, description="a vehicle's length (m)")
+    vehicle_width: float = Field(2.0, gt=0, le=10, description="a vehicle's width (m)")
+    vehicle_height: float = Field(1.6, gt=0, le=10, description="a vehicle's height (m)")
+    paths: list[MovingPathSettings] = Field(
+        [], description="obstacles on given paths, besides the random ones"
+    )
+
+    @field_validator("person_speed", "vehicle_speed")
+    @classmethod
+    def _speeds(cls, v: Range, info) -> Range:
+        if v[1] > 40:
+            raise ValueError(f"need max <= 40 m/s, got {v}")
+        return _check_range(v, info.field_name)
+
+    @field_validator("path_length")
+    @classmethod
+    def _lengths(cls, v: Range, info) -> Range:
+        return _size_range(v, info.field_name)
+
+    @model_validator(mode="after")
+    def _total(self):
+        if self.count + len(self.paths) > MAX_MOVING:
+            raise ValueError(
+                f"count: {self.count} random and {len(self.paths)} given obstacles, more "
+                f"than {MAX_MOVING}"
+            )
+        return self
+
+
 class _ProceduralSettings(_GridSettings):
     size: tuple[
         Annotated[float, Field(ge=10.0, le=MAX_EXTENT)],
@@ -68,6 +171,10 @@ class _ProceduralSettings(_GridSettings):
         Annotated[float, Field(ge=-MAX_EXTENT / 2, le=MAX_EXTENT / 2)],
     ] = Field(
         (0.0, 0.0), description="ENU (x, y) of the terrain centre; home (0, 0) must be inside"
+    )
+    moving_obstacles: MovingObstaclesSettings | None = Field(
+        None, description="people and vehicles moving on seeded paths (sitl.terrain.moving); "
+        "None: nothing moves"
     )
 
     @model_validator(mode="after")
@@ -87,7 +194,30 @@ class _ProceduralSettings(_GridSettings):
                 f"center: home (0, 0) with its {margin} m clearing must be inside the "
                 f"terrain, centre {self.center} size {self.size}"
             )
+        self._moving_inside(half_x, half_y)
         return self
+
+    def _moving_inside(self, half_x: float, half_y: float) -> None:
+        """Given paths and the random paths' area lie on the world."""
+        moving = self.moving_obstacles
+        if moving is None:
+            return
+
+        def inside(x: float, y: float) -> bool:
+            return abs(x - self.center[0]) <= half_x and abs(y - self.center[1]) <= half_y
+
+        for i, p in enumerate(moving.paths):
+            for j, (x, y) in enumerate(p.path):
+                if not inside(x, y):
+                    raise ValueError(
+                        f"moving_obstacles.paths.{i}.path.{j}: ({x:g}, {y:g}) is off the "
+                        f"world (centre {self.center}, size {self.size})"
+                    )
+        if moving.area is not None and not inside(*moving.area[:2]):
+            raise ValueError(
+                f"moving_obstacles.area: centre ({moving.area[0]:g}, {moving.area[1]:g}) is "
+                f"off the world (centre {self.center}, size {self.size})"
+            )
 
 
 class FlatTerrainSettings(_ProceduralSettings):

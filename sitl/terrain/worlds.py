@@ -36,7 +36,14 @@ def make_terrain(settings: TerrainSettings | dict[str, Any], seed: int = 0) -> T
     grid, origin, *known = module.generate(settings, rng)  # elevation models: + known mask
     grid = clear_home(grid, origin, settings.cell_size, settings.home_clear_radius)
     known = known[0] if known else None
-    return Terrain(grid, settings.cell_size, origin, kind=settings.kind, known=known)
+    terrain = Terrain(grid, settings.cell_size, origin, kind=settings.kind, known=known)
+    moving = getattr(settings, "moving_obstacles", None)
+    if moving is not None:  # from a stream of their own: the ground above is unchanged
+        from sitl.terrain.moving import build_moving, moving_stream
+
+        terrain.moving = build_moving(moving, terrain.extent, home_keep_out(settings),
+                                      terrain.height, moving_stream(seed))
+    return terrain
 
 
 def procedural_frame(settings) -> tuple[tuple[int, int], tuple[float, float]]:
