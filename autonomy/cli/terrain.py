@@ -4,10 +4,12 @@ optionally render what the depth camera sees from a point above it.
     lander terrain --kind mars [--seed N] [--set rock_density=0.3 ...] [--out DIR]
                    [--depth-at X,Y,AGL[,YAW]]
     lander terrain --kind file --set path=dem.asc
+    lander terrain --kind urban --set "moving_obstacles={count: 20}"
 
-Prints the world's size, relief and safe fraction; writes ``terrain.png`` (heights with
-unsafe ground shaded) and, with ``--depth-at``, ``depth.npy`` / ``depth.png`` plus the
-``lander detect`` command line that runs a detector on that image.
+Prints the world's size, relief and safe fraction (and its moving obstacles); writes
+``terrain.png`` (heights with unsafe ground shaded, moving obstacles' paths drawn) and, with
+``--depth-at``, ``depth.npy`` / ``depth.png`` plus the ``lander detect`` command line that
+runs a detector on that image.
 """
 
 from __future__ import annotations
@@ -102,12 +104,41 @@ def plot_terrain(terrain, mask: np.ndarray, path: Path, title: str) -> None:
     unsafe = np.ma.masked_where(mask[::step, ::step], np.ones(mask[::step, ::step].shape))
     ax.imshow(unsafe, origin="lower", extent=extent, cmap="Reds", alpha=0.35, vmin=0, vmax=1)
     ax.plot([0], [0], marker="*", color="k", markersize=10, label="home")
+    plot_moving(ax, terrain.moving)
     fig.colorbar(image, ax=ax, label="height (m)")
     ax.set(title=title, xlabel="east (m)", ylabel="north (m)")
     ax.legend(loc="upper right")
     fig.tight_layout()
     fig.savefig(path, dpi=100)
     plt.close(fig)
+
+
+def plot_moving(ax, moving) -> None:
+    """Each moving obstacle's path, and where it is at t = 0 (sitl.terrain.moving)."""
+    if moving is None:
+        return
+    colours = {"person": "tab:orange", "vehicle": "tab:purple"}
+    start = moving.at(0.0)
+    labelled = set()
+    for k, obstacle in enumerate(moving.describe()):
+        kind = obstacle["kind"]
+        path = np.asarray(obstacle["path"] + (obstacle["path"][:1] if obstacle["closed"]
+                                              else []))
+        label = None if kind in labelled else f"{kind} path (dot: t = 0)"
+        labelled.add(kind)
+        ax.plot(path[:, 0], path[:, 1], color=colours[kind], lw=1.2, label=label)
+        ax.plot([start.x[k]], [start.y[k]], "o", color=colours[kind], markersize=4)
+
+
+def describe_moving(moving) -> str | None:
+    """One line about a world's moving obstacles, or None without any."""
+    if moving is None:
+        return None
+    kinds = [o["kind"] for o in moving.describe()]
+    people, vehicles = kinds.count("person"), kinds.count("vehicle")
+    return (f"moving obstacles: {people} people, {vehicles} vehicles, speeds "
+            f"{moving.speed.min():.1f}..{moving.speed.max():.1f} m/s, paths "
+            f"{moving.length.min():.0f}..{moving.length.max():.0f} m")
 
 
 def plot_depth(depth: np.ndarray, path: Path, title: str) -> None:
@@ -158,6 +189,8 @@ def run(args: argparse.Namespace) -> int:
         f"slope {math.degrees(float(np.median(slope))):.1f} deg, safe ground "
         f"{100 * float(mask.mean()):.1f} % (footprint 1 m, 15 deg, 0.1 m, margin 0.5 m)"
     )
+    if (line := describe_moving(terrain.moving)) is not None:
+        print(line)
     out = Path(args.out)
     try:
         out.mkdir(parents=True, exist_ok=True)
