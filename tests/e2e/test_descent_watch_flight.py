@@ -24,7 +24,8 @@ CELL = 0.25
 MAX_OFFSET = 6.0  # m from the site column
 SIDE = 80.0  # m; home at the model's centre
 TOWER = (18.5, 22.5, -2.0, 2.0, 12.0)  # ENU x0, x1, y0, y1 (m about home), height (m)
-CAMERA = {"width": 160, "height": 120, "focal_px": 80.0, "rate": 5.0, "max_corners": 500}
+CAMERA = {"width": 160, "height": 120, "focal_px": 80.0, "rate": 5.0, "max_corners": 500,
+          "min_distance": 5}
 
 
 @functools.lru_cache(maxsize=1)
