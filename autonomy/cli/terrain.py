@@ -90,6 +90,8 @@ def settings_cells(settings) -> float | None:
 def plot_terrain(terrain, mask: np.ndarray, path: Path, title: str) -> None:
     import matplotlib
 
+    from autonomy.report.plot import plot_moving
+
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
@@ -111,23 +113,6 @@ def plot_terrain(terrain, mask: np.ndarray, path: Path, title: str) -> None:
     fig.tight_layout()
     fig.savefig(path, dpi=100)
     plt.close(fig)
-
-
-def plot_moving(ax, moving) -> None:
-    """Each moving obstacle's path, and where it is at t = 0 (sitl.terrain.moving)."""
-    if moving is None:
-        return
-    colours = {"person": "tab:orange", "vehicle": "tab:purple"}
-    start = moving.at(0.0)
-    labelled = set()
-    for k, obstacle in enumerate(moving.describe()):
-        kind = obstacle["kind"]
-        path = np.asarray(obstacle["path"] + (obstacle["path"][:1] if obstacle["closed"]
-                                              else []))
-        label = None if kind in labelled else f"{kind} path (dot: t = 0)"
-        labelled.add(kind)
-        ax.plot(path[:, 0], path[:, 1], color=colours[kind], lw=1.2, label=label)
-        ax.plot([start.x[k]], [start.y[k]], "o", color=colours[kind], markersize=4)
 
 
 def describe_moving(moving) -> str | None:

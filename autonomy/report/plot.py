@@ -71,6 +71,23 @@ def _draw_terrain(ax, terrain, window) -> None:
     )
 
 
+def plot_moving(ax, moving) -> None:
+    """Each moving obstacle's path, and where it is at t = 0 (sitl.terrain.moving)."""
+    if moving is None:
+        return
+    colours = {"person": "tab:orange", "vehicle": "tab:purple"}
+    start = moving.at(0.0)
+    labelled = set()
+    for k, obstacle in enumerate(moving.describe()):
+        kind = obstacle["kind"]
+        path = np.asarray(obstacle["path"] + (obstacle["path"][:1] if obstacle["closed"]
+                                              else []))
+        label = None if kind in labelled else f"{kind} path (dot: t = 0)"
+        labelled.add(kind)
+        ax.plot(path[:, 0], path[:, 1], color=colours[kind], lw=1.2, label=label)
+        ax.plot([start.x[k]], [start.y[k]], "o", color=colours[kind], markersize=4)
+
+
 def write_report_png(data: FlightData, path: Path, *, outcome: str = "") -> None:
     """Draw the two-panel flight report into ``path`` (PNG)."""
     t, xyz, _ = data.trace.arrays()
@@ -97,6 +114,11 @@ def write_report_png(data: FlightData, path: Path, *, outcome: str = "") -> None
     if data.chosen_site is not None:
         ax_map.plot(data.chosen_site.x, data.chosen_site.y, "*", color="gold", ms=18,
                     mec="k", zorder=6, label="chosen site")
+    plot_moving(ax_map, getattr(data.terrain, "moving", None))
+    if data.first_collision is not None:
+        x, y, _ = data.first_collision["position"]
+        ax_map.plot(x, y, "X", color="red", ms=12, mec="k", zorder=8,
+                    label=f"first collision ({data.first_collision['obstacle']})")
     if data.touchdown is not None:
         colour = {True: "lime", False: "red", None: "white"}[data.touchdown_safe]
         ax_map.plot(data.touchdown[0], data.touchdown[1], "v", color=colour, ms=10, mec="k",

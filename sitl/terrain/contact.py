@@ -81,7 +81,7 @@ class ContactJudge:
             return None  # above everything there is (the cruise): nothing to test
         r = self.settings.footprint_radius
         moving = self.terrain.moving
-        if moving is not None and len(moving):
+        if moving is not None and len(moving) and moving.near(x, y, r):
             snap = moving.at(t)
             touching = (snap.footprint_distance(x, y) < r) & (z < snap.top) & (
                 z + ROTOR_HEIGHT > snap.base)

@@ -136,12 +136,42 @@ class MovingObstacles:
         first_leg = legs[np.arange(n), first] if n else np.zeros((0, 2))
         self._rest_heading = np.arctan2(first_leg[:, 1], first_leg[:, 0])
         self._leg_heading = np.arctan2(legs[..., 1], legs[..., 0])
+        self._last: ObstacleSnapshot | None = None
+        # Where each obstacle can ever be: its path's bounding box grown by its footprint's
+        # reach, so most questions are answered without placing anyone.
+        reach = np.where(self.kind == PERSON, self.half_length,
+                         np.hypot(self.half_length, self.half_width))
+        self._box = (self.vertices[..., 0].min(axis=1) - reach,
+                     self.vertices[..., 0].max(axis=1) + reach,
+                     self.vertices[..., 1].min(axis=1) - reach,
+                     self.vertices[..., 1].max(axis=1) + reach)
+        self._all = (float(self._box[0].min()), float(self._box[1].max()),
+                     float(self._box[2].min()), float(self._box[3].max())) if n else (
+            np.inf, -np.inf, np.inf, -np.inf)
 
     def __len__(self) -> int:
         return len(self.kind)
 
+    def near(self, x: float, y: float, margin: float = 0.0) -> bool:
+        """Whether any obstacle can ever come within ``margin`` m (horizontally) of
+        (x, y): a cheap test before :meth:`at`."""
+        if not (self._all[0] - margin <= x <= self._all[1] + margin
+                and self._all[2] - margin <= y <= self._all[3] + margin):
+            return False  # beyond every path (plain floats: the common answer is quick)
+        xmin, xmax, ymin, ymax = self._box
+        return bool(np.any((x >= xmin - margin) & (x <= xmax + margin)
+                           & (y >= ymin - margin) & (y <= ymax + margin)))
+
     def at(self, t: float) -> ObstacleSnapshot:
-        """Every obstacle at simulated time ``t`` (s)."""
+        """Every obstacle at simulated time ``t`` (s). The last instant asked for is kept:
+        the sensors and the ground truth of one tick all ask for the same one."""
+        last = self._last
+        if last is not None and last.time == float(t):
+            return last
+        self._last = self._at(float(t))
+        return self._last
+
+    def _at(self, t: float) -> ObstacleSnapshot:
         n = len(self)
         cycle = np.where(self.closed, self.length, 2.0 * self.length)
         moving = (cycle > 0) & (self.speed > 0)

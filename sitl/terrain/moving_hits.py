@@ -87,28 +87,31 @@ def pinhole_hits(snapshot: ObstacleSnapshot, position, rotation, fx: float, fy: 
     p = np.asarray(position, dtype=np.float64)
     r = np.asarray(rotation, dtype=np.float64)
     reach = snapshot.reach
+    # the 8 corners of every obstacle's bounding box, (n, 8, 3), in the camera frame
+    sign = np.array([-1.0, 1.0])
+    sx, sy, top = (a.ravel() for a in np.meshgrid(sign, sign, [0.0, 1.0], indexing="ij"))
+    corners = np.stack([
+        snapshot.x[:, None] + sx * reach[:, None],
+        snapshot.y[:, None] + sy * reach[:, None],
+        snapshot.base[:, None] + top * snapshot.height[:, None],
+    ], axis=-1)
+    cam = (corners - p) @ r
+    zc = cam[..., 2]
+    front = np.all(zc > 1e-6, axis=1)
+    straddles = ~front & np.any(zc > 1e-6, axis=1)  # test every pixel
+    with np.errstate(divide="ignore", invalid="ignore"):
+        u = np.where(front[:, None], fx * cam[..., 0] / zc + cx, 0.0)
+        v = np.where(front[:, None], fy * cam[..., 1] / zc + cy, 0.0)
+    u0 = np.where(front, np.clip(np.floor(u.min(axis=1)), 0, width), 0).astype(int)
+    u1 = np.where(front, np.clip(np.ceil(u.max(axis=1)) + 1, 0, width), width).astype(int)
+    v0 = np.where(front, np.clip(np.floor(v.min(axis=1)), 0, height), 0).astype(int)
+    v1 = np.where(front, np.clip(np.ceil(v.max(axis=1)) + 1, 0, height), height).astype(int)
+    visible = (front & (zc.min(axis=1) <= t_max) | straddles) & (u0 < u1) & (v0 < v1)
     depth = None
     index = None
-    for k in range(len(snapshot.x)):
-        # the 8 corners of the obstacle's bounding box, in the camera frame
-        corners = np.array([[snapshot.x[k] + sx * reach[k], snapshot.y[k] + sy * reach[k], z]
-                            for sx in (-1, 1) for sy in (-1, 1)
-                            for z in (snapshot.base[k], snapshot.top[k])])
-        cam = (corners - p) @ r
-        if np.all(cam[:, 2] > 1e-6):
-            if cam[:, 2].min() > t_max:
-                continue
-            u = fx * cam[:, 0] / cam[:, 2] + cx
-            v = fy * cam[:, 1] / cam[:, 2] + cy
-            u0, u1 = max(int(np.floor(u.min())), 0), min(int(np.ceil(u.max())) + 1, width)
-            v0, v1 = max(int(np.floor(v.min())), 0), min(int(np.ceil(v.max())) + 1, height)
-        elif np.all(cam[:, 2] <= 0):
-            continue  # behind the camera
-        else:  # straddles the image plane: test every pixel
-            u0, u1, v0, v1 = 0, width, 0, height
-        if u0 >= u1 or v0 >= v1:
-            continue
-        vv, uu = np.mgrid[v0:v1, u0:u1]
+    for k in np.flatnonzero(visible):
+        u0k, u1k, v0k, v1k = u0[k], u1[k], v0[k], v1[k]
+        vv, uu = np.mgrid[v0k:v1k, u0k:u1k]
         xc, yc = (uu - cx) / fx, (vv - cy) / fy
         # directions with unit optical-axis component: the ray parameter is the depth
         dirs = [r[i, 0] * xc + r[i, 1] * yc + r[i, 2] for i in range(3)]
@@ -119,10 +122,10 @@ def pinhole_hits(snapshot: ObstacleSnapshot, position, rotation, fx: float, fy: 
         if depth is None:
             depth = np.full((height, width), np.nan, dtype=np.float32)
             index = np.full((height, width), -1, dtype=np.int16)
-        window = depth[v0:v1, u0:u1]
+        window = depth[v0k:v1k, u0k:u1k]
         closer = found & ~(window <= t)  # nearer than an earlier obstacle, or the first
         window[closer] = t[closer]
-        index[v0:v1, u0:u1][closer] = k
+        index[v0k:v1k, u0k:u1k][closer] = k
     return None if depth is None else (depth, index)
 
 
@@ -153,8 +156,10 @@ def see_moving(snapshot: ObstacleSnapshot, position, rotation, camera, depth: np
 def obstacle_below(moving, position, t: float) -> float:
     """Distance (m) straight down from ``position`` (ENU) to the top of a moving obstacle
     (:class:`sitl.terrain.moving.MovingObstacles`) at time ``t``; inf when none is below."""
-    snapshot = moving.at(t)
     x, y, z = (float(v) for v in position)
+    if not moving.near(x, y):
+        return np.inf
+    snapshot = moving.at(t)
     under = (snapshot.footprint_distance(x, y) <= 0) & (snapshot.base < z)
     return max(float(z - snapshot.top[under].max()), 0.0) if under.any() else np.inf
 

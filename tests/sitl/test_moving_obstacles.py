@@ -143,3 +143,28 @@ def test_bad_moving_obstacle_settings_name_the_field(moving, field):
     with pytest.raises(ValidationError) as err:
         make_terrain({"kind": "urban", "size": [200.0, 200.0], "moving_obstacles": moving})
     assert field in str(err.value)
+
+
+def test_the_greyscale_frames_show_a_car_moving_and_the_ground_still():
+    import cv2
+
+    from sitl.sensors.intensity import render_intensity
+    from sitl.terrain.albedo import AlbedoMap
+
+    terrain = _world()
+    camera = DepthCamera(terrain, DepthCameraSettings(width=160, height=120, focal_px=80.0,
+                                                      noise=False))
+    albedo = AlbedoMap(terrain, np.random.default_rng(0))
+    pose = ((10.0, 10.0, 10.0), 0.0)  # above the car's lane, heading east (image up)
+    first, second = (camera.render(*pose, t, agl=10.0) for t in (1.5, 1.75))
+    frames = [render_intensity(f, albedo, np.random.default_rng(1)) for f in (first, second)]
+    corners = cv2.goodFeaturesToTrack(frames[0], 400, 0.01, 3).reshape(-1, 2)
+    moved, status, _ = cv2.calcOpticalFlowPyrLK(frames[0], frames[1], corners, None)
+    ok = status.ravel() == 1
+    flow = (moved.reshape(-1, 2) - corners)[ok]
+    u, v = corners[ok].T.astype(int)
+    on_car = first.moving[1][v, u] == 1
+    assert on_car.sum() >= 5 and (~on_car).sum() >= 20
+    # 1.25 m east in 0.25 s, 8.4 m below the camera: 80 * 1.25 / 8.4 = 11.9 px up the image
+    assert np.median(flow[on_car, 1]) == pytest.approx(-80 * 1.25 / 8.4, abs=1.5)
+    assert np.median(np.abs(flow[~on_car])) < 0.3
