@@ -57,8 +57,8 @@ def is_unsafe_touchdown(record: dict[str, Any]) -> bool:
 
 
 def summarise(records: Iterable[dict[str, Any]], variant: Variant | None = None) -> dict:
-    """Counts, unsafe touchdowns, success rate with Wilson 95 % interval, median and p90
-    time to land."""
+    """Counts, unsafe touchdowns, collisions, success rate with Wilson 95 % interval, median
+    and p90 time to land."""
     records = list(records)
     counts = dict.fromkeys(OUTCOMES, 0)
     for record in records:
@@ -79,6 +79,8 @@ def summarise(records: Iterable[dict[str, Any]], variant: Variant | None = None)
         runs=len(records),
         **counts,
         unsafe_touchdowns=unsafe_touchdowns,
+        # contacts with raised ground or moving obstacles (sitl.terrain.contact), all runs
+        collisions=sum(int(r.get("collisions") or 0) for r in records),
         success_rate=_none_if_nan(counts["landed"] / flown if flown else math.nan),
         success_low=_none_if_nan(low),
         success_high=_none_if_nan(high),
@@ -126,13 +128,14 @@ def _interval(low: float | None, high: float | None) -> str:
 
 def format_table(rows: Sequence[dict[str, Any]]) -> str:
     """A text table of :func:`summarise` rows: counts per outcome, unsafe touchdowns (of
-    any outcome, e.g. a landing in place on rocks), success rate (%) with its Wilson 95 %
+    any outcome, e.g. a landing in place on rocks), collisions (all runs), success rate (%) with its Wilson 95 %
     interval, median and 90th percentile time to land (sim s)."""
     head = ["variant", "runs", *(OUTCOME_TITLES[o] for o in OUTCOMES), "unsafe touchdowns",
-            "success %", "95% CI", "TTL median s", "TTL p90 s"]
+            "collisions", "success %", "95% CI", "TTL median s", "TTL p90 s"]
     lines = [
         [row.get("label", "all"), str(row["runs"]), *(str(row[o]) for o in OUTCOMES),
-         str(row.get("unsafe_touchdowns", "-")), _pct(row["success_rate"]),
+         str(row.get("unsafe_touchdowns", "-")), str(row.get("collisions", "-")),
+         _pct(row["success_rate"]),
          _interval(row["success_low"], row["success_high"]),
          _sec(row["time_to_land_median"]), _sec(row["time_to_land_p90"])]
         for row in rows

@@ -1,3 +1,5 @@
+import re
+
 import numpy as np
 import pytest
 
@@ -180,3 +182,14 @@ def test_progress_rewrites_one_line_on_a_terminal():
     text = stream.getvalue()
     assert text.count("\r") == 3 and text.endswith("\n") and text.count("\n") == 1
     assert "3/3 runs, success 50.0%" in text and "1 error" in text
+
+
+def test_collisions_are_summed_over_all_runs_and_have_their_column():
+    from autonomy.campaign import format_table, summarise
+
+    runs = [record("landed", 0, 90.0, True), {**record("landed", 1, 90.0, False), "collisions": 2},
+            {**record("crashed", 2), "collisions": 1}, {**record("error", 3), "collisions": None}]
+    row = summarise(runs)
+    assert row["collisions"] == 3
+    head, line = (re.split(r"\s{2,}", text.strip()) for text in format_table([row]).splitlines())
+    assert line[head.index("collisions")] == "3"
