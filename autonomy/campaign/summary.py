@@ -128,8 +128,8 @@ def _interval(low: float | None, high: float | None) -> str:
 
 def format_table(rows: Sequence[dict[str, Any]]) -> str:
     """A text table of :func:`summarise` rows: counts per outcome, unsafe touchdowns (of
-    any outcome, e.g. a landing in place on rocks), collisions (all runs), success rate (%) with its Wilson 95 %
-    interval, median and 90th percentile time to land (sim s)."""
+    any outcome, e.g. a landing in place on rocks), collisions (all runs), success rate (%)
+    with its Wilson 95 % interval, median and 90th percentile time to land (sim s)."""
     head = ["variant", "runs", *(OUTCOME_TITLES[o] for o in OUTCOMES), "unsafe touchdowns",
             "collisions", "success %", "95% CI", "TTL median s", "TTL p90 s"]
     lines = [

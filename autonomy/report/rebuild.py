@@ -98,6 +98,8 @@ def rebuild_page(folder: Path) -> Path:
     trace.phases = [(e["t"], e["phase"]) for e in events if e.get("kind") == "phase"]
     touchdown = next((e for e in reversed(events) if e.get("event") == "touchdown"), None)
     end = max([float(events[-1]["t"]), *(trace.t[-1:] or [])])
+    hits = [{k: v for k, v in e.items() if k not in ("kind", "event")} for e in events
+            if e.get("kind") == "flight" and e.get("event") == "collision"]
     reason = "unfinished: the flight stopped before writing its report; rebuilt from its logs"
     data = FlightData(
         mission_name=start.get("mission") or folder.name, seed=start.get("seed") or 0,
@@ -109,6 +111,8 @@ def rebuild_page(folder: Path) -> Path:
         crashed=False, crash_reason=None, outcome_hint=None, failure_reason=None,
         verification_attempts=0, search_patterns=0, sites_verified=0, lsm_counters={},
         perception_counters={}, lockstep=bool(start.get("lockstep", True)),
+        collisions=len(hits) if start.get("lockstep", True) else None,
+        first_collision=hits[0] if hits else None,
     )
     summary = build_summary(data)
     summary.update(outcome=UNFINISHED, exit_code=None, exit_meaning=reason,
