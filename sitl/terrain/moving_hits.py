@@ -36,7 +36,12 @@ def ray_hits(snapshot: ObstacleSnapshot, origin, dx, dy, dz, t_max: float = np.i
     dx, dy, dz = (np.asarray(a, dtype=np.float64) for a in (dx, dy, dz))
     best = np.full(dx.shape, np.inf)
     index = np.full(dx.shape, -1, dtype=np.int16)
-    for k in range(len(snapshot.x)) if only is None else only:
+    if only is None:  # the obstacles a ray can reach before t_max
+        horizontal = float(np.sqrt(np.max(dx * dx + dy * dy))) if dx.size else 0.0
+        gap = np.hypot(snapshot.x - ox, snapshot.y - oy) - snapshot.reach
+        only = np.flatnonzero(gap <= t_max * horizontal) if np.isfinite(t_max) else range(
+            len(snapshot.x))
+    for k in only:
         c, s = np.cos(snapshot.heading[k]), np.sin(snapshot.heading[k])
         px, py = ox - snapshot.x[k], oy - snapshot.y[k]
         # the origin and the directions in the obstacle's frame (u along its heading)
