@@ -216,10 +216,12 @@ class MovingObstacles:
 
 
 def build_moving(settings, extent: tuple[float, float, float, float], keep_out: float,
-                 ground, rng: np.random.Generator) -> MovingObstacles | None:
+                 ground, rng: np.random.Generator, streets: bool = False
+                 ) -> MovingObstacles | None:
     """The moving obstacles ``settings`` (:class:`sitl.terrain.settings.MovingObstaclesSettings`)
     describe in a world spanning ``extent`` (xmin, xmax, ymin, ymax): the given paths, then
-    ``count`` random ones drawn from ``rng``; None when there are none."""
+    ``count`` random ones drawn from ``rng``; None when there are none. With ``streets``
+    (a town's grid of streets along x and y) random vehicles drive on the roads."""
     if settings is None or (settings.count == 0 and not settings.paths):
         return None
     kind, paths, speed, closed, start = [], [], [], [], []
@@ -231,7 +233,7 @@ def build_moving(settings, extent: tuple[float, float, float, float], keep_out: 
         closed.append(p.closed)
         start.append(p.start)
     for _ in range(settings.count):
-        k, path, v, loop = _random_path(settings, extent, keep_out, ground, rng)
+        k, path, v, loop = _random_path(settings, extent, keep_out, ground, rng, streets)
         kind.append(k)
         paths.append(path)
         speed.append(v)
@@ -251,14 +253,17 @@ def build_moving(settings, extent: tuple[float, float, float, float], keep_out: 
     )
 
 
-def _random_path(settings, extent, keep_out: float, ground, rng: np.random.Generator):
+def _random_path(settings, extent, keep_out: float, ground, rng: np.random.Generator,
+                 streets: bool = False):
     """(kind, (k, 2) path, speed, closed) of one random obstacle: a start in the area, then
     ``legs`` straight legs turning by up to 90 deg (a vehicle by up to 45), their total
     length in ``path_length``, kept on the world. A path ends before it would climb a step
     (a wall, a parked car, a tree: the ground rising or falling more than ``_STEP`` between
     samples ``_STEP`` apart), starts on the ground (not on a roof) and keeps out of home's
     clearing; one that keeps less than ``_MIN_PATH`` of its length is drawn again (at most
-    100 times, then it stands)."""
+    100 times, then it stands). With ``streets`` a vehicle starts at road level, drives
+    along x or y and turns square, and never leaves its start's level by ``_KERB_STEP``
+    under its whole width: it stays on the roads."""
     is_vehicle = rng.random() < settings.vehicle_fraction
     kind = VEHICLE if is_vehicle else PERSON
     speed = rng.uniform(*(settings.vehicle_speed if is_vehicle else settings.person_speed))
@@ -266,6 +271,8 @@ def _random_path(settings, extent, keep_out: float, ground, rng: np.random.Gener
     xmin, xmax, ymin, ymax = extent
     margin = 5.0
     turn = np.pi / 4 if is_vehicle else np.pi / 2
+    on_roads = streets and is_vehicle
+    step_limit = _KERB_STEP if on_roads else _STEP
     path = None
     for _ in range(100):
         if settings.area is not None:
@@ -277,20 +284,28 @@ def _random_path(settings, extent, keep_out: float, ground, rng: np.random.Gener
             x0 = rng.uniform(xmin + margin, xmax - margin)
             y0 = rng.uniform(ymin + margin, ymax - margin)
         total = rng.uniform(*settings.path_length)
-        if _raised(x0, y0, ground):
+        if _raised(x0, y0, ground, _KERB_STEP / 2 if on_roads else 2 * _STEP):
             continue
-        heading = rng.uniform(0, 2 * np.pi) + np.cumsum(rng.uniform(-turn, turn, settings.legs))
+        if on_roads:  # along the street grid, turning square at the crossings
+            heading = np.pi / 2 * (rng.integers(0, 4) + np.cumsum(
+                rng.integers(-1, 2, settings.legs)))
+        else:
+            heading = rng.uniform(0, 2 * np.pi) + np.cumsum(
+                rng.uniform(-turn, turn, settings.legs))
         step = total / settings.legs
         xs = x0 + np.concatenate([[0.0], np.cumsum(step * np.cos(heading))])
         ys = y0 + np.concatenate([[0.0], np.cumsum(step * np.sin(heading))])
         candidate = _walkable(np.column_stack([np.clip(xs, xmin + margin, xmax - margin),
                                                np.clip(ys, ymin + margin, ymax - margin)]),
-                              ground)
+                              ground, step_limit, level=on_roads,
+                              width=settings.vehicle_width)
         if candidate is None or (keep_out > 0 and not _clear_of_home(candidate, keep_out)):
             continue
         path = candidate
         if loop and np.hypot(*(path[-1] - path[0])) > _STEP:
-            loop = _walkable(np.vstack([path[-1:], path[:1]]), ground, whole=True) is not None
+            loop = _walkable(np.vstack([path, path[:1]]), ground, step_limit,
+                             whole=True, level=on_roads,
+                             width=settings.vehicle_width) is not None
         break
     if path is None:  # nowhere to walk: it stands where it would have started
         path = np.array([[x0, y0]])
@@ -299,32 +314,49 @@ def _random_path(settings, extent, keep_out: float, ground, rng: np.random.Gener
 
 _STEP = 0.5  # m: a rise or drop a walker or a car does not take
 _MIN_PATH = 10.0  # m: a shorter random path is drawn again
+_KERB_STEP = 0.1  # m: a car on a town's roads takes no kerb (the urban world's are 0.15 m)
 
 
-def _raised(x: float, y: float, ground) -> bool:
-    """(x, y) stands on something (a roof, a pile): more than ``_STEP`` above the lowest
-    ground on rings 8, 16 and 32 m around it (a roof is up to 30 m wide)."""
+def _raised(x: float, y: float, ground, above: float) -> bool:
+    """(x, y) stands on something (a roof, a pile; a pavement for ``above`` under the kerb
+    height): more than ``above`` m over the lowest ground on rings 8 to 48 m around it (a
+    roof is up to 30 m wide, the middle of a town's block 35 m from its roads)."""
     a = np.linspace(0, 2 * np.pi, 16, endpoint=False)
-    r = np.array([8.0, 16.0, 32.0])[:, None]
+    r = np.array([8.0, 16.0, 32.0, 48.0])[:, None]
     ring = np.asarray(ground(x + r * np.cos(a), y + r * np.sin(a)), dtype=np.float64)
-    return float(np.asarray(ground(np.array([x]), np.array([y])))[0]) > ring.min() + 2 * _STEP
+    return float(np.asarray(ground(np.array([x]), np.array([y])))[0]) > ring.min() + above
 
 
-def _walkable(path: np.ndarray, ground, whole: bool = False) -> np.ndarray | None:
-    """``path`` up to just before its first step in the ground (see :func:`_random_path`),
-    or None when that leaves less than ``_MIN_PATH`` m (with ``whole``: when it has any)."""
+def _walkable(path: np.ndarray, ground, limit: float = _STEP, whole: bool = False,
+              level: bool = False, width: float = 0.0) -> np.ndarray | None:
+    """``path`` up to just before its first step of more than ``limit`` m in the ground
+    (with ``level``: its first departure by more than ``limit`` from its start's height,
+    anywhere across ``width``; see :func:`_random_path`), or None when that leaves less
+    than ``_MIN_PATH`` m (with ``whole``: when it has any)."""
     legs = np.diff(path, axis=0)
     lengths = np.hypot(legs[:, 0], legs[:, 1])
     cumulative = np.concatenate([[0.0], np.cumsum(lengths)])
     total = cumulative[-1]
-    d = np.arange(0.0, total + _STEP, _STEP)
+    # samples every half step, each compared with the one a step back: a step whose rise
+    # is spread over a cell (bilinear ground) falls within one such pair
+    d = np.arange(0.0, total + _STEP / 2, _STEP / 2)
     d[-1] = min(d[-1], total)
     xy = _along(path, cumulative, d)
     h = np.asarray(ground(xy[:, 0], xy[:, 1]), dtype=np.float64)
-    steps = np.flatnonzero(np.abs(np.diff(h)) > _STEP)
+    if level:  # the road's level, whatever the distance, across the vehicle's width too
+        leg = np.clip(np.searchsorted(cumulative, d, side="right") - 1, 0, len(legs) - 1)
+        unit = legs[leg] / np.maximum(lengths[leg], 1e-12)[:, None]
+        side = width / 2 * np.column_stack([-unit[:, 1], unit[:, 0]])
+        across = np.max([h, *(np.asarray(ground(*(xy + s * side).T), dtype=np.float64)
+                              for s in (-1.0, 1.0))], axis=0)
+        # sample i is off the level: the last good one is i - 1
+        steps = np.flatnonzero(np.abs(across - h[0]) > limit) - 1
+    else:
+        rise = np.abs(h[2:] - h[:-2]) if len(h) > 2 else np.abs(np.diff(h))
+        steps = np.flatnonzero(rise > limit)  # pair (i, i + 2): sample i is the last good
     if steps.size == 0:
         return path
-    if whole:
+    if whole or steps[0] < 0:
         return None
     end = d[steps[0]]  # the last sample before the step
     if end < _MIN_PATH:

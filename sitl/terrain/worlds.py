@@ -42,7 +42,8 @@ def make_terrain(settings: TerrainSettings | dict[str, Any], seed: int = 0) -> T
         from sitl.terrain.moving import build_moving, moving_stream
 
         terrain.moving = build_moving(moving, terrain.extent, home_keep_out(settings),
-                                      terrain.height, moving_stream(seed))
+                                      terrain.height, moving_stream(seed),
+                                      streets=settings.kind == "urban")
     return terrain
 
 

@@ -43,6 +43,29 @@ def test_random_obstacles_leave_the_static_world_as_it_was(kind):
     assert np.any(step > 0.5)
 
 
+def test_in_a_town_random_vehicles_drive_on_the_roads_along_the_street_grid():
+    terrain = make_terrain({"kind": "urban", "size": [300.0, 300.0], "moving_obstacles": {
+        "count": 30, "vehicle_fraction": 0.5}}, seed=5)
+    moving = terrain.moving
+    road = float(terrain.grid.min())
+    driven = 0
+    for obstacle in moving.describe():
+        path = np.asarray(obstacle["path"])
+        if obstacle["kind"] != "vehicle" or len(path) < 2:
+            continue
+        driven += 1
+        legs = np.diff(path, axis=0)
+        driven_legs = legs[:-1] if obstacle["closed"] else legs  # not the way back round
+        assert np.all(np.min(np.abs(driven_legs), axis=1) < 1e-6)  # along x or along y
+        f = np.linspace(0.0, 1.0, 100)[:, None, None]
+        across = np.stack([-legs[:, 1], legs[:, 0]], axis=1) / np.maximum(
+            np.hypot(*legs.T), 1e-12)[:, None]  # unit normals of the legs
+        for side in (-1.0, 0.0, 1.0):  # the centre line and both sides of a 2 m car
+            xy = (path[:-1] + f * legs + side * across).reshape(-1, 2)
+            assert terrain.height(xy[:, 0], xy[:, 1]).max() <= road + 0.1  # never a kerb
+    assert driven >= 10
+
+
 def test_a_car_drives_its_path_back_and_forth_as_a_function_of_time():
     moving = _world().moving
     at = {t: moving.at(t) for t in (0.0, 1.0, 4.0, 5.0, 9.0)}
