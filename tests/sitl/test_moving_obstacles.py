@@ -191,3 +191,40 @@ def test_the_greyscale_frames_show_a_car_moving_and_the_ground_still():
     # 1.25 m east in 0.25 s, 8.4 m below the camera: 80 * 1.25 / 8.4 = 11.9 px up the image
     assert np.median(flow[on_car, 1]) == pytest.approx(-80 * 1.25 / 8.4, abs=1.5)
     assert np.median(np.abs(flow[~on_car])) < 0.3
+
+
+def test_the_simulators_range_finder_reads_the_roof_of_a_car_passing_below():
+    from pymavlink.dialects.v20 import ardupilotmega as mavlink
+
+    from sitl import MemoryLink, Sitl
+    from sitl.copter.gcs import MiniGcs
+
+    sim = Sitl(terrain=_world())
+    link = MemoryLink()
+    sim.attach(link.vehicle)
+    gcs = MiniGcs(link.gcs)
+
+    def run(seconds, every=None):
+        end = sim.time + seconds
+        while sim.time < end - 1e-9:
+            sim.step(0.05)
+            gcs.poll()
+            if every is not None:
+                every()
+
+    gcs.heartbeat()
+    run(sim.settings.arming_settle_time + 0.1)
+    gcs.set_mode(4)  # GUIDED
+    gcs.arm()
+    gcs.takeoff(10.0)
+    gcs.set_interval(mavlink.MAVLINK_MSG_ID_DISTANCE_SENSOR, 20)
+    run(15.0)
+    gcs.goto_ned(10.0, 10.0, -10.0)  # above the middle of the car's lane (ENU x 10, y 10)
+    run(15.0)
+    readings = []
+    run(8.0, lambda: readings.append(gcs.last["DISTANCE_SENSOR"].current_distance))
+    x, y, z = sim.truth.position
+    assert (x, y, z) == pytest.approx((10.0, 10.0, 10.0), abs=0.3)
+    # the ground 10 m below, the car's 1.6 m roof when it passes (twice in 8 s)
+    assert max(readings) == pytest.approx(100 * z, abs=3)
+    assert min(readings) == pytest.approx(100 * (z - 1.6), abs=3)
