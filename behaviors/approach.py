@@ -13,7 +13,9 @@ class FlyApproachTrajectory(VehicleAction):
     """Fly to above the chosen site along a trajectory planned over the known terrain.
 
     On its first tick with a position it asks the planner for a trajectory from the vehicle
-    to ``(site.x, site.y, max(z, site.z + min_height))``, then streams the trajectory's
+    to ``(site.x, site.y, site.z + min_height)`` (descending on the way from the cruise
+    altitude, so that the descent overlaps the traverse; climbing over its start first from
+    a low hover), then streams the trajectory's
     position and velocity to ``vehicle.follow`` on every tick, in clock time from that tick.
     Used as the first child of a Fallback whose second child is the thesis's
     :class:`behaviors.flight.NavigateToSite` (climb to the clear altitude, traverse): a
@@ -60,7 +62,7 @@ class FlyApproachTrajectory(VehicleAction):
         site = self.blackboard.get(keys.LANDING_SITE)
         if site is None:
             return "no landing site chosen"
-        goal = (site.x, site.y, max(position[2], site.z + self.min_height))
+        goal = (site.x, site.y, site.z + self.min_height)
         planned = self.planner.plan(position, goal)
         if isinstance(planned, str):
             return planned

@@ -531,8 +531,8 @@ _leaf("FlyApproachTrajectory", "Action", "flies to above the chosen site (landin
           n, c.vehicle, c.clock, c.services["approach_planner"], min_height=v["min_height"],
           acceptance_radius=v["acceptance_radius"],
           max_tracking_error=v["max_tracking_error"], command_timeout=v["command_timeout"]),
-      [Port("min_height", "double", "m", "the trajectory ends at least this high above the "
-            "site", "{approach_min_height}"),
+      [Port("min_height", "double", "m", "the trajectory ends this high above the site",
+            "{approach_min_height}"),
        Port("max_tracking_error", "double", "m", "farther from the trajectory fails",
             "{approach_max_tracking_error}"),
        _RADIUS, _COMMAND], requires=["approach_planner"])

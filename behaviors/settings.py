@@ -64,13 +64,22 @@ class ApproachSettings(BaseModel):
     )
     min_height: float = Field(
         10.0, gt=0, le=MAX_ALTITUDE, description="m above the site where the trajectory ends "
-        "at least (the vehicle then descends vertically), up to 10 km"
+        "(descending on the way from higher up, climbing first from lower down; the vehicle "
+        "then descends vertically), up to 10 km"
     )
     max_speed: float = Field(
         5.0, gt=0, le=50, description="m/s peak speed of the trajectory, up to 50 m/s"
     )
     max_acceleration: float = Field(
         2.0, gt=0, le=20, description="m/s^2 peak acceleration of the trajectory, up to 20"
+    )
+    max_climb_speed: float = Field(
+        2.5, gt=0, le=20, description="m/s peak climb rate of the trajectory (ArduPilot's "
+        "WPNAV_SPEED_UP), up to 20"
+    )
+    max_descent_speed: float = Field(
+        1.5, gt=0, le=20, description="m/s peak descent rate of the trajectory (ArduPilot's "
+        "WPNAV_SPEED_DN), up to 20"
     )
     max_tracking_error: float = Field(
         5.0, gt=0, le=1000, description="m the vehicle may stray from the trajectory before "

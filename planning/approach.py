@@ -26,7 +26,7 @@ from planning.min_snap import (
     SAMPLES_PER_SEGMENT,
     Trajectory,
     concatenate,
-    min_snap_trajectory,
+    cruise_trajectory,
 )
 
 
@@ -76,7 +76,8 @@ def _first_collision(
     trajectory: Trajectory, height: ObstacleHeights, reach: float, origin: np.ndarray,
     resolution: float, margin: float, start_cell: np.ndarray,
 ) -> int | None:
-    """The segment of the first sample below the clearance (+ margin), or None."""
+    """The leg (pair of waypoints) of the first sample below the clearance (+ margin), or
+    None."""
     t = np.linspace(0.0, trajectory.duration, SAMPLES_PER_SEGMENT * len(trajectory.durations))
     p = trajectory.sample(t)
     cells = _cell_of(p[:, :2], origin, resolution)
@@ -87,7 +88,8 @@ def _first_collision(
     if not hit.any():
         return None
     first = int(np.flatnonzero(hit)[0])
-    return int(np.searchsorted(trajectory.knots, t[first], side="right") - 1)
+    segment = int(np.searchsorted(trajectory.knots, t[first], side="right") - 1)
+    return trajectory.leg_of(min(segment, len(trajectory.durations) - 1))
 
 
 def _straight_path(
@@ -119,6 +121,8 @@ def plan_approach(
     max_acceleration: float,
     k_sigma: float = 2.0,
     refinements: int = 6,
+    max_climb: float | None = None,
+    max_descent: float | None = None,
 ) -> ApproachPlan:
     """Plan a trajectory from ``start`` to ``goal`` over the known terrain.
 
@@ -132,6 +136,7 @@ def plan_approach(
         radius: vehicle radius plus lateral margin, m.
         margin: vertical margin over every obstacle, m.
         max_speed, max_acceleration: limits, m/s and m/s^2.
+        max_climb, max_descent: vertical speed limits, m/s (None: ``max_speed`` only).
         k_sigma: standard deviations of each cell's uncertainty added to its top.
         refinements: how many extra waypoints may be inserted where the smooth trajectory
             cuts a corner.
@@ -167,6 +172,7 @@ def plan_approach(
     centres = origin + (path.cells + 0.5) * cell_size
     centres[0], centres[-1] = start[:2], goal[:2]
     start_cell = _cell_of(start[:2], origin, resolution)
+    limits = (max_speed, max_acceleration, max_climb, max_descent)
     for _ in range(refinements + 1):
         waypoints = _with_altitudes(centres[index], start[2], goal[2])
         if len(waypoints) < 2 or np.allclose(waypoints[0], waypoints[-1]):
@@ -175,11 +181,11 @@ def plan_approach(
             # Climb and stop, then go: one smooth piece through the corner would overshoot
             # the climb by metres to keep its derivatives continuous.
             trajectory = concatenate(
-                min_snap_trajectory(waypoints[:2], max_speed, max_acceleration),
-                min_snap_trajectory(waypoints[1:], max_speed, max_acceleration),
+                cruise_trajectory(waypoints[:2], *limits),
+                cruise_trajectory(waypoints[1:], *limits),
             )
         else:
-            trajectory = min_snap_trajectory(waypoints, max_speed, max_acceleration)
+            trajectory = cruise_trajectory(waypoints, *limits)
         segment = _first_collision(trajectory, height, reach, origin, resolution, margin,
                                    start_cell)
         if segment is None:

@@ -11,6 +11,13 @@ Durations come from a trapezoidal speed profile per segment, then all are scaled
 factor so that the peak speed and acceleration meet the limits exactly: with zero end
 derivatives, stretching time by ``s`` keeps the shape and divides speed by ``s`` and
 acceleration by ``s**2``.
+
+A single rest-to-rest polynomial spends most of its time speeding up and slowing down: its
+peak speed is about twice its mean, so a long leg limited by its speed (a descent at the
+autopilot's 1.5 m/s) takes twice as long as the autopilot's own trapezoid. :func:`cruise_trajectory`
+therefore splits each leg into pieces about a second long, placed where a gentler trapezoid
+would be at those times: the minimum-snap curve through them cruises near the limit in the
+middle of the leg.
 """
 
 from __future__ import annotations
@@ -19,6 +26,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.linalg import solve_banded
 
 DEGREE = 7
 N_COEFF = DEGREE + 1
@@ -54,10 +62,17 @@ class Trajectory:
         coefficients: (M, 8, D) polynomial coefficients per segment in normalised time,
             lowest power first, D axes (ENU m).
         durations: (M,) seconds per segment.
+        legs: (M,) int64 the leg (pair of consecutive waypoints given) each segment flies, or
+            None when every segment is a leg of its own.
     """
 
     coefficients: np.ndarray
     durations: np.ndarray
+    legs: np.ndarray | None = None
+
+    def leg_of(self, segment: int) -> int:
+        """The leg of the waypoints that ``segment`` belongs to."""
+        return segment if self.legs is None else int(self.legs[segment])
 
     @property
     def duration(self) -> float:
@@ -95,12 +110,23 @@ class Trajectory:
     def peaks(self) -> tuple[float, float]:
         """(highest speed m/s, highest acceleration m/s^2), sampled at
         ``SAMPLES_PER_SEGMENT + 1`` evenly spaced times of every segment."""
-        T = self.durations[:, None, None]
-        velocity = (_VELOCITY_BASIS @ self.coefficients) / T
-        acceleration = (_ACCELERATION_BASIS @ self.coefficients) / T**2
+        velocity, acceleration = self._sampled_derivatives()
         speed = np.sqrt((velocity**2).sum(axis=2)).max()
         accel = np.sqrt((acceleration**2).sum(axis=2)).max()
         return float(speed), float(accel)
+
+    def vertical_peaks(self) -> tuple[float, float]:
+        """(highest climb rate, highest descent rate), m/s, both >= 0, of the last axis (up),
+        sampled as :meth:`peaks` samples."""
+        velocity, _ = self._sampled_derivatives()
+        up = velocity[:, :, -1]
+        return float(max(up.max(), 0.0)), float(max(-up.min(), 0.0))
+
+    def _sampled_derivatives(self) -> tuple[np.ndarray, np.ndarray]:
+        T = self.durations[:, None, None]
+        velocity = (_VELOCITY_BASIS @ self.coefficients) / T
+        acceleration = (_ACCELERATION_BASIS @ self.coefficients) / T**2
+        return velocity, acceleration
 
 
 def solve_min_snap(waypoints: np.ndarray, durations: np.ndarray) -> Trajectory:
@@ -139,8 +165,43 @@ def solve_min_snap(waypoints: np.ndarray, durations: np.ndarray) -> Trajectory:
         j = np.arange(m - 1)
         joints[j, :, j] = _AT_END[1:]
         joints[j, :, j + 1] = -_AT_START[1:] * ratio[:, None, None] ** orders[None, :, None]
-    coefficients = np.linalg.solve(A, b).reshape(m, N_COEFF, -1)
+    coefficients = _solve_block_banded(A, b).reshape(m, N_COEFF, -1)
     return Trajectory(coefficients=coefficients, durations=durations)
+
+
+def _first_unknowns(m: int) -> np.ndarray:
+    """The first unknown each row of :func:`solve_min_snap`'s system touches (rows in the
+    order it writes them: waypoints, ends at rest, joints)."""
+    k = np.arange(m)
+    waypoint_rows = np.repeat(N_COEFF * k, 2)
+    orders = np.arange(1, 4)
+    end_rows = np.stack([orders, N_COEFF * (m - 1) + orders], axis=1).ravel()
+    joint_rows = (N_COEFF * k[:-1, None] + np.arange(1, DEGREE)[None, :]).ravel()
+    return np.concatenate([waypoint_rows, end_rows, joint_rows])
+
+
+def _solve_block_banded(A: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``A x = b`` for :func:`solve_min_snap`'s system: each row touches at most two
+    neighbouring segments' coefficients, so with its rows sorted by their first unknown the
+    matrix is banded, and a banded LU (LAPACK gbsv) solves it in time linear in the segments,
+    without the dense solver's threads (which on a busy machine cost tens of milliseconds for
+    32 segments)."""
+    n = len(A)
+    m = n // N_COEFF
+    if m <= 4:
+        return np.linalg.solve(A, b)
+    first = _first_unknowns(m)
+    order = np.argsort(first, kind="stable")
+    first = first[order]
+    rows = np.repeat(np.arange(n), 2 * N_COEFF)
+    cols = (first[:, None] + np.arange(2 * N_COEFF)[None, :]).ravel()
+    inside = cols < n
+    rows, cols = rows[inside], cols[inside]
+    values = A[order][rows, cols]
+    lower, upper = int(max(0, (rows - cols).max())), int(max(0, (cols - rows).max()))
+    bands = np.zeros((lower + upper + 1, n))
+    bands[upper + rows - cols, cols] = values
+    return solve_banded((lower, upper), bands, b[order], check_finite=False)
 
 
 def trapezoid_durations(waypoints: np.ndarray, max_speed: float, max_acceleration: float):
@@ -153,28 +214,114 @@ def trapezoid_durations(waypoints: np.ndarray, max_speed: float, max_acceleratio
 
 
 def min_snap_trajectory(
-    waypoints: np.ndarray, max_speed: float, max_acceleration: float
+    waypoints: np.ndarray,
+    max_speed: float,
+    max_acceleration: float,
+    max_climb: float | None = None,
+    max_descent: float | None = None,
 ) -> Trajectory:
     """The minimum-snap trajectory through ``waypoints`` (from rest to rest) whose peak speed
-    and acceleration just meet ``max_speed`` (m/s) and ``max_acceleration`` (m/s^2).
+    and acceleration just meet ``max_speed`` (m/s) and ``max_acceleration`` (m/s^2), or its
+    climb or descent rate (the last axis, up) ``max_climb`` / ``max_descent`` (m/s) if that
+    binds first: autopilots climb and descend slower than they fly level.
 
     Args:
         waypoints: (M + 1, D) positions, m, M >= 1.
     """
-    if max_speed <= 0 or max_acceleration <= 0:
-        raise ValueError("max_speed and max_acceleration must be > 0")
+    limits = [max_speed, max_acceleration] + [v for v in (max_climb, max_descent) if v is not None]
+    if min(limits) <= 0:
+        raise ValueError("the speed, acceleration, climb and descent limits must be > 0")
     durations = trapezoid_durations(waypoints, max_speed, max_acceleration)
     trajectory = solve_min_snap(waypoints, durations)
     speed, accel = trajectory.peaks()
-    scale = max(speed / max_speed, math.sqrt(accel / max_acceleration), 1e-6)
+    ratios = [speed / max_speed, math.sqrt(accel / max_acceleration), 1e-6]
+    if max_climb is not None or max_descent is not None:
+        climb, descent = trajectory.vertical_peaks()
+        ratios += [climb / max_climb if max_climb else 0.0,
+                   descent / max_descent if max_descent else 0.0]
     # Stretching every duration by one factor keeps the ratios the joints' rows depend on,
     # so the normalised-time coefficients stay the optimum: no second solve.
-    return Trajectory(coefficients=trajectory.coefficients, durations=durations * scale)
+    return Trajectory(coefficients=trajectory.coefficients, durations=durations * max(ratios))
 
 
 def concatenate(first: Trajectory, second: Trajectory) -> Trajectory:
-    """``first`` then ``second``: both rest to rest, so the joint is smooth (at rest)."""
+    """``first`` then ``second``: both rest to rest, so the joint is smooth (at rest). The
+    second's legs are numbered after the first's."""
+    def legs(t: Trajectory) -> np.ndarray:
+        return np.arange(len(t.durations)) if t.legs is None else t.legs
+
+    first_legs = legs(first)
     return Trajectory(
         coefficients=np.concatenate([first.coefficients, second.coefficients]),
         durations=np.concatenate([first.durations, second.durations]),
+        legs=np.concatenate([first_legs, legs(second) + first_legs.max() + 1]),
     )
+
+
+# Pieces of a leg, seconds apart at the trapezoid's pace; at most this many per trajectory
+# (the linear system grows with their square).
+PIECE_TIME = 1.0
+MAX_PIECES = 32
+# The trapezoid placing the pieces accelerates at this share of the limit: the smooth curve
+# through a sharper one overshoots its acceleration and must be stretched more.
+GENTLE = 0.5
+
+
+def _leg_speed(direction: np.ndarray, max_speed, max_climb, max_descent) -> float:
+    v = max_speed
+    if len(direction) == 3:
+        up = direction[2]
+        if up > 1e-9 and max_climb:
+            v = min(v, max_climb / up)
+        elif up < -1e-9 and max_descent:
+            v = min(v, max_descent / -up)
+    return v
+
+
+def cruise_trajectory(
+    waypoints: np.ndarray,
+    max_speed: float,
+    max_acceleration: float,
+    max_climb: float | None = None,
+    max_descent: float | None = None,
+) -> Trajectory:
+    """Like :func:`min_snap_trajectory` through ``waypoints`` (rest to rest, within the same
+    limits), but each leg split into pieces so that the vehicle cruises along it rather than
+    speeding up and slowing down all the way (see the module's docstring). Its ``legs`` map
+    each segment to the leg of ``waypoints`` it flies."""
+    waypoints = np.asarray(waypoints, dtype=np.float64)
+    gentle = GENTLE * max_acceleration
+    plans = []
+    for a, b in zip(waypoints[:-1], waypoints[1:], strict=True):
+        d = max(float(np.linalg.norm(b - a)), 1e-3)
+        v = _leg_speed((b - a) / d, max_speed, max_climb, max_descent)
+        ramp = v / gentle
+        if d > v * ramp:
+            total = d / v + ramp
+        else:
+            ramp = math.sqrt(d / gentle)
+            v, total = gentle * ramp, 2.0 * ramp
+        plans.append((a, b, d, v, ramp, total))
+    piece = max(PIECE_TIME, sum(p[-1] for p in plans) / MAX_PIECES)
+    points, durations, legs = [waypoints[0]], [], []
+    for leg, (a, b, d, v, ramp, total) in enumerate(plans):
+        n = max(1, int(math.ceil(total / piece - 1e-9)))
+        t = np.linspace(0.0, total, n + 1)[1:]
+        s = np.where(t < ramp, 0.5 * gentle * t**2,
+                     np.where(t < total - ramp, 0.5 * gentle * ramp**2 + v * (t - ramp),
+                              d - 0.5 * gentle * (total - t) ** 2))
+        points.extend(a + np.clip(s, 0.0, d)[:, None] / d * (b - a))
+        durations.extend(np.diff(np.concatenate([[0.0], t])))
+        legs.extend([leg] * n)
+    points[-1] = waypoints[-1]
+    trajectory = solve_min_snap(np.array(points), np.array(durations))
+    speed, accel = trajectory.peaks()
+    ratios = [speed / max_speed, math.sqrt(accel / max_acceleration), 1e-6]
+    climb, descent = trajectory.vertical_peaks() if waypoints.shape[1] == 3 else (0.0, 0.0)
+    if max_climb:
+        ratios.append(climb / max_climb)
+    if max_descent:
+        ratios.append(descent / max_descent)
+    return Trajectory(coefficients=trajectory.coefficients,
+                      durations=trajectory.durations * max(ratios),
+                      legs=np.array(legs, dtype=np.int64))

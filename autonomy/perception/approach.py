@@ -54,6 +54,7 @@ class MapApproachPlanner:
             np.asarray(start), np.asarray(goal), top, m.variance, origin, m.resolution,
             radius=s.vehicle_radius, margin=s.vertical_margin, max_speed=s.max_speed,
             max_acceleration=s.max_acceleration, k_sigma=s.k_sigma,
+            max_climb=s.max_climb_speed, max_descent=s.max_descent_speed,
         )
         if not planned.ok:
             return planned.reason

@@ -114,3 +114,36 @@ def test_a_gap_too_narrow_for_the_coarse_search_is_found_on_the_maps_cells():
                          max_acceleration=2.0)
     assert plan.ok, plan.reason
     assert _samples_clear(plan, top, var, origin, resolution, 1.5, 2.0)
+
+
+def test_a_descending_trajectory_keeps_to_the_autopilots_descent_rate():
+    """From the cruise altitude down to above the site: the descent rate binds before the
+    speed, and the whole path stays at or above the site's end altitude."""
+    from planning import min_snap_trajectory
+
+    waypoints = np.array([[0.0, 0.0, 30.0], [12.0, 5.0, 10.0]])
+    traj = min_snap_trajectory(waypoints, 5.0, 2.0, max_climb=2.5, max_descent=1.5)
+    climb, descent = traj.vertical_peaks()
+    speed, accel = traj.peaks()
+    assert descent == pytest.approx(1.5, rel=1e-6) and climb < 1e-9
+    assert speed < 5.0 and accel < 2.0
+    p = traj.sample(np.linspace(0.0, traj.duration, 500))
+    assert p[:, 2].min() >= 10.0 - 1e-6 and p[:, 2].max() <= 30.0 + 1e-6
+    top, var = np.zeros((160, 160)), np.full((160, 160), 0.01)
+    plan = plan_approach(np.array([5.0, 5.0, 30.0]), np.array([30.0, 20.0, 10.0]), top, var,
+                         np.zeros(2), 0.25, radius=1.5, margin=2.0, max_speed=5.0,
+                         max_acceleration=2.0, max_climb=2.5, max_descent=1.5)
+    assert plan.ok and plan.trajectory.vertical_peaks()[1] <= 1.5 + 1e-9
+
+
+def test_many_segments_still_pass_every_waypoint_smoothly():
+    """Long trajectories are solved as a banded system: the same conditions hold."""
+    from planning.min_snap import solve_min_snap, trapezoid_durations
+
+    waypoints = np.random.default_rng(0).uniform(0.0, 30.0, (13, 3))
+    traj = solve_min_snap(waypoints, trapezoid_durations(waypoints, 5.0, 2.0))
+    assert np.allclose(traj.sample(traj.knots), waypoints, atol=1e-6)
+    for inner in traj.knots[1:-1]:
+        for order in (1, 2, 3, 4):
+            left, right = traj.sample(inner - 1e-7, order), traj.sample(inner + 1e-7, order)
+            assert np.allclose(left, right, atol=1e-3 * max(1.0, np.abs(left).max()))
