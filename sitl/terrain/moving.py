@@ -199,7 +199,8 @@ class MovingObstacles:
         )
 
     def describe(self) -> list[dict]:
-        """One dict per obstacle (kind, speed, path), for reports and events."""
+        """One dict per obstacle (kind, speed, closed, path: its points, a closed one's
+        without the return to the first), for reports and events."""
         return [
             {"kind": KINDS[int(k)], "speed": float(v), "closed": bool(c),
              "path": [[round(float(a), 2), round(float(b), 2)] for a, b in p]}
@@ -207,11 +208,14 @@ class MovingObstacles:
         ]
 
     def _paths(self) -> list[np.ndarray]:
-        """Each obstacle's own vertices (without the padding)."""
+        """Each obstacle's own vertices (without the padding, nor a closed path's return to
+        its first point)."""
         out = []
-        for verts, legs in zip(self.vertices, self._leg_length, strict=True):
+        for verts, legs, loop in zip(self.vertices, self._leg_length, self.closed,
+                                     strict=True):
             used = np.flatnonzero(legs > 0)
-            out.append(verts[: used[-1] + 2] if used.size else verts[:1])
+            own = verts[: used[-1] + 2] if used.size else verts[:1]
+            out.append(own[:-1] if loop and len(own) > 2 else own)
         return out
 
 
