@@ -19,7 +19,8 @@ OUTCOMES = ("landed", "landed_unjudged", "landed_unsafe", "crashed", "no_site", 
 spent, on the best site verified earlier: outcome hint "verified_site"), on ground the
 simulator's ground truth judged safe (lockstep flights); landed_unjudged: the same landing
 with no ground truth to judge the ground by (live flights); landed_unsafe: touched down on
-ground the truth calls unsafe; crashed: the simulator flagged a crash; no_site: no landing
+ground the truth calls unsafe; crashed: the simulator flagged a crash, or the rotors touched
+raised ground or a moving obstacle (a collision); no_site: no landing
 try was left (by count or by battery) and no verified site either: the vehicle landed in
 place on purpose; failsafe: a failsafe (critical battery, GPS loss) took over and landed
 wherever the vehicle was, on safe ground or not; aborted: the mission failed, hit the time
@@ -60,7 +61,9 @@ def classify(data: FlightData) -> str:
     """The outcome (one of :data:`OUTCOMES`) of a finished flight."""
     if data.refused:
         return "refused"
-    if data.crashed:
+    # A contact of the rotors with raised ground or a moving obstacle is a crash for a real
+    # vehicle, though the simulated one flies on: judged as one.
+    if data.crashed or data.collisions:
         return "crashed"
     if data.link_lost is not None:
         return "link_lost"

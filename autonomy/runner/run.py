@@ -318,6 +318,9 @@ def _flight_data(mission: Mission, seed: int, flight: Flight, terrain: Any,
     lsm = flight.lsm
     sites = list(lsm.ranked(flight.vehicle.state.position))
     crashed, crash_reason = flight.crashed()
+    if not crashed and flight.collisions is not None and flight.collisions.first is not None:
+        first = flight.collisions.first
+        crash_reason = f"collision with the {first['obstacle']} at {first['t']:.1f} s"
     touchdown = flight.touchdown
     safe = None
     if touchdown is not None and lockstep:

@@ -67,7 +67,10 @@ def test_a_touchdown_beside_a_person_is_unsafe_and_the_contact_a_collision():
     summary = result.summary
     assert summary["sites_banned"] == 0
     assert _from_person(summary["touchdown"]) < 1.0
-    assert summary["outcome"] == "landed_unsafe" and summary["touchdown_safe"] is False
+    # The rotors hit the person on the way down: a crash, whatever the ground was.
+    assert summary["outcome"] == "crashed" and summary["exit_code"] == 1
+    assert summary["crash_reason"].startswith("collision with the person at ")
+    assert summary["touchdown_safe"] is False
     assert summary["collisions"] == 1
     assert summary["first_collision"]["obstacle"] == "person"
     assert summary["first_collision"]["t"] < summary["touchdown"]["t"]
