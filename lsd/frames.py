@@ -36,6 +36,8 @@ class DepthFrame:
         rotation: (3, 3) rotation camera frame -> world frame.
         timestamp: clock seconds.
         source: depth source, e.g. ``"sfm"`` or ``"stereo"``.
+        rendered: (H, W) bool pixels the camera measured when it was asked for only part
+            of the view (the others are NaN and are neither counted nor dropped), or None.
     """
 
     depth: np.ndarray
@@ -45,6 +47,7 @@ class DepthFrame:
     rotation: np.ndarray
     timestamp: float = 0.0
     source: str = ""
+    rendered: np.ndarray | None = None
 
     def to_points(self) -> tuple[np.ndarray, np.ndarray]:
         """Back-project valid pixels to world points.

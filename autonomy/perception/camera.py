@@ -18,6 +18,7 @@ from sitl.sensors import (
     RangeFinderSettings,
     RenderedDepth,
 )
+from sitl.sensors.region import GroundRegion
 from sitl.terrain import Terrain
 
 
@@ -33,6 +34,7 @@ def to_depth_frame(rendered: RenderedDepth) -> DepthFrame:
         rotation=r.rotation,
         timestamp=r.timestamp,
         source=r.source,
+        rendered=r.rendered,
     )
 
 
@@ -79,6 +81,11 @@ class DepthCameraSource:
     def detector_counters(self) -> dict[str, int]:
         return {}
 
+    def ground_needed(self, position) -> GroundRegion | None:
+        """The ground the detector keeps points from for a frame taken at ``position``
+        (the camera then renders only the pixels that can matter to it), or None: all."""
+        return None
+
     def update(self, state: VehicleState, now: float) -> list[SiteObservation]:
         """Render a frame at the reported pose and return what the detector finds in it.
 
@@ -90,7 +97,9 @@ class DepthCameraSource:
             self._counters["no_position"] += 1
             return []
         agl = state.rangefinder_agl if self.use_reported_agl else None
-        rendered = self.camera.render(state.position, state.yaw, now, agl=agl)
+        rendered = self.camera.render(
+            state.position, state.yaw, now, agl=agl, region=self.ground_needed(state.position)
+        )
         if rendered is None:
             self._counters["no_frame"] += 1
             return []

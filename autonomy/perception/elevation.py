@@ -18,6 +18,7 @@ from lsd.elevation.settings import DetectorSettings, ElevationMapSettings
 from lsd.frames import DepthFrame
 from lsm.records import SiteObservation
 from sitl.sensors import DepthCamera, DepthCameraSettings, RangeFinderSettings
+from sitl.sensors.region import GroundRegion
 from sitl.terrain import Terrain
 
 
@@ -35,6 +36,9 @@ class ElevationMapSource(DepthCameraSource):
     ) -> None:
         super().__init__(camera, use_reported_agl=use_reported_agl)
         self.detector = detector
+        # Render only the pixels that can put a point in the maps (False: every pixel,
+        # e.g. to look at whole depth images).
+        self.render_needed_only = True
 
     @classmethod
     def from_settings(
@@ -59,6 +63,16 @@ class ElevationMapSource(DepthCameraSource):
     def detect(self, frame: DepthFrame) -> list[SiteObservation]:
         """Fuse the frame into the elevation map and return the map's sites."""
         return self.detector.process(frame)
+
+    def ground_needed(self, position) -> GroundRegion | None:
+        """The maps' ground once recentred at ``position``: pixels whose points cannot
+        land there are not rendered (the detector fuses the same points)."""
+        if not self.render_needed_only:
+            return None
+        x0, x1, y0, y1, reach, block = self.detector.ground_needed(
+            float(position[0]), float(position[1])
+        )
+        return GroundRegion(x0, x1, y0, y1, reach=reach, block=block)
 
     def detector_events(self) -> list[dict[str, Any]]:
         return self.detector.drain_events()

@@ -140,6 +140,28 @@ class ElevationDetector:
             np.asarray(frame.position, dtype=np.float64), float(frame.timestamp), frame.source
         )
 
+    def ground_needed(self, x: float, y: float) -> tuple[float, float, float, float, int, int]:
+        """What a frame taken above world (x, y) must show for :meth:`integrate` to fuse
+        the same points as from the whole view: ``(x_min, x_max, y_min, y_max, reach,
+        block)``, the ground box (ENU m) the maps will cover once recentred there, the
+        pixels (each way) of the box filter that places points, and the largest pixel
+        block fused as one point. The box joins the coarse map's window now and centred
+        on (x, y) (a low camera recentres it only past a slack); the fine map's lies in
+        the latter."""
+        grid = self.map
+        r = grid.resolution
+        n0, n1 = grid.shape
+        i0 = math.floor(x / r) - n0 // 2
+        j0 = math.floor(y / r) - n1 // 2
+        if grid._centred:
+            ci, cj = (int(v) for v in grid.origin_index)
+            i0, i1 = min(i0, ci), max(i0, ci) + n0
+            j0, j1 = min(j0, cj), max(j0, cj) + n1
+        else:
+            i1, j1 = i0 + n0, j0 + n1
+        reach = self.map_settings.placement_smoothing // 2
+        return i0 * r, i1 * r, j0 * r, j1 * r, reach, _LARGEST_BLOCK
+
     def integrate(self, frame: DepthFrame) -> bool:
         """Fuse ``frame`` into the map (recentred on the camera); False if it was skipped.
 
@@ -155,7 +177,12 @@ class ElevationDetector:
         f32 = np.float32
         depth = np.asarray(frame.depth, dtype=f32)
         self._counters["pixels_received"] += depth.size
-        valid = self._valid_pixels(frame, depth)
+        rendered = None if frame.rendered is None else np.asarray(frame.rendered, dtype=bool)
+        if rendered is not None and rendered.shape != depth.shape:
+            return self._skip(frame, "shape_mismatch")
+        if rendered is not None:
+            self._counters["pixels_not_rendered"] += depth.size - int(np.count_nonzero(rendered))
+        valid = self._valid_pixels(frame, depth, rendered)
         n_valid = int(np.count_nonzero(valid))
         if n_valid == 0:
             return self._skip(frame, "no_valid_depth")
@@ -445,8 +472,11 @@ class ElevationDetector:
             return "bad_timestamp"
         return None
 
-    def _valid_pixels(self, frame: DepthFrame, depth: np.ndarray) -> np.ndarray:
-        """(H, W) bool usable pixels; counts every dropped pixel by reason."""
+    def _valid_pixels(
+        self, frame: DepthFrame, depth: np.ndarray, rendered: np.ndarray | None = None
+    ) -> np.ndarray:
+        """(H, W) bool usable pixels; counts every dropped pixel by reason (among the
+        ``rendered`` ones, when only those were measured)."""
         s = self.map_settings
         with np.errstate(invalid="ignore"):
             # NaN fails every comparison; min_range >= 0 leaves only 0 to the last test.
@@ -454,12 +484,19 @@ class ElevationDetector:
             valid &= depth <= s.max_range
             if s.min_range <= 0:
                 valid &= depth > 0
+        if rendered is not None:
+            valid &= rendered
         c = self._counters
-        if not valid.all():  # the reasons are only worth counting when something failed
+        if not (valid.all() if rendered is None else np.array_equal(valid, rendered)):
+            # The reasons are only worth counting when something failed.
             finite = np.isfinite(depth)
             with np.errstate(invalid="ignore"):
                 positive = depth > 0
-            c["pixels_dropped_nonfinite"] += int(np.count_nonzero(~finite))
+            if rendered is not None:  # what was not measured is not dropped
+                c["pixels_dropped_nonfinite"] += int(np.count_nonzero(rendered & ~finite))
+                finite &= rendered
+            else:
+                c["pixels_dropped_nonfinite"] += int(np.count_nonzero(~finite))
             c["pixels_dropped_nonpositive"] += int(np.count_nonzero(finite & ~positive))
             c["pixels_dropped_out_of_range"] += int(
                 np.count_nonzero(finite & positive & ~valid)
@@ -470,9 +507,15 @@ class ElevationDetector:
                 good_sigma = sigma >= 0
                 good_sigma &= sigma < np.inf
             if not good_sigma.all():
-                c["pixels_dropped_bad_sigma"] += int(np.count_nonzero(valid & ~good_sigma))
+                bad = valid & ~good_sigma
+                if rendered is None or bad.any():  # unrendered pixels have no sigma
+                    c["pixels_dropped_bad_sigma"] += int(np.count_nonzero(bad))
                 valid &= good_sigma
         return valid
+
+
+# Largest side (px) of the pixel blocks fused as one point (see _pixel_block).
+_LARGEST_BLOCK = 8
 
 
 def _placement_depth(depth: np.ndarray, valid: np.ndarray, kernel: int) -> np.ndarray:
@@ -499,7 +542,7 @@ def _pixel_block(
     if ground_per_pixel <= 0:
         return 1
     block = 1
-    while block < 8 and 2 * block * ground_per_pixel <= share * resolution:
+    while block < _LARGEST_BLOCK and 2 * block * ground_per_pixel <= share * resolution:
         block *= 2
     while block > 1 and min(shape) < 2 * block:
         block //= 2

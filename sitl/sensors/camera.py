@@ -12,6 +12,7 @@ from scipy.special import ndtri
 
 from sitl.sensors.rangefinder import RangeFinder
 from sitl.sensors.raycast import HeightBounds, PinholeRays, coarse_terrain
+from sitl.sensors.region import GroundRegion
 from sitl.sensors.settings import DepthCameraSettings
 from sitl.terrain import Terrain
 from sitl.terrain.moving_hits import see_moving
@@ -61,6 +62,9 @@ class RenderedDepth:
     timestamp: float
     source: str
     baseline: float = 0.0
+    rendered: np.ndarray | None = None
+    """(height, width) bool: the pixels rendered when only a region of the ground was
+    asked for (the others are NaN and say nothing about the ground); None: all."""
     moving: Any = None
     """Moving obstacles in view: (:class:`sitl.terrain.moving.ObstacleSnapshot` at
     ``timestamp``, (height, width) int16 index of the obstacle each pixel sees, -1 where
@@ -195,7 +199,12 @@ class DepthCamera:
         return min(float(np.hypot(x1 - x0, y1 - y0)), self.settings.sfm_max_baseline)
 
     def render(
-        self, position, yaw: float, timestamp: float, agl: float | None = None
+        self,
+        position,
+        yaw: float,
+        timestamp: float,
+        agl: float | None = None,
+        region: GroundRegion | None = None,
     ) -> RenderedDepth | None:
         """Render the depth image seen from ``position`` (3,) ENU m with heading ``yaw``.
 
@@ -205,6 +214,11 @@ class DepthCamera:
             timestamp: clock seconds.
             agl: the range finder's reading if the caller has one (e.g. from the
                 autopilot's DISTANCE_SENSOR); default: measured by :attr:`rangefinder`.
+            region: render only the pixels whose measured points (noise included) can
+                land in this ground box, and those they depend on
+                (:class:`~sitl.sensors.region.GroundRegion`); the others are NaN and
+                :attr:`RenderedDepth.rendered` tells which. Ignored in a world with
+                moving obstacles (they stand above the ground the march bounds).
 
         Returns:
             the frame, or None (see :attr:`skipped` and :meth:`drain_events`).
@@ -240,9 +254,25 @@ class DepthCamera:
         rotation = nadir_rotation(yaw)
         bounds, level = self._height_bounds(true_agl)
         # Refined to 0.5 mm at full resolution, coarser with the level of detail.
-        depth = self._pinhole_rays(yaw, rotation).cast(
-            bounds, p, t_max=max_range, step=s.march_step, tolerance=5e-4 * 2**level
-        )
+        rays = self._pinhole_rays(yaw, rotation)
+        tolerance = 5e-4 * 2**level
+        rendered = deviates = None
+        if s.noise:  # each pixel's standard normal deviate (drawn first: see below)
+            bins = np.frombuffer(self.rng.bytes(2 * s.width * s.height), dtype=np.uint16)
+            deviates = _NORMAL_QUANTILES.take(bins).reshape(s.height, s.width)
+        if region is None or self.terrain.moving is not None:
+            depth = rays.cast(bounds, p, t_max=max_range, step=s.march_step, tolerance=tolerance)
+        else:
+            # Knowing the deviates bounds every measured depth about the true one t:
+            # t + deviate * sigma(t), sigma(t) = t^2 sigma_d / (f b).
+            error = (0.0, 0.0)
+            if deviates is not None:
+                scale = np.float32(s.disparity_sigma_px / (s.focal_px * baseline))
+                error = (np.maximum(-deviates, 0.0) * scale, np.maximum(deviates, 0.0) * scale)
+            depth, rendered = rays.cast_within(
+                bounds, p, region, error, t_max=max_range, step=s.march_step,
+                tolerance=tolerance,
+            )
         if self.terrain.known is not None:  # an elevation model: no return off it or on nodata
             rays = self._rays[1]
             hit_x, hit_y = p[0] + depth * rays.dx, p[1] + depth * rays.dy
@@ -254,9 +284,8 @@ class DepthCamera:
         sigma = depth_sigma(
             depth, np.float32(s.focal_px), np.float32(baseline), np.float32(s.disparity_sigma_px)
         )
-        if s.noise:
-            bins = np.frombuffer(self.rng.bytes(2 * depth.size), dtype=np.uint16)
-            noise = _NORMAL_QUANTILES.take(bins).reshape(depth.shape)
+        if deviates is not None:
+            noise = deviates
             noise *= sigma
             depth += noise
             depth[depth <= 0] = np.nan
@@ -275,6 +304,7 @@ class DepthCamera:
             timestamp=float(timestamp),
             source=self.selector.source or "",
             baseline=float(baseline),
+            rendered=rendered,
             moving=moving,
         )
 

@@ -16,6 +16,7 @@ import cv2
 import numpy as np
 from scipy import ndimage
 
+from sitl.sensors.region import GroundRegion, pixels_needed, tiles_needed
 from sitl.terrain import Terrain
 
 # Bisection steps refining the march step that crossed the surface (then one secant step):
@@ -415,7 +416,25 @@ class PinholeRays:
         :func:`cast_pinhole_rays`. The refinement stops where the ray point is within
         ``tolerance`` (m, vertically) of the ground. Returns (H, W) float32, NaN beyond
         ``t_max``."""
-        return _cast(bounds, self, origin, t_max, step, np.float32(tolerance))
+        return _cast(bounds, self, origin, t_max, step, np.float32(tolerance))[0]
+
+    def cast_within(
+        self,
+        bounds: HeightBounds,
+        origin: np.ndarray,
+        region: GroundRegion,
+        depth_error: tuple = (0.0, 0.0),
+        t_max: float = np.inf,
+        step: float | None = None,
+        tolerance: float = _CLOSE,
+    ) -> tuple[np.ndarray, np.ndarray | None]:
+        """:meth:`cast` for only the image tiles whose points can matter to ``region``
+        (:func:`sitl.sensors.region.tiles_needed`, whose ``depth_error`` bounds the
+        measured depths about the true ones). Returns the (H, W) float32 parameters,
+        NaN where not rendered, and the (H, W) bool mask of the rendered pixels (None when
+        every pixel was)."""
+        return _cast(bounds, self, origin, t_max, step, np.float32(tolerance),
+                     (region, depth_error))
 
 
 def cast_pinhole_rays(
@@ -452,10 +471,12 @@ def cast_pinhole_rays(
         (H, W) float32 parameter of the hit point ``origin + t * direction``; NaN beyond
         ``t_max``.
     """
-    return _cast(bounds, PinholeRays(directions), origin, t_max, step, np.float32(_CLOSE))
+    return _cast(bounds, PinholeRays(directions), origin, t_max, step, np.float32(_CLOSE))[0]
 
 
-def _cast(bounds, rays: PinholeRays, origin, t_max, step, close) -> np.ndarray:
+def _cast(bounds, rays: PinholeRays, origin, t_max, step, close, region=None):
+    """(t, rendered): see :meth:`PinholeRays.cast_within`; ``region`` is None or
+    (:class:`GroundRegion`, depth error)."""
     ox, oy, oz = (float(c) for c in origin)
     height, width = rays.shape
     cs = bounds.cell_size
@@ -487,9 +508,19 @@ def _cast(bounds, rays: PinholeRays, origin, t_max, step, close) -> np.ndarray:
     # Per ray, in single precision, flat: the bracket to pixels, f(t) = ray height - ground.
     # (Random masks are slow in numpy: subsets go through index arrays and take, and
     # selections are written as arithmetic blends.)
+    du, dv, dz = per["du"], per["dv"], per["dz"]
+    step = per["inv_hor"] if step is None else per["inv_hor"] * np.float32(float(step) / cs)
+    rendered = pick = None
+    if region is not None:
+        need = tiles_needed(region[0], tuple(ext[:4]), lo, hi, (u_o, v_o),
+                            (bounds.origin[0], bounds.origin[1], cs), tile_prev, region[1])
+        if not need.all():
+            rendered = pixels_needed(region[0], need, tile_prev, (height, width))
+            pick = np.flatnonzero(rendered)
     lo = _expand(lo.astype(np.float32), tile_prev, (height, width)).ravel()
     hi = _expand(hi.astype(np.float32), tile_prev, (height, width)).ravel()
-    du, dv, dz = per["du"], per["dv"], per["dz"]
+    if pick is not None:  # the rays of the needed tiles only
+        lo, hi, du, dv, dz, step = (x.take(pick) for x in (lo, hi, du, dv, dz, step))
     grid = bounds.grid
     u_o, v_o, oz = np.float32(u_o), np.float32(v_o), np.float32(oz)
 
@@ -510,7 +541,6 @@ def _cast(bounds, rays: PinholeRays, origin, t_max, step, close) -> np.ndarray:
         return z
 
     # March a step at a time (horizontally) from lo; a ray's step reaching hi has crossed.
-    step = per["inv_hor"] if step is None else per["inv_hor"] * np.float32(float(step) / cs)
     # Each ray's bracket [a, b] with f(a) > 0 >= f(b) (fa <= 0: under ground at lo): after
     # the first step for most rays; the others march on (the g_ arrays) and write theirs.
     a, fa = lo, f(lo, du, dv, dz)
@@ -582,10 +612,14 @@ def _cast(bounds, rays: PinholeRays, origin, t_max, step, close) -> np.ndarray:
             live, a, b, fa, fb, c, fc, du, dv, dz, last = (
                 x.take(on) for x in (live, a, b, fa, fb, c, fc, du, dv, dz, last)
             )
+    if pick is not None:
+        full = np.full(height * width, np.nan, dtype=np.float32)
+        full[pick] = t
+        t = full
     t = t.reshape(height, width)
     if t_max < np.inf:
         t[t > t_max] = np.nan
-    return t
+    return t, rendered
 
 
 def _skip(bounds, start, a, fa, step, hi, du, dv, dz, f):
