@@ -182,6 +182,11 @@ class ElevationDetector:
             return self._skip(frame, "shape_mismatch")
         if rendered is not None:
             self._counters["pixels_not_rendered"] += depth.size - int(np.count_nonzero(rendered))
+            part = _rendered_part(frame, rendered)
+            if part is None:
+                return self._skip(frame, "no_valid_depth")
+            frame, rendered = part, part.rendered
+            depth = np.asarray(frame.depth, dtype=f32)
         valid = self._valid_pixels(frame, depth, rendered)
         n_valid = int(np.count_nonzero(valid))
         if n_valid == 0:
@@ -516,6 +521,33 @@ class ElevationDetector:
 
 # Largest side (px) of the pixel blocks fused as one point (see _pixel_block).
 _LARGEST_BLOCK = 8
+
+
+def _rendered_part(frame: DepthFrame, rendered: np.ndarray) -> DepthFrame | None:
+    """``frame`` cut to the rows and columns holding its rendered pixels, from and to
+    multiples of the largest pixel block (so blocks stay where they were), or None when
+    nothing was rendered. Pixels keep their rays: the principal point moves with the cut."""
+    rows = np.flatnonzero(rendered.any(axis=1))
+    if len(rows) == 0:
+        return None
+    cols = np.flatnonzero(rendered.any(axis=0))
+    b = _LARGEST_BLOCK
+    height, width = rendered.shape
+    r0, c0 = int(rows[0]) // b * b, int(cols[0]) // b * b
+    r1 = min(-(-(int(rows[-1]) + 1) // b) * b, height)
+    c1 = min(-(-(int(cols[-1]) + 1) // b) * b, width)
+    if (r0, c0, r1, c1) == (0, 0, height, width):
+        return frame
+    cut = (slice(r0, r1), slice(c0, c1))
+    k = frame.intrinsics
+    return dataclasses.replace(
+        frame,
+        depth=np.asarray(frame.depth)[cut],
+        sigma=None if frame.sigma is None else np.asarray(frame.sigma)[cut],
+        intrinsics=dataclasses.replace(k, cx=k.cx - c0, cy=k.cy - r0, width=c1 - c0,
+                                       height=r1 - r0),
+        rendered=rendered[cut],
+    )
 
 
 def _placement_depth(depth: np.ndarray, valid: np.ndarray, kernel: int) -> np.ndarray:
