@@ -68,6 +68,19 @@ def tiles_needed(
     points): see :func:`pixels_needed`.
     """
     du_min, du_max, dv_min, dv_max = extents
+    x0, y0, cell = ground
+    u_o, v_o = start
+    box = ((region.x_min - x0) / cell, (region.x_max - x0) / cell,
+           (region.y_min - y0) / cell, (region.y_max - y0) / cell)
+    # The whole view first: when all the ground it can reach lies in the region, every
+    # tile is needed (a low camera).
+    far = float(hi.max())
+    far += max(float(np.max(depth_error[1])), 0.0) * far * far + 0.01 + 1e-4 * far
+    if (u_o + min(float(du_min.min()) * far, 0.0) >= box[0]
+            and u_o + max(float(du_max.max()) * far, 0.0) <= box[1]
+            and v_o + min(float(dv_min.min()) * far, 0.0) >= box[2]
+            and v_o + max(float(dv_max.max()) * far, 0.0) <= box[3]):
+        return np.ones(lo.shape, dtype=bool)
     below, above = (_per_tile(e, tile, lo.shape) for e in depth_error)
     # Float32 brackets, fixed-point bilinear heights: a centimetre of slack.
     slack = 0.01 + 1e-4 * hi
@@ -78,7 +91,6 @@ def tiles_needed(
     if reach:  # the placement depth is a mean of the measured depths within reach
         a = _spread(a, reach, np.minimum)
         b = _spread(b, reach, np.maximum)
-    u_o, v_o = start
     u0 = u_o + np.minimum(du_min * a, du_min * b)
     u1 = u_o + np.maximum(du_max * a, du_max * b)
     v0 = v_o + np.minimum(dv_min * a, dv_min * b)
@@ -87,9 +99,8 @@ def tiles_needed(
     if group > 1:  # a block's point is the mean of its pixels'
         u0, v0 = (_pooled(x, group, np.minimum) for x in (u0, v0))
         u1, v1 = (_pooled(x, group, np.maximum) for x in (u1, v1))
-    x0, y0, cell = ground
-    need = (u1 >= (region.x_min - x0) / cell) & (u0 <= (region.x_max - x0) / cell)
-    need &= (v1 >= (region.y_min - y0) / cell) & (v0 <= (region.y_max - y0) / cell)
+    need = (u1 >= box[0]) & (u0 <= box[1])
+    need &= (v1 >= box[2]) & (v0 <= box[3])
     return need
 
 
@@ -109,10 +120,9 @@ def _per_tile(error, tile: int, shape: tuple[int, int]):
     edge included)."""
     if np.ndim(error) == 0:
         return float(error)
-    e = np.asarray(error, dtype=np.float64)
-    ny, nx = shape
-    e = np.pad(e, ((0, ny * tile - e.shape[0]), (0, nx * tile - e.shape[1])), mode="edge")
-    return _extremes(e, tile, np.maximum)
+    return _extremes(np.asarray(error), tile, np.maximum)[: shape[0], : shape[1]].astype(
+        np.float64
+    )
 
 
 def _spread(a: np.ndarray, reach: int, pick) -> np.ndarray:
