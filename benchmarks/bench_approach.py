@@ -1,12 +1,22 @@
-"""The approach to the site: the thesis's climb-traverse-descent against the minimum-snap
-trajectory over the elevation map (landing.approach.method), on the same missions and seeds.
+"""The approach to the site and the descent watch, in paired campaigns (the same seeds in both
+arms) and by the planner's CPU time.
 
-Prints, per method, the outcomes and the means of time to land, distance flown and battery
-used, and the CPU time the planner took per plan (the site's whole plan: clearance, path search
-and trajectory) with, separately, the part spent generating minimum-snap trajectories.
+``--campaign approach``: the thesis's climb-traverse-descent against the minimum-snap
+trajectory over the elevation map (landing.approach.method). Per arm: outcomes, the means of
+time to land and battery used, the median of each flight's peak jerk on the approach, and the
+smallest clearance to the ground truth while crossing to a site (vehicle z minus the true
+terrain height below it, from the flight's trace, more than 2 m from where each approach began
+and ended); then the paired differences over the seeds
+both arms landed; then the planner's CPU time per site (the whole plan: clearance, path search
+and trajectory) and, separately, the part spent generating minimum-snap trajectories.
 
-    .venv/bin/python benchmarks/bench_approach.py                      # mars_demo, 5 seeds
+``--campaign watch``: the descent watch off against on, over generated worlds with a tall
+obstacle beside the site or a car driving across it (see ``watch_mission``): collisions and
+unsafe touchdowns judged by the simulator's ground truth.
+
+    .venv/bin/python benchmarks/bench_approach.py                       # mars_demo, 8 seeds
     .venv/bin/python benchmarks/bench_approach.py --seeds 20 --mission missions/mars_science.yaml
+    .venv/bin/python benchmarks/bench_approach.py --campaign watch --seeds 8
 """
 
 from __future__ import annotations
@@ -16,6 +26,7 @@ import statistics
 import sys
 import time
 from collections import Counter
+from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
@@ -26,7 +37,10 @@ sys.path.insert(0, str(ROOT))
 from autonomy.config import apply_overrides, load_mission  # noqa: E402
 from autonomy.perception import approach as approach_module  # noqa: E402
 from autonomy.runner import fly  # noqa: E402
+from autonomy.runner.world import FlightSeeds, build_terrain  # noqa: E402
 from planning import approach as planning_approach  # noqa: E402
+
+APPROACH_PHASES = ("navigate_to_site",)
 
 
 def _timed_planner():
@@ -35,7 +49,7 @@ def _timed_planner():
     times: list[float] = []
     generating: list[float] = []
     original = approach_module.MapApproachPlanner.plan
-    generate = planning_approach.min_snap_trajectory
+    generate = planning_approach.cruise_trajectory
 
     def plan(self, start, goal):
         generating.append(0.0)
@@ -45,7 +59,7 @@ def _timed_planner():
         finally:
             times.append(time.process_time() - t0)
 
-    def min_snap_trajectory(*args, **kwargs):
+    def cruise_trajectory(*args, **kwargs):
         t0 = time.process_time()
         try:
             return generate(*args, **kwargs)
@@ -53,8 +67,94 @@ def _timed_planner():
             generating[-1] += time.process_time() - t0
 
     approach_module.MapApproachPlanner.plan = plan
-    planning_approach.min_snap_trajectory = min_snap_trajectory
+    planning_approach.cruise_trajectory = cruise_trajectory
     return times, generating
+
+
+def _in_phases(t: np.ndarray, phases: list[tuple[float, str]], wanted) -> np.ndarray:
+    """(N,) bool: samples taken while one of ``wanted`` phases ran."""
+    starts = np.array([s for s, _ in phases] + [np.inf])
+    names = [p for _, p in phases]
+    index = np.searchsorted(starts, t, side="right") - 1
+    return np.array([i >= 0 and names[i] in wanted for i in index], dtype=bool)
+
+
+def _transit_clearance(t, xyz, phases, terrain) -> float:
+    """Smallest height above the true terrain while crossing to a site: samples of each
+    approach (navigate_to_site) more than 2 m horizontally from where it began and ended
+    (the climb out of a low hover and the arrival are the descent's business)."""
+    mask = _in_phases(t, phases, APPROACH_PHASES)
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], mask.astype(int), [0]])))
+    lowest = np.inf
+    for a, b in zip(edges[::2], edges[1::2], strict=True):
+        p = xyz[a:b]
+        away = (np.hypot(*(p[:, :2] - p[0, :2]).T) > 2.0) & (np.hypot(*(p[:, :2] - p[-1, :2]).T)
+                                                             > 2.0)
+        if away.any():
+            q = p[away]
+            lowest = min(lowest, float(np.min(q[:, 2] - terrain.height(q[:, 0], q[:, 1]))))
+    return float(lowest) if np.isfinite(lowest) else float("nan")
+
+
+def _attempts(t, phases, battery) -> list[tuple[bool, float, float]]:
+    """Each approach and descent to a site: (from a low hover, seconds, battery % used) from
+    the start of navigate_to_site to the start of the verification that follows."""
+    out = []
+    for k, (start, phase) in enumerate(phases):
+        if phase != "navigate_to_site":
+            continue
+        end = next((when for when, p in phases[k + 1:] if p == "verification"), None)
+        if end is None:
+            continue
+        i, j = np.searchsorted(t, [start, end])
+        j = min(j, len(t) - 1)
+        after_a_try = any(p == "verification" for _, p in phases[:k])
+        out.append((after_a_try, end - start,
+                    float(battery[i] - battery[j])))
+    return out
+
+
+def _peak_jerk(t: np.ndarray, xyz: np.ndarray, mask: np.ndarray) -> float:
+    """Largest |d^3 p / dt^3| (m/s^3) by finite differences of the trace where ``mask``."""
+    if mask.sum() < 5:
+        return float("nan")
+    dt = float(np.median(np.diff(t)))
+    jerk = np.diff(xyz, n=3, axis=0) / dt**3
+    inside = mask[3:] & mask[:-3]
+    return float(np.linalg.norm(jerk[inside], axis=1).max()) if inside.any() else float("nan")
+
+
+def fly_one(job: tuple[str, dict, int]) -> dict:
+    """One flight of the campaign (a worker process): its summary figures."""
+    mission_path, overrides, seed = job
+    plan_times, trajectory_times = _timed_planner()
+    mission = apply_overrides(load_mission(mission_path), overrides)
+    result = fly(mission, seed=seed)
+    s = result.summary
+    t, xyz, battery = result.data.trace.arrays()
+    phases = result.data.trace.phases
+    terrain = build_terrain(mission.model_copy(update={"seed": seed}),
+                            FlightSeeds.derive(seed).terrain)
+    return {
+        "seed": seed, "outcome": s["outcome"], "time_to_land": s.get("time_to_land"),
+        "battery": s["energy"]["battery_used"], "wh": s["energy"]["wh"],
+        "distance": s["distance"], "tries": s.get("verification_attempts"),
+        "touchdown_safe": s.get("touchdown_safe"), "collisions": s.get("collisions") or 0,
+        "peak_jerk": _peak_jerk(t, xyz, _in_phases(t, phases, APPROACH_PHASES)),
+        "min_clearance": _transit_clearance(t, xyz, phases, terrain),
+        "attempts": _attempts(t, phases, battery),
+        "plan_times": plan_times, "trajectory_times": trajectory_times,
+    }
+
+
+def _mean(values) -> float:
+    values = [v for v in values if v is not None and np.isfinite(v)]
+    return statistics.fmean(values) if values else float("nan")
+
+
+def _median(values) -> float:
+    values = [v for v in values if v is not None and np.isfinite(v)]
+    return statistics.median(values) if values else float("nan")
 
 
 def _percentiles(seconds: list[float]) -> str:
@@ -63,39 +163,204 @@ def _percentiles(seconds: list[float]) -> str:
             f"slowest {ms.max():.2f} ms CPU")
 
 
+def run_arms(mission: str, arms: dict[str, dict], seeds: range, workers: int):
+    """{arm: [flight figures in seed order]} with every arm flown on every seed."""
+    jobs = [(mission, overrides, seed) for overrides in arms.values() for seed in seeds]
+    with ProcessPoolExecutor(max_workers=workers) as pool:
+        flights = list(pool.map(fly_one, jobs))
+    n = len(seeds)
+    return {arm: flights[k * n:(k + 1) * n] for k, arm in enumerate(arms)}
+
+
+def approach_campaign(args) -> None:
+    base = load_mission(args.mission)
+    seeds = range(base.seed, base.seed + args.seeds)
+    arms = {"clear_altitude": {"landing.approach.method": "clear_altitude"},
+            "trajectory": {"landing.approach.method": "trajectory", **args.override}}
+    wall = time.perf_counter()
+    results = run_arms(args.mission, arms, seeds, args.workers)
+    print(f"approach campaign: {Path(args.mission).name}, seeds {seeds.start}..{seeds.stop - 1}"
+          f", {args.workers} workers, {time.perf_counter() - wall:.0f} s wall"
+          + (f"; trajectory arm with {args.override}" if args.override else ""))
+    print(f"{'method':<16}{'outcomes':<28}{'land s':>8}{'battery %':>10}{'Wh':>7}"
+          f"{'tries':>6}{'jerk m/s3':>10}{'min clear m':>12}")
+    for arm, flights in results.items():
+        outcomes = Counter(f["outcome"] for f in flights)
+        text = ", ".join(f"{k} {v}" for k, v in sorted(outcomes.items()))
+        print(f"{arm:<16}{text:<28}{_mean(f['time_to_land'] for f in flights):>8.1f}"
+              f"{_mean(f['battery'] for f in flights):>10.1f}"
+              f"{_mean(f['wh'] for f in flights):>7.1f}"
+              f"{_mean(f['tries'] for f in flights):>6.1f}"
+              f"{_median(f['peak_jerk'] for f in flights):>10.1f}"
+              f"{min(f['min_clearance'] for f in flights):>12.2f}")
+    print("each approach and descent to a site (navigate_to_site start to verification start),"
+          " mean s and battery %:")
+    for arm, flights in results.items():
+        parts = []
+        for low, name in ((False, "from the cruise"), (True, "from a low hover")):
+            got = [(d, e) for f in flights for lo, d, e in f["attempts"] if lo == low]
+            if got:
+                parts.append(f"{name} {len(got)}: {statistics.fmean(d for d, _ in got):.1f} s "
+                             f"{statistics.fmean(e for _, e in got):.2f} %")
+        print(f"  {arm:<16}" + "; ".join(parts))
+    a, b = results["clear_altitude"], results["trajectory"]
+    both = [(x, y) for x, y in zip(a, b, strict=True)
+            if x["outcome"] == y["outcome"] == "landed"]
+    print("per seed (clear_altitude | trajectory): outcome, time to land s, battery %, tries")
+    for x, y in zip(a, b, strict=True):
+        print(f"  seed {x['seed']:>3}: {x['outcome']:<8} {x['time_to_land'] or 0:6.1f} "
+              f"{x['battery']:5.1f} {x['tries']!s:>3} | {y['outcome']:<8} "
+              f"{y['time_to_land'] or 0:6.1f} {y['battery']:5.1f} {y['tries']!s:>3}")
+    if both:
+        dt = [y["time_to_land"] - x["time_to_land"] for x, y in both]
+        de = [y["battery"] - x["battery"] for x, y in both]
+        same = [(x, y) for x, y in both if x["tries"] == y["tries"]]
+        print(f"paired, {len(both)} seeds both landed: trajectory - clear_altitude time to land "
+              f"mean {statistics.fmean(dt):+.1f} s, battery {statistics.fmean(de):+.2f} %")
+        if same:
+            per_try = [(y["time_to_land"] - x["time_to_land"]) for x, y in same]
+            print(f"  of which {len(same)} with as many tries in both: time "
+                  f"{statistics.fmean(per_try):+.1f} s, battery "
+                  f"{statistics.fmean(y['battery'] - x['battery'] for x, y in same):+.2f} %")
+    plans = [t for f in b for t in f["plan_times"]]
+    made = [t for f in b for t in f["trajectory_times"] if t > 0]
+    if plans:
+        print(f"planner, whole plan per site: {len(plans)} plans, {_percentiles(plans)}")
+    if made:
+        print(f"  of which trajectory generation: {len(made)} plans, {_percentiles(made)}")
+
+
+# The descent-watch worlds: a flat 80 m square elevation model (0.25 m cells) with a 12 m
+# tower east of home; a scripted site 0.3-0.9 m from its west face (seeded), so that a blind
+# descent brushes the tower with the rotors (footprint radius 1 m); on odd seeds a flat world
+# of the same size where a car drives a lane across the site's column instead.
+CELL, SIDE = 0.25, 80.0
+TOWER = (18.5, 22.5, -2.0, 2.0, 12.0)  # ENU x0, x1, y0, y1, height (m)
+
+
+def _tower_world(directory: Path) -> Path:
+    n = int(SIDE / CELL) + 1
+    enu = np.arange(n) * CELL - SIDE / 2
+    grid = np.zeros((n, n), np.float32)  # row i along +y (north), as .npy models are read
+    x0, x1, y0, y1, height = TOWER
+    grid[np.ix_((enu >= y0) & (enu <= y1), (enu >= x0) & (enu <= x1))] = height
+    path = directory / "tower.npy"
+    np.save(path, grid)
+    return path
+
+
+def watch_mission(seed: int, directory: Path, watch: bool, flow: dict):
+    """The seed's scenario (see above) as a Mission, the watch on or off."""
+    from autonomy.config import Mission
+
+    rng = np.random.default_rng(seed)
+    car = seed % 2 == 1
+    gap = float(rng.uniform(0.3, 0.9))
+    site = (TOWER[0] - gap, float(rng.uniform(-1.5, 1.5)))
+    moving = None
+    if car:
+        # A car on a north-south lane through the column, at a seeded point of its round.
+        lane = site[0] + float(rng.uniform(-0.5, 0.5))
+        moving = {"paths": [{"kind": "vehicle", "path": [[lane, -15.0], [lane, 15.0]],
+                             "speed": float(rng.uniform(2.0, 5.0)),
+                             "start": float(rng.uniform(0.0, 30.0))}]}
+    return Mission.model_validate({
+        "name": "descent watch campaign", "cruise_altitude": 20.0,
+        "waypoints": [[site[0] - 6.0, site[1], 20.0]],
+        "landing": {"verify": False, "clear_altitude_buffer": 10.0,
+                    "search_rectangle": [10.0, 10.0], "pattern_center_radius": 5.0,
+                    "descent_watch": {"enabled": watch, "step": 2.0, "max_offset": 6.0}},
+        "world": ({"kind": "flat", "size": [SIDE, SIDE], "cell_size": CELL,
+                   "moving_obstacles": moving} if car else
+                  {"kind": "file", "path": str(_tower_world(directory)),
+                   "source_cell_size": CELL, "cell_size": CELL}),
+        "sitl": {"wind": {"speed": 2.0, "direction": float(rng.uniform(0.0, 360.0))}},
+        "perception": {"detector": "scripted", "rate": 2.0, "scripted": {"fov": 90.0},
+                       "descent_flow": flow},
+        "sites": [{"x": site[0], "y": site[1], "size": 4.0}],
+        "seed": seed, "time_limit": 150.0,
+    })
+
+
+def watch_thresholds(directory: Path) -> dict:
+    """O_T and V_T of the default camera over an open column of the tower world."""
+    from autonomy.perception.descent_flow import calibrate_descent
+    from autonomy.perception.descent_flow_settings import DescentFlowSettings
+
+    terrain = build_terrain(watch_mission(0, directory, True, {}), seed=0)
+    o_t, v_t, _ = calibrate_descent(terrain, -20.0, 20.0, settings=DescentFlowSettings(),
+                                    top=22.0)
+    return {"obstacle_threshold": round(o_t, 2), "variance_threshold": round(v_t, 2)}
+
+
+def fly_watch(job: tuple[int, bool, str, dict]) -> dict:
+    """One flight of the watch campaign (a worker process)."""
+    seed, watch, directory, flow = job
+    mission = watch_mission(seed, Path(directory), watch, flow)
+    result = fly(mission)
+    s = result.summary
+    return {"seed": seed, "outcome": s["outcome"], "time_to_land": s.get("time_to_land"),
+            "collisions": s.get("collisions") or 0, "touchdown_safe": s.get("touchdown_safe"),
+            "flagged": sum(e.get("event") == "descent_obstacle" for e in result.events)}
+
+
+def watch_campaign(args) -> None:
+    import tempfile
+
+    seeds = range(1, 1 + args.seeds)
+    wall = time.perf_counter()
+    with tempfile.TemporaryDirectory() as directory:
+        flow = {**watch_thresholds(Path(directory)), **args.override}
+        jobs = [(seed, watch, directory, flow) for watch in (False, True) for seed in seeds]
+        with ProcessPoolExecutor(max_workers=args.workers) as pool:
+            flights = list(pool.map(fly_watch, jobs))
+    n = len(seeds)
+    print(f"descent watch campaign: seeds {seeds.start}..{seeds.stop - 1} (even: a 12 m tower "
+          f"0.3-0.9 m beside the site; odd: a car driving across the site), {args.workers} "
+          f"workers, {time.perf_counter() - wall:.0f} s wall; thresholds {flow}")
+    print(f"{'arm':<12}{'outcomes':<40}{'collisions':>11}{'flights hit':>12}"
+          f"{'unsafe':>8}{'flagged':>9}{'land s':>8}")
+    for k, arm in enumerate(("watch off", "watch on")):
+        group = flights[k * n:(k + 1) * n]
+        outcomes = Counter(f["outcome"] for f in group)
+        text = ", ".join(f"{key} {v}" for key, v in sorted(outcomes.items()))
+        print(f"{arm:<12}{text:<40}{sum(f['collisions'] for f in group):>11}"
+              f"{sum(f['collisions'] > 0 for f in group):>12}"
+              f"{sum(f['touchdown_safe'] is False for f in group):>8}"
+              f"{sum(f['flagged'] for f in group):>9}"
+              f"{_mean(f['time_to_land'] for f in group):>8.1f}")
+    print("per seed (off | on): outcome, collisions, touchdown safe, flagged pairs")
+    for off, on in zip(flights[:n], flights[n:], strict=True):
+        print(f"  seed {off['seed']:>3}: {off['outcome']:<8} {off['collisions']} "
+              f"{off['touchdown_safe']!s:<5} {off['flagged']:>3} | {on['outcome']:<8} "
+              f"{on['collisions']} {on['touchdown_safe']!s:<5} {on['flagged']:>3}")
+
+
+def _override(text: str) -> tuple[str, object]:
+    key, _, value = text.partition("=")
+    try:
+        parsed: object = float(value) if "." in value else int(value)
+    except ValueError:
+        parsed = {"true": True, "false": False}.get(value, value)
+    return key, parsed
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--mission", default=str(ROOT / "missions" / "mars_demo.yaml"))
-    parser.add_argument("--seeds", type=int, default=5)
+    parser.add_argument("--campaign", choices=("approach", "watch"), default="approach")
+    parser.add_argument("--mission", default=str(ROOT / "missions" / "mars_demo.yaml"),
+                        help="the approach campaign's mission")
+    parser.add_argument("--seeds", type=int, default=8)
+    parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--set", dest="override", action="append", type=_override,
+                        default=[], metavar="KEY=VALUE",
+                        help="a mission override for the new arm only (trajectory / watch on)")
     args = parser.parse_args()
-    base = load_mission(args.mission)
-    plan_times, trajectory_times = _timed_planner()
-    print(f"approach benchmark: {Path(args.mission).name}, seeds {base.seed}.."
-          f"{base.seed + args.seeds - 1}")
-    print(f"{'method':<16}{'outcomes':<34}{'time to land s':>15}{'distance m':>12}"
-          f"{'battery %':>11}{'wall s':>8}")
-    for method in ("clear_altitude", "trajectory"):
-        mission = apply_overrides(base, {"landing.approach.method": method})
-        outcomes, land, dist, battery = Counter(), [], [], []
-        wall = time.perf_counter()
-        for seed in range(base.seed, base.seed + args.seeds):
-            s = fly(mission, seed=seed).summary
-            outcomes[s["outcome"]] += 1
-            if s.get("time_to_land") is not None:
-                land.append(s["time_to_land"])
-            dist.append(s["distance"])
-            battery.append(s["energy"]["battery_used"])
-        wall = time.perf_counter() - wall
-        text = ", ".join(f"{k} {v}" for k, v in sorted(outcomes.items()))
-        mean_land = statistics.fmean(land) if land else float("nan")
-        print(f"{method:<16}{text:<34}{mean_land:>15.1f}{statistics.fmean(dist):>12.0f}"
-              f"{statistics.fmean(battery):>11.1f}{wall:>8.0f}")
-    if plan_times:
-        print(f"planner, whole plan per site: {len(plan_times)} plans, "
-              f"{_percentiles(plan_times)}")
-        made = [t for t in trajectory_times if t > 0]
-        if made:
-            print(f"  of which trajectory generation: {len(made)} plans, {_percentiles(made)}")
+    args.override = dict(args.override)
+    if args.campaign == "approach":
+        approach_campaign(args)
+    else:
+        watch_campaign(args)
     return 0
 
 

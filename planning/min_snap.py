@@ -15,7 +15,7 @@ acceleration by ``s**2``.
 A single rest-to-rest polynomial spends most of its time speeding up and slowing down: its
 peak speed is about twice its mean, so a long leg limited by its speed (a descent at the
 autopilot's 1.5 m/s) takes twice as long as the autopilot's own trapezoid. :func:`cruise_trajectory`
-therefore splits each leg into pieces about a second long, placed where a gentler trapezoid
+therefore splits each leg into pieces about 1.5 s long, placed where a gentler trapezoid
 would be at those times: the minimum-snap curve through them cruises near the limit in the
 middle of the leg.
 """
@@ -260,8 +260,8 @@ def concatenate(first: Trajectory, second: Trajectory) -> Trajectory:
 
 # Pieces of a leg, seconds apart at the trapezoid's pace; at most this many per trajectory
 # (the linear system grows with their square).
-PIECE_TIME = 1.0
-MAX_PIECES = 32
+PIECE_TIME = 1.5
+MAX_PIECES = 16
 # The trapezoid placing the pieces accelerates at this share of the limit: the smooth curve
 # through a sharper one overshoots its acceleration and must be stretched more.
 GENTLE = 0.5
