@@ -233,15 +233,23 @@ def min_snap_trajectory(
         raise ValueError("the speed, acceleration, climb and descent limits must be > 0")
     durations = trapezoid_durations(waypoints, max_speed, max_acceleration)
     trajectory = solve_min_snap(waypoints, durations)
+    return _within_limits(trajectory, max_speed, max_acceleration, max_climb, max_descent)
+
+
+def _within_limits(trajectory: Trajectory, max_speed, max_acceleration, max_climb,
+                   max_descent, legs: np.ndarray | None = None) -> Trajectory:
+    """``trajectory`` stretched in time until its peak speed, acceleration, climb or descent
+    rate (whichever binds first) just meets its limit."""
     speed, accel = trajectory.peaks()
     ratios = [speed / max_speed, math.sqrt(accel / max_acceleration), 1e-6]
-    if max_climb is not None or max_descent is not None:
+    if trajectory.coefficients.shape[2] == 3:
         climb, descent = trajectory.vertical_peaks()
         ratios += [climb / max_climb if max_climb else 0.0,
                    descent / max_descent if max_descent else 0.0]
     # Stretching every duration by one factor keeps the ratios the joints' rows depend on,
     # so the normalised-time coefficients stay the optimum: no second solve.
-    return Trajectory(coefficients=trajectory.coefficients, durations=durations * max(ratios))
+    return Trajectory(coefficients=trajectory.coefficients,
+                      durations=trajectory.durations * max(ratios), legs=legs)
 
 
 def concatenate(first: Trajectory, second: Trajectory) -> Trajectory:
@@ -315,13 +323,5 @@ def cruise_trajectory(
         legs.extend([leg] * n)
     points[-1] = waypoints[-1]
     trajectory = solve_min_snap(np.array(points), np.array(durations))
-    speed, accel = trajectory.peaks()
-    ratios = [speed / max_speed, math.sqrt(accel / max_acceleration), 1e-6]
-    climb, descent = trajectory.vertical_peaks() if waypoints.shape[1] == 3 else (0.0, 0.0)
-    if max_climb:
-        ratios.append(climb / max_climb)
-    if max_descent:
-        ratios.append(descent / max_descent)
-    return Trajectory(coefficients=trajectory.coefficients,
-                      durations=trajectory.durations * max(ratios),
-                      legs=np.array(legs, dtype=np.int64))
+    return _within_limits(trajectory, max_speed, max_acceleration, max_climb, max_descent,
+                          legs=np.array(legs, dtype=np.int64))
