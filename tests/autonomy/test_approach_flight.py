@@ -75,3 +75,17 @@ def test_the_map_planner_goes_around_what_the_map_shows_and_says_when_it_cannot(
     assert end == pytest.approx((10.0, 0.0, 15.0)) and np.allclose(velocity, 0.0, atol=1e-9)
     assert "outside the mapped area" in planner.plan((0.0, -10.0, 15.0), (50.0, 0.0, 15.0))
     assert "no path" in planner.plan((-10.0, 0.0, 15.0), (0.0, 0.0, 15.0))  # on the wall
+
+
+def test_the_demo_over_mars_lands_safely_along_a_planned_trajectory():
+    # The demo mission (mars_demo: elevation-map detector over the Mars world) with the
+    # trajectory approach: at least one approach is flown along its trajectory to arrival,
+    # not handed to the fallback, and the flight ends on ground the truth judges safe.
+    mission = apply_overrides(load_mission(MISSIONS / "mars_demo.yaml"),
+                              {"landing.approach.method": "trajectory"})
+    result = fly(mission, seed=2)
+    assert result.outcome == "landed" and result.summary["touchdown_safe"] is True
+    arrived = [e for e in result.events if e.get("kind") == "tree"
+               and e.get("behaviour") == "FlyApproachTrajectory" and e.get("new") == "SUCCESS"]
+    assert arrived and all(e["feedback"] == "arrived" for e in arrived)
+    assert result.summary["collisions"] == 0
