@@ -168,7 +168,8 @@ def read_btlog(path: str | os.PathLike[str]) -> TickLog:
     """Read a FileLogger2 ``.btlog`` written by this project or by BehaviorTree.CPP.
 
     Raises:
-        BtlogError: not a FileLogger2 file, or cut short before its first timestamp.
+        BtlogError: not a FileLogger2 file, cut short before its first timestamp, or a
+            transition with no node status.
         OSError: the file cannot be read.
     """
     with open(path, "rb") as handle:
@@ -192,7 +193,12 @@ def read_btlog(path: str | os.PathLike[str]) -> TickLog:
         record = body[k * TRANSITION_SIZE:(k + 1) * TRANSITION_SIZE]
         micros = int.from_bytes(record[:6], "little")
         uid, status = struct.unpack_from("<HB", record, 6)
-        transitions.append(Transition(micros * 1e-6, uid, NodeStatus(status)))
+        try:
+            transitions.append(Transition(micros * 1e-6, uid, NodeStatus(status)))
+        except ValueError:
+            raise BtlogError(f"{os.fspath(path)}: transition {k} has status {status}, "
+                             "which is no node status (a corrupt log, or one caught "
+                             "mid-write)") from None
     return TickLog(xml, first * 1e-6, transitions, parse_nodes(xml),
                    truncated=len(body) % TRANSITION_SIZE != 0)
 
