@@ -274,7 +274,6 @@ class DepthCamera:
                 tolerance=tolerance,
             )
         if self.terrain.known is not None:  # an elevation model: no return off it or on nodata
-            rays = self._rays[1]
             hit_x, hit_y = p[0] + depth * rays.dx, p[1] + depth * rays.dy
             depth[~self.terrain.has_ground(hit_x, hit_y)] = np.nan
         moving = None
