@@ -14,11 +14,11 @@ import math
 import cv2
 import numpy as np
 
+from lsd.elevation.cell_fusion import fuse_cells
 from lsd.elevation.settings import ElevationMapSettings
 from lsd.plane_fit import copy_where
 
-TOP_QUANTILE = 0.9  # which percentile of a cell's points is its top
-TOP_NOISE_LIFT = 1.2816  # the standard normal's 90th percentile
+_EMPTY = np.zeros(0, np.float32)  # no per-point counts
 
 
 def _shifted(array: np.ndarray, di: int, dj: int, fill: float) -> np.ndarray:
@@ -69,6 +69,7 @@ class ElevationMap:
         # No observed cell was last measured before this (a lower bound, so that
         # forgetting can tell cheaply when nothing is old enough yet).
         self._oldest = math.inf
+        self._fuse_scratch: tuple[np.ndarray, np.ndarray] | None = None
 
     @property
     def resolution(self) -> float:
@@ -188,102 +189,38 @@ class ElevationMap:
             the number of measurements (sum of ``count``) inside the window, fused.
         """
         n0, n1 = self.shape
-        inv_r = 1.0 / self.resolution
-        # Fractional cell indices relative to the window (small numbers, exact enough in
-        # single precision); NaN fails every comparison and so falls outside.
-        fi = x * inv_r - float(self.origin_index[0])
-        fj = y * inv_r - float(self.origin_index[1])
-        if len(fi) == 0:
+        if len(x) == 0:
             return 0
-        # Four reductions tell when every point is inside (the common case, and NaN
-        # makes them fail); only otherwise is each point tested.
-        if fi.min() >= 0 and fi.max() < n0 and fj.min() >= 0 and fj.max() < n1:
-            n_inside = len(fi)
-        else:
-            inside = (fi >= 0) & (fi < n0) & (fj >= 0) & (fj < n1)
-            n_inside = int(np.count_nonzero(inside))
-        if n_inside == 0:
-            return 0
-        if n_inside < len(fi):
-            fi, fj, z, variance = fi[inside], fj[inside], z[inside], variance[inside]
-            count = None if count is None else count[inside]
-        fused = n_inside if count is None else int(count.sum())
-        # Truncation is the floor here: every index left is >= 0.
-        flat = fi.astype(np.intp)
-        flat *= n1
-        flat += fj.astype(np.intp)
-        # Sums over the span of cells the points fall in (small when the camera is low).
-        base = int(flat.min())
-        flat -= base
-        span_cells = int(flat.max()) + 1
-        weight = 1.0 / variance
-        w_sum = np.bincount(flat, weights=weight, minlength=span_cells)
-        wz_sum = np.bincount(flat, weights=weight * z, minlength=span_cells)
-        v_sum = np.bincount(flat, weights=variance, minlength=span_cells)
-        # The cell's top: the 90th percentile of its points, less the 1.28 sigma by which
-        # noise alone lifts that percentile. A rock smaller than a cell barely moves the
-        # cell's mean but shows in its top. One integer key holds the cell in its high
-        # bits and the height, quantised far below any noise, in its low bits: sorting
-        # the keys themselves (no argsort) orders the points by cell, then by height.
-        cell_bits = max(1, (span_cells - 1).bit_length())
-        height_bits = min(50, 62 - cell_bits)
-        low = float(z.min())
-        span = float(z.max()) - low + 1e-9
-        quantum = span / float(1 << height_bits)
-        level = ((z - low) * (1.0 / quantum)).astype(np.int64)
-        np.minimum(level, (1 << height_bits) - 1, out=level)
-        flat <<= height_bits
-        flat |= level
-        key = np.sort(flat)
-        cell_of_key = key >> height_bits
-        first = np.flatnonzero(cell_of_key[1:] != cell_of_key[:-1])
-        first += 1
-        first = np.concatenate(([0], first))
-        local = cell_of_key[first]  # cell index less base
-        n_points = np.diff(np.append(first, len(key)))
-        pick = first + (TOP_QUANTILE * (n_points - 1)).astype(np.int64)
-        percentile = low + (key[pick] & ((1 << height_bits) - 1)) * quantum
-        w_cell = w_sum[local]
-        meas = wz_sum[local] / w_cell
-        point_var = v_sum[local] / n_points
-        meas_top = np.maximum(percentile - TOP_NOISE_LIFT * np.sqrt(point_var), meas)
-        meas_var = np.maximum(1.0 / w_cell, self.settings.min_sigma**2)
-        cells = local + base
+        x = np.ascontiguousarray(x)
+        y = np.ascontiguousarray(y)
+        z = np.ascontiguousarray(z)
+        variance = np.ascontiguousarray(variance)
+        # Scalars in the precision numpy 2 would compute with them against each array.
+        xt, yt = x.dtype.type, y.dtype.type
+        fused, inside = fuse_cells(
+            x, y, z, variance,
+            _EMPTY if count is None else np.ascontiguousarray(count),
+            xt(1.0 / self.resolution), xt(self.origin_index[0]),
+            yt(1.0 / self.resolution), yt(self.origin_index[1]),
+            variance.dtype.type(1.0),
+            self.mean.reshape(-1), self.variance.reshape(-1), self.top.reshape(-1),
+            self.last_update.reshape(-1), self.closest.reshape(-1),
+            n0, n1, float(now), math.nan if camera_height is None else float(camera_height),
+            self.settings.min_sigma**2, self.settings.outlier_gate**2,
+            *self._scratch(len(x)),
+        )
+        if inside:
+            self._oldest = min(self._oldest, now)
+        return int(fused)
 
-        mean = self.mean.reshape(-1)
-        var = self.variance.reshape(-1)
-        top = self.top.reshape(-1)
-        mu = mean[cells]
-        p = var[cells]  # inf where the cell is new
-        old_top = top[cells]
-        known = np.isfinite(mu)
-        # A new cell starts from its measurement (zero innovation, gain 1 as p is inf).
-        unknown = ~known
-        copy_where(mu, meas, unknown)
-        copy_where(old_top, meas_top, unknown)
-        total = p + meas_var
-        innovation = meas - mu
-        gain = 1.0 - meas_var / total  # p / total, and 1 for a new cell
-        outlier = innovation * innovation > self.settings.outlier_gate**2 * total
-        if outlier.any():
-            # The estimate with the smaller variance wins: gain 1 replaces, 0 keeps.
-            closer = meas_var < p
-            np.copyto(gain, closer, where=outlier)
-            keep = outlier & ~closer
-        new_mu = mu + gain * innovation
-        new_var = gain * meas_var  # p * meas_var / total; meas_var when replaced
-        if outlier.any():
-            np.copyto(new_var, p, where=keep)
-        new_top = old_top + gain * (meas_top - old_top)
-        mean[cells] = new_mu
-        top[cells] = np.maximum(new_top, new_mu)
-        var[cells] = new_var
-        self.last_update.reshape(-1)[cells] = now
-        self._oldest = min(self._oldest, now)
-        if camera_height is not None:
-            closest = self.closest.reshape(-1)
-            closest[cells] = np.minimum(closest[cells], np.maximum(camera_height - meas, 0.0))
-        return fused
+    def _scratch(self, points: int) -> tuple[np.ndarray, np.ndarray]:
+        """Work space of :func:`fuse_cells` for ``points`` points, kept between calls."""
+        n0, n1 = self.shape
+        if self._fuse_scratch is None or self._fuse_scratch[0].shape[1] < points:
+            self._fuse_scratch = (
+                np.empty((5, max(points, 1 << 16))), np.empty(n0 * n1 + 1, np.int32)
+            )
+        return self._fuse_scratch
 
     def forget_older_than(self, now: float) -> int:
         """Forget cells last measured more than ``max_age`` seconds before ``now``.

@@ -1,0 +1,205 @@
+"""The per-cell fusion of :meth:`ElevationMap.fuse_columns` as one compiled pass (numba).
+
+The vectorised version made some thirty numpy passes over the points and the touched cells
+(three ``bincount`` sums, a sort of cell-and-height keys, gathers and scatters); this kernel
+walks the points twice and the touched cells once, so a frame costs what its points and
+cells cost, not what the whole map costs. Every operation is the numpy version's, in the
+same precision and order: single-precision cell indices, weights and height levels where the
+points are single precision (numpy 2's scalar promotion), double-precision sums taken in
+point order (what ``bincount`` does), and the 90th-percentile level as the same order
+statistic, so the map comes out bit for bit the same.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+TOP_QUANTILE = 0.9  # which percentile of a cell's points is its top
+TOP_NOISE_LIFT = 1.2816  # the standard normal's 90th percentile
+
+
+@njit(cache=True, nogil=True)
+def _nan_max(a: float, b: float) -> float:
+    """``np.maximum`` of two scalars (NaN wins)."""
+    if a != a or b != b:
+        return a + b
+    return a if a >= b else b
+
+
+@njit(cache=True, nogil=True)
+def _nan_min(a: float, b: float) -> float:
+    """``np.minimum`` of two scalars (NaN wins)."""
+    if a != a or b != b:
+        return a + b
+    return a if a <= b else b
+
+
+@njit(cache=True, nogil=True)
+def _kth_smallest(values: np.ndarray, a: int, b: int, k: int) -> int:
+    """The ``k``-th smallest (0-based) of ``values[a:b]``, which it reorders."""
+    if b - a <= 32:  # insertion sort: cells mostly hold a few points
+        for q in range(a + 1, b):
+            v = values[q]
+            r = q - 1
+            while r >= a and values[r] > v:
+                values[r + 1] = values[r]
+                r -= 1
+            values[r + 1] = v
+        return values[a + k]
+    part = values[a:b]
+    part.sort()
+    return part[k]
+
+
+@njit(cache=True, nogil=True)
+def fuse_cells(
+    x, y, z, variance, count,
+    inv_rx, origin_i, inv_ry, origin_j, one,
+    mean, var, top, last_update, closest,
+    n0, n1, now, camera_height, min_var, gate2, scratch, cell_scratch,
+):
+    """Fuse points into the flattened grids of an (n0, n1) map in place.
+
+    Args:
+        x, y, z, variance: (N,) points (float32 or float64; ``z`` and ``variance`` may differ
+            in precision from ``x`` and ``y``).
+        count: (N,) measurements each point stands for, or an empty array (one each).
+        inv_rx, origin_i, inv_ry, origin_j: 1 / resolution and the window's origin cell
+            index, in ``x``'s and ``y``'s precision; ``one``: 1.0 in ``variance``'s.
+        mean, var, top, last_update, closest: the map's (n0 * n1,) float64 grids.
+        now: clock seconds; camera_height: camera ENU z, NaN when unknown.
+        min_var: floor of a measurement's variance; gate2: outlier gate squared.
+        scratch: (5, N or more) float64 work space; cell_scratch: (n0 * n1 + 1,) int32
+            work space (kept between calls: fresh arrays cost page faults every call).
+
+    Returns:
+        (number of measurements fused, number of points inside the window).
+    """
+    n = len(x)
+    flat = scratch[0].view(np.int64)
+    inside = 0
+    lo_cell = np.int64(n0 * n1)
+    hi_cell = np.int64(-1)
+    z_lo = np.inf
+    z_hi = -np.inf
+    z_nan = False
+    fused = 0.0
+    for k in range(n):
+        fi = x[k] * inv_rx - origin_i
+        fj = y[k] * inv_ry - origin_j
+        # NaN fails every comparison and so falls outside.
+        if fi >= 0 and fi < n0 and fj >= 0 and fj < n1:
+            cell = np.int64(fi) * n1 + np.int64(fj)
+            flat[k] = cell
+            inside += 1
+            if cell < lo_cell:
+                lo_cell = cell
+            if cell > hi_cell:
+                hi_cell = cell
+            zk = np.float64(z[k])
+            if zk < z_lo:
+                z_lo = zk
+            if zk > z_hi:
+                z_hi = zk
+            if zk != zk:
+                z_nan = True
+            fused += 1.0 if len(count) == 0 else np.float64(count[k])
+        else:
+            flat[k] = -1
+    if inside == 0:
+        return 0, 0
+    if z_nan:  # numpy's min and max: NaN
+        z_lo = np.nan
+        z_hi = np.nan
+    span_cells = hi_cell - lo_cell + 1
+    # Heights quantised into the low bits of a 62-bit key whose high bits hold the cell
+    # (as the vectorised version sorts them): the same number of levels.
+    cell_bits = 1
+    while (np.int64(1) << cell_bits) < span_cells:  # (span_cells - 1).bit_length(), >= 1
+        cell_bits += 1
+    height_bits = min(50, 62 - cell_bits)
+    top_level = (np.int64(1) << height_bits) - 1
+    span = z_hi - z_lo + 1e-9
+    quantum = span / float(np.int64(1) << height_bits)
+    # The minimum (exact: it is one of z) and 1 / quantum (rounded) in z's precision, as
+    # numpy 2 promotes a Python float against z.
+    in_z = np.empty(2, z.dtype)
+    in_z[0] = z_lo
+    in_z[1] = 1.0 / quantum
+    low_z, inv_quantum = in_z[0], in_z[1]
+
+    # The points of each cell in their own order (a counting sort), so that sums run in
+    # point order as bincount's do.
+    start = cell_scratch[: span_cells + 1]
+    start[:] = 0
+    for k in range(n):
+        if flat[k] >= 0:
+            start[flat[k] - lo_cell + 1] += 1
+    for c in range(span_cells):
+        start[c + 1] += start[c]
+    fill = start[:-1].copy()
+    # Each point's terms, written in cell order (so that the cells read them in a row).
+    w_of = scratch[1]
+    wz_of = scratch[2]
+    v_of = scratch[3]
+    levels = scratch[4].view(np.int64)
+    for k in range(n):
+        if flat[k] < 0:
+            continue
+        c = flat[k] - lo_cell
+        q = fill[c]
+        fill[c] += 1
+        w = one / variance[k]
+        w_of[q] = w
+        wz_of[q] = w * z[k]
+        v_of[q] = variance[k]
+        # No levels with a NaN height (its cells' heights are NaN anyway).
+        levels[q] = 0 if z_nan else min(np.int64((z[k] - low_z) * inv_quantum), top_level)
+
+    for c in range(span_cells):
+        a, b = start[c], start[c + 1]
+        if a == b:
+            continue
+        # Sums in point order, in double precision, as bincount takes them.
+        w_cell = 0.0
+        wz_cell = 0.0
+        v_cell = 0.0
+        for q in range(a, b):
+            w_cell += w_of[q]
+            wz_cell += wz_of[q]
+            v_cell += v_of[q]
+        m = b - a
+        pick = np.int64(TOP_QUANTILE * (m - 1))
+        percentile = z_lo + _kth_smallest(levels, a, b, pick) * quantum
+        meas = wz_cell / w_cell
+        point_var = v_cell / m
+        meas_top = _nan_max(percentile - TOP_NOISE_LIFT * np.sqrt(point_var), meas)
+        meas_var = _nan_max(1.0 / w_cell, min_var)
+        cell = c + lo_cell
+        mu = mean[cell]
+        p = var[cell]  # inf where the cell is new
+        old_top = top[cell]
+        if not np.isfinite(mu):
+            # A new cell starts from its measurement (zero innovation, gain 1 as p is inf).
+            mu = meas
+            old_top = meas_top
+        total = p + meas_var
+        innovation = meas - mu
+        gain = 1.0 - meas_var / total
+        new_var_keep = False
+        if innovation * innovation > gate2 * total:
+            # The estimate with the smaller variance wins: gain 1 replaces, 0 keeps.
+            closer = meas_var < p
+            gain = 1.0 if closer else 0.0
+            new_var_keep = not closer
+        new_mu = mu + gain * innovation
+        new_var = p if new_var_keep else gain * meas_var
+        new_top = old_top + gain * (meas_top - old_top)
+        mean[cell] = new_mu
+        top[cell] = _nan_max(new_top, new_mu)
+        var[cell] = new_var
+        last_update[cell] = now
+        if camera_height == camera_height:
+            closest[cell] = _nan_min(closest[cell], _nan_max(camera_height - meas, 0.0))
+    return fused, inside
