@@ -78,7 +78,7 @@ PATTERN_CENTER = "/landing/pattern_center"
 means "where the vehicle is when the search starts"."""
 
 BANNED_SITES = "/landing/banned_sites"
-"""int: sites banned after a failed verification."""
+"""int: sites banned after a failed verification or a retreat of the descent watch."""
 
 LANDING_TRY_COST = "/landing/try_cost"
 """float: battery (% points) the next landing try is expected to cost, written by the

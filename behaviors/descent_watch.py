@@ -1,16 +1,38 @@
 """The descent to the verification altitude under the optical-flow watch of seed 004 (Lee et
 al. 2019, sections 3.3 and 4.2): the thesis's blind descent (ChangeAltitudeLS), stopped
-when the descent camera's flow flags an obstacle, a step away from it, and on again."""
+when the descent camera's flow flags an obstacle, a step away from it, and on again; and
+the landing from there (Land) under the same watch and the rangefinder's, aborted by a
+climb when an obstacle is flagged or something enters the column. A site the watch backs
+away from is banned like one that fails verification."""
 
 from __future__ import annotations
 
 import math
+from collections import Counter
+from typing import TYPE_CHECKING
 
 from py_trees.common import Access, Status
 
 from behaviors import blackboard as keys
-from behaviors.base import Point, VehicleAction, horizontal_distance, reached
-from behaviors.ports import Clock, ObstacleSighting, ObstacleWatch, VehiclePort
+from behaviors.base import (
+    MissionBehaviour,
+    Point,
+    VehicleAction,
+    horizontal_distance,
+    reached,
+)
+from behaviors.flight import Land
+from behaviors.ports import (
+    Clock,
+    CommandStatus,
+    LandedState,
+    ObstacleSighting,
+    ObstacleWatch,
+    VehiclePort,
+)
+
+if TYPE_CHECKING:
+    from lsm import LandingSiteManager
 
 
 def away_in_enu(away: tuple[float, float], yaw: float) -> tuple[float, float]:
@@ -38,6 +60,36 @@ def step_within(
     return max(0.0, min(step, -b + math.sqrt(disc)))
 
 
+class WatchAborts:
+    """How often the watch backed away from each site (by LSM id), shared by a tree's
+    watched nodes: the site the watch keeps backing away from is banned (``lsm.ban``, the
+    thesis's ban of a site that fails its check: later detections within the LSM's
+    ``ban_radius`` are rejected), so the tree does not come back to a blocked column."""
+
+    def __init__(self) -> None:
+        self.counts: Counter[int] = Counter()
+
+    def backed_away(self, lsm: LandingSiteManager | None, site, ban_after: int) -> str:
+        """Count a retreat from ``site`` (a LandingSite, or None: nothing to count) and ban
+        it once it has ``ban_after`` (0: never); returns what became of the site, in words."""
+        if site is None or lsm is None:
+            return ""
+        self.counts[site.id] += 1
+        n = self.counts[site.id]
+        if ban_after <= 0 or n < ban_after:
+            left = "" if ban_after <= 0 else f", banned after {ban_after}"
+            return f"site {site.id} kept ({n} retreat(s){left})"
+        banned = lsm.ban(site.id)
+        return f"site {site.id} banned" if banned else f"site {site.id} no longer retained"
+
+
+def record_ban(behaviour: MissionBehaviour, outcome: str) -> None:
+    """Count a ban in :data:`behaviors.blackboard.BANNED_SITES` (the flight report's)."""
+    if outcome.endswith("banned"):
+        count = behaviour.blackboard.get(keys.BANNED_SITES)
+        behaviour.blackboard.set(keys.BANNED_SITES, count + 1)
+
+
 class WatchedDescent(VehicleAction):
     """Descend to ``height`` m above the chosen site (like
     :class:`behaviors.flight.ChangeAltitudeLS`) while the optical flow of the descent
@@ -51,7 +103,9 @@ class WatchedDescent(VehicleAction):
     itself and from the first ``settle`` seconds after it are ignored (the watch is off
     while stepping: sideways flow is not a descent's). With no room left to step away, the
     vehicle climbs back to the altitude the descent began at and the behaviour fails, so
-    the landing try ends and the tree chooses again (re-plans).
+    the landing try ends and the tree chooses again (re-plans); given the ``lsm``, the
+    retreat counts in ``aborts`` and the site is banned after ``ban_after`` of them (see
+    :class:`WatchAborts`).
 
     The descent ends over the moved column: the verification hover and the centring over the
     verified site that follow bring the vehicle back over the site, low and slowly.
@@ -76,10 +130,16 @@ class WatchedDescent(VehicleAction):
         acceptance_radius: float = 1.0,
         command_timeout: float = 5.0,
         phase: str = "descend",
+        lsm: LandingSiteManager | None = None,
+        aborts: WatchAborts | None = None,
+        ban_after: int = 1,
     ) -> None:
         super().__init__(name, vehicle, clock, command_timeout=command_timeout, phase=phase)
         self.height = float(height)
         self.watch = watch
+        self.lsm = lsm
+        self.aborts = aborts if aborts is not None else WatchAborts()
+        self.ban_after = int(ban_after)
         self.step = float(step)
         self.max_offset = float(max_offset)
         self.settle = float(settle)
@@ -87,6 +147,7 @@ class WatchedDescent(VehicleAction):
         self.still_radius = min(0.3, self.acceptance_radius)  # m, over the new column
         self.still_speed = 0.3  # m/s sideways at most when the descent resumes
         self.blackboard.register_key(key=keys.LANDING_SITE, access=Access.READ)
+        self.blackboard.register_key(key=keys.BANNED_SITES, access=Access.WRITE)
         self._reset()
 
     def _reset(self) -> None:
@@ -163,7 +224,11 @@ class WatchedDescent(VehicleAction):
             return self.fail(problem)
         arrived = reached(position, self.target, self.acceptance_radius)
         if self.mode == "climb":
-            return self.fail(self.abort_reason) if arrived else Status.RUNNING
+            if not arrived:
+                return Status.RUNNING
+            outcome = self.aborts.backed_away(self.lsm, self.site, self.ban_after)
+            record_ban(self, outcome)
+            return self.fail(self.abort_reason + (f" ({outcome})" if outcome else ""))
         if self.mode == "step":
             # Resume once over the new column and nearly still: sideways motion would
             # read as flow of its own.
@@ -188,3 +253,139 @@ class WatchedDescent(VehicleAction):
             return Status.RUNNING
         self.feedback_message = f"descending, {position[2] - self.target[2]:.1f} m to go"
         return Status.RUNNING
+
+
+class WatchedLand(Land):
+    """Land where the vehicle is (like :class:`behaviors.flight.Land`) while the descent
+    camera's optical flow (``watch``) and the downward rangefinder watch the last metres.
+
+    The landing is aborted when a sighting flags an obstacle (from ``settle`` s after the
+    landing began) or when something rises into the column below: the rangefinder reads the
+    ground more than ``column_margin`` m higher than the lowest ground it read during this
+    landing (or than the chosen site, when the vehicle is within 1 m of its column); a car
+    or a person walking under the vehicle. Then the vehicle leaves LAND for a goto (GUIDED
+    or OFFBOARD; ArduPilot and PX4 accept that change out of LAND) to ``height`` m above the
+    site (above the ground it read when no site is chosen), at least where it is, and once
+    there the behaviour fails, so the tree goes on as after a failed verification: the site
+    is counted as backed away from (``aborts``) and banned after ``ban_after`` retreats
+    (0: never), and the next try chooses again. The watch stops at touchdown.
+
+    * SUCCESS: landed and disarmed (as Land)
+    * FAILURE: the land, goto or disarm command denied or unanswered; the landing aborted
+      (after the climb)
+    * RUNNING: landing, or climbing back after an abort
+    """
+
+    def __init__(
+        self,
+        name: str,
+        vehicle: VehiclePort,
+        clock: Clock,
+        watch: ObstacleWatch,
+        *,
+        height: float = 2.5,
+        lsm: LandingSiteManager | None = None,
+        aborts: WatchAborts | None = None,
+        ban_after: int = 1,
+        settle: float = 1.0,
+        column_margin: float = 0.5,
+        acceptance_radius: float = 1.0,
+        phase: str = "land",
+        outcome_hint: str | None = None,
+        command_timeout: float = 5.0,
+    ) -> None:
+        super().__init__(name, vehicle, clock, phase=phase, outcome_hint=outcome_hint,
+                         command_timeout=command_timeout)
+        self.watch = watch
+        self.height = float(height)
+        self.lsm = lsm
+        self.aborts = aborts if aborts is not None else WatchAborts()
+        self.ban_after = int(ban_after)
+        self.settle = float(settle)
+        self.column_margin = float(column_margin)
+        self.acceptance_radius = float(acceptance_radius)
+        self.blackboard.register_key(key=keys.LANDING_SITE, access=Access.READ)
+        self.blackboard.register_key(key=keys.BANNED_SITES, access=Access.WRITE)
+        self.site = None
+        self.mode = "land"  # land | climb
+        self.target: Point | None = None
+        self.started = 0.0
+        self.ground: float = math.inf  # lowest ground the rangefinder read while landing
+        self.abort_reason = ""
+        self.watching = False
+
+    def initialise(self) -> None:
+        super().initialise()  # sends the land command
+        self.site = self.blackboard.get(keys.LANDING_SITE)
+        self.mode = "land"
+        self.target = None
+        self.started = self.clock.now()
+        self.ground = math.inf
+        self.abort_reason = ""
+        self.watching = True
+        self.watch.watch(True)
+
+    def terminate(self, new_status: Status) -> None:
+        self.watch.watch(False)
+
+    def _column_intrusion(self, state) -> str | None:
+        """Why the rangefinder says something entered the column, or None."""
+        rf, position = state.rangefinder_agl, state.position
+        if rf is None or position is None or not math.isfinite(rf):
+            return None
+        below = position[2] - rf  # ENU z of what the rangefinder sees
+        reference = self.ground = min(self.ground, below)
+        site = self.site
+        if site is not None and horizontal_distance(position, site.position) <= 1.0:
+            reference = min(reference, site.z)
+        if below - reference > self.column_margin:
+            return (f"something {below - reference:.1f} m high entered the column below "
+                    f"(rangefinder {rf:.1f} m at {position[2]:.1f} m)")
+        return None
+
+    def _threat(self, state) -> str | None:
+        sighting = self.watch.latest()
+        if (sighting is not None and sighting.obstacle
+                and sighting.time >= self.started + self.settle):
+            where = ", ".join(sighting.directions) or "around"
+            return f"obstacle ({where}) beside the landing"
+        return self._column_intrusion(state)
+
+    def _abort(self, position: Point, reason: str) -> None:
+        self.watching = False
+        self.watch.watch(False)
+        floor = self.site.z if self.site is not None else (
+            self.ground if math.isfinite(self.ground) else position[2])
+        self.target = (position[0], position[1], max(position[2], floor + self.height))
+        self.command(self.vehicle.goto(*self.target))
+        self.mode = "climb"
+        self.abort_reason = f"{reason} at {position[2]:.1f} m; landing aborted"
+        self.feedback_message = f"{self.abort_reason}, climbing to {self.target[2]:.1f} m"
+
+    def update(self) -> Status:
+        state = self.vehicle.state
+        if self.mode == "climb":
+            problem = self.command_problem()
+            if problem is not None:
+                return self.fail(problem)
+            # Reached only counts once the autopilot follows the goto (it left LAND).
+            if self.handle.status is CommandStatus.ACCEPTED and state.position is not None \
+                    and reached(state.position, self.target, self.acceptance_radius):
+                outcome = self.aborts.backed_away(self.lsm, self.site, self.ban_after)
+                record_ban(self, outcome)
+                return self.fail(f"{self.abort_reason}, climbed back to {self.target[2]:.1f} m"
+                                 + (f" ({outcome})" if outcome else ""))
+            return Status.RUNNING
+        if not state.armed or state.landed_state is LandedState.ON_GROUND:
+            if self.watching:
+                self.watching = False
+                self.watch.watch(False)  # touched down: nothing left to avoid
+        # Watch once the autopilot is in LAND (the command accepted): a goto sent before
+        # would be overtaken by the mode change still under way.
+        elif (self.handle is not None and self.handle.status is CommandStatus.ACCEPTED
+              and state.position is not None):
+            reason = self._threat(state)
+            if reason is not None:
+                self._abort(state.position, reason)
+                return Status.RUNNING
+        return super().update()

@@ -46,7 +46,7 @@ from pydantic import BaseModel
 from behaviors import blackboard as keys
 from behaviors.approach import FlyApproachTrajectory
 from behaviors.decorators import ClockTimeout, RetryWhileBattery
-from behaviors.descent_watch import WatchedDescent
+from behaviors.descent_watch import WatchAborts, WatchedDescent, WatchedLand
 from behaviors.failsafe import BatteryAllows, BatteryCritical, BatteryReserve, GpsLost, NoFailsafe
 from behaviors.flight import (
     ChangeAltitudeLS,
@@ -536,20 +536,51 @@ _leaf("FlyApproachTrajectory", "Action", "flies to above the chosen site (landin
        Port("max_tracking_error", "double", "m", "farther from the trajectory fails",
             "{approach_max_tracking_error}"),
        _RADIUS, _COMMAND], requires=["approach_planner"])
+_BAN_AFTER = Port("ban_after", "int", "", "retreats from one site before it is banned "
+                  "(0: never)", "{descent_watch_ban_after}")
+
+
+def _watch_aborts(context: BuildContext) -> WatchAborts:
+    """The tree's one count of the watch's retreats per site (shared by its watched nodes)."""
+    return context.services.setdefault("watch_aborts", WatchAborts())
+
+
 _leaf("WatchedDescent", "Action", "descends to `height` above the chosen site (landing_site) "
       "while the descent camera's optical flow watches for obstacles, stepping away from them",
       lambda c, n, v, ch: WatchedDescent(
           n, c.vehicle, c.clock, v["height"], c.services["obstacle_watch"], step=v["step"],
           max_offset=v["max_offset"], settle=v["settle"],
           acceptance_radius=v["acceptance_radius"], command_timeout=v["command_timeout"],
-          phase=v["phase"]),
+          phase=v["phase"], lsm=c.lsm, aborts=_watch_aborts(c), ban_after=v["ban_after"]),
       [Port("height", "double", "m", "above the site", "{verification_altitude}"),
+       _BAN_AFTER,
        Port("step", "double", "m", "a step away from an obstacle", "{descent_watch_step}"),
        Port("max_offset", "double", "m", "farthest from the site's column",
             "{descent_watch_max_offset}"),
        Port("settle", "double", "s", "sightings ignored after a step",
             "{descent_watch_settle}"),
        _RADIUS, _COMMAND, Port("phase", "std::string", "", _PHASE, "descend")],
+      requires=["obstacle_watch"])
+_leaf("WatchedLand", "Action", "lands where the vehicle is while the descent camera's "
+      "optical flow and the rangefinder watch the column; an obstacle aborts the landing "
+      "with a climb to `height` above the site and FAILURE (the site banned after "
+      "`ban_after` retreats); SUCCESS once landed and disarmed",
+      lambda c, n, v, ch: WatchedLand(
+          n, c.vehicle, c.clock, c.services["obstacle_watch"], height=v["height"], lsm=c.lsm,
+          aborts=_watch_aborts(c), ban_after=v["ban_after"], settle=v["settle"],
+          column_margin=v["column_margin"], acceptance_radius=v["acceptance_radius"],
+          phase=v["phase"], outcome_hint=v.get("outcome_hint"),
+          command_timeout=v["command_timeout"]),
+      [Port("height", "double", "m", "climbed back to above the site when aborting",
+            "{verification_altitude}"),
+       _BAN_AFTER,
+       Port("settle", "double", "s", "sightings ignored after the landing began",
+            "{descent_watch_settle}"),
+       Port("column_margin", "double", "m", "the ground read this much higher is something "
+            "in the column", "{descent_watch_column_margin}"),
+       Port("phase", "std::string", "", _PHASE, "land"),
+       Port("outcome_hint", "std::string", "", "why the mission lands here, for the report",
+            optional=True), _RADIUS, _COMMAND],
       requires=["obstacle_watch"])
 
 
@@ -565,6 +596,8 @@ def mission_settings(plan: MissionPlan, match_radius: float) -> dict[str, Any]:
                              if isinstance(value, (bool, int, float))})
     # The approach's method is a word; the tree file asks whether it is the trajectory.
     settings["approach_trajectory"] = plan.landing.approach.method == "trajectory"
+    watch = plan.landing.descent_watch
+    settings["watch_landing"] = watch.enabled and watch.land
     last = plan.waypoints[-1]
     settings.update(
         cruise_altitude=plan.cruise_altitude,

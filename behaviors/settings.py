@@ -90,7 +90,8 @@ class ApproachSettings(BaseModel):
 class DescentWatchSettings(BaseModel):
     """The optical-flow watch of the blind descent to the verification altitude (Lee et al.
     2019, sections 3.3 and 4.2): when the descent camera's flow flags an obstacle, the
-    vehicle stops descending, steps away from it and resumes; the flow thresholds are
+    vehicle stops descending, steps away from it and resumes; during the landing that
+    follows, it climbs back instead and the try fails; the flow thresholds are
     ``perception.descent_flow``'s."""
 
     model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
@@ -111,6 +112,21 @@ class DescentWatchSettings(BaseModel):
     settle: float = Field(
         1.0, ge=0, le=MAX_WAIT, description="s after resuming the descent before the flow "
         "counts again (the vehicle's sideways motion dies down), up to an hour"
+    )
+    land: bool = Field(
+        True, description="watch the landing from the verification altitude too: a flagged "
+        "obstacle, or something entering the column below (the rangefinder), aborts the "
+        "landing with a climb back to the verification altitude and the try fails"
+    )
+    ban_after: int = Field(
+        1, ge=0, le=100, description="retreats (the landing aborted, or no room left to step "
+        "away) from one site before it is banned like a site that fails verification, 0 .. "
+        "100 (0: never; 2 gives a site a passing car crossed another try)"
+    )
+    column_margin: float = Field(
+        0.5, gt=0, le=100, description="m the rangefinder may read the ground higher than "
+        "the lowest it read during the landing (or the site) before something counts as "
+        "in the column, up to 100 m"
     )
 
 

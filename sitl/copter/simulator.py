@@ -9,7 +9,7 @@ from typing import NamedTuple
 import numpy as np
 
 from sitl.sensors.laser import MESSAGE_NAME, LightSensorRing
-from sitl.terrain.moving_hits import obstacle_below
+from sitl.terrain.moving_hits import obstacle_below, top_below
 
 from .battery import Battery
 from .geo import GeoFrame, heading_to_enu_yaw
@@ -224,6 +224,9 @@ class Sitl:
             n = max(1, math.ceil(dt / self.settings.physics_step - 1e-9))
             h = dt / n
             ground = self._ground = self._height(model.x, model.y)
+            moving = getattr(self.terrain, "moving", None)
+            if moving is not None:  # a car's roof under the vehicle is what it lands on
+                ground = max(ground, top_below(moving, model.position, self._time))
             wind = self.wind.advance(dt)
             t0 = self._time
             for i in range(1, n + 1):

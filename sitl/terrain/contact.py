@@ -5,7 +5,8 @@ moving obstacle.
 The vehicle is a disc of the footprint radius (its rotors) ``ROTOR_HEIGHT`` above its skids
 (the position the simulator flies). It collides with the terrain when ground within that
 disc rises above the rotors, and with a moving obstacle when the obstacle's footprint comes
-within the disc while the vehicle is below the obstacle's top. ``ROTOR_HEIGHT`` is above
+within the disc while the vehicle is below the obstacle's top (or rests on it: the
+simulator sets a landing vehicle down on a car's roof). ``ROTOR_HEIGHT`` is above
 what safe ground (:mod:`sitl.terrain.safety`: slope <= 15 deg, deviations <= 0.1 m) can
 rise within the 1 m footprint (tan 15 deg x 1 m + 0.1 m = 0.37 m), so a touchdown judged
 safe is never a collision.
@@ -23,6 +24,10 @@ from sitl.terrain.safety import SafetySettings
 
 ROTOR_HEIGHT = 0.4
 """m: the rotor disc above the skids."""
+
+RESTING = 0.05
+"""m: skids this close above an obstacle's top touch it (the simulator sets the vehicle down
+on a car's roof: that is a collision, not a landing)."""
 
 
 @dataclass(frozen=True)
@@ -83,7 +88,7 @@ class ContactJudge:
         moving = self.terrain.moving
         if moving is not None and len(moving) and moving.near(x, y, r):
             snap = moving.at(t)
-            touching = (snap.footprint_distance(x, y) < r) & (z < snap.top) & (
+            touching = (snap.footprint_distance(x, y) < r) & (z < snap.top + RESTING) & (
                 z + ROTOR_HEIGHT > snap.base)
             if touching.any():
                 k = int(np.flatnonzero(touching)[0])

@@ -169,6 +169,21 @@ def obstacle_below(moving, position, t: float) -> float:
     return max(float(z - snapshot.top[under].max()), 0.0) if under.any() else np.inf
 
 
+def top_below(moving, position, t: float) -> float:
+    """ENU z of the highest moving obstacle's top (:class:`sitl.terrain.moving.MovingObstacles`)
+    under ``position`` at time ``t`` that the vehicle is above (its top at or below the
+    vehicle): what its skids come to rest on; -inf when there is none. An obstacle whose
+    top is above the vehicle (it drove into the vehicle) is the contact judge's, not a
+    floor."""
+    x, y, z = (float(v) for v in position)
+    if not moving.near(x, y):
+        return -np.inf
+    snapshot = moving.at(t)
+    top = snapshot.top
+    under = (snapshot.footprint_distance(x, y) <= 0) & (top <= z + 1e-6)
+    return float(top[under].max()) if under.any() else -np.inf
+
+
 def obstacle_radiance(snapshot: ObstacleSnapshot, index: np.ndarray, x, y, z, footprint,
                       albedo) -> np.ndarray:
     """Shaded, textured radiance of obstacle surface points (ENU ``x, y, z`` on obstacle
