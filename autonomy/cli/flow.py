@@ -2,12 +2,13 @@
 and camera, from an obstacle-free descent (docs/obstacle-avoidance.md).
 
     lander flow-calibrate MISSION --at X,Y [--top 25] [--bottom 2.5] [--speed 1.5]
-                          [--seed N] [--out DIR]
+                          [--seed N] [--with-moving] [--out DIR]
 
 Flies the mission's descent camera (``perception.descent_flow``) straight down over (X, Y)
 of the mission's world (built from its seed as a flight builds it) and prints the
 thresholds, as YAML to paste under ``perception.descent_flow``. ``--out`` writes the first
-and last frames as PNG.
+and last frames as PNG. The world's moving obstacles are left out (a car passing the column
+would raise O_T and V_T until the watch no longer sees cars); ``--with-moving`` keeps them.
 """
 
 from __future__ import annotations
@@ -48,6 +49,8 @@ def register(subparsers) -> None:
                         "(default 1.5, the embedded SITL's)")
     parser.add_argument("--seed", type=types.seed, default=None, help="world seed (default: the "
                         "mission's)")
+    parser.add_argument("--with-moving", action="store_true", help="keep the world's moving "
+                        "obstacles (default: calibrate on the static world)")
     parser.add_argument("--out", type=Path, default=None, help="write the first and last "
                         "frames here (PNG)")
     parser.set_defaults(func=run)
@@ -64,6 +67,10 @@ def run(args: argparse.Namespace) -> int:
         raise UserError(f"--top {args.top:g} m must be above --bottom {args.bottom:g} m")
     seeds = FlightSeeds.derive(seed)
     terrain = build_terrain(mission, seeds.terrain)
+    moving = terrain.moving
+    left_out = 0 if moving is None or args.with_moving else len(moving)
+    if left_out:
+        terrain.moving = None  # the static world: an obstacle-free column, as calibration needs
     x, y = args.at
     if not terrain.has_ground(x, y) or not terrain.contains(x, y):
         raise UserError(f"--at {x:g},{y:g}: no ground of the world there")
@@ -75,6 +82,12 @@ def run(args: argparse.Namespace) -> int:
     print(f"# {pairs} frame pairs, {args.top:g} m to {args.bottom:g} m above ({x:g}, {y:g}) "
           f"at {args.speed:g} m/s, {settings.rate:g} Hz, {settings.width} x {settings.height} "
           f"px, world {terrain.kind} seed {seed}")
+    if left_out:
+        print(f"# the static world: {left_out} moving obstacle(s) left out (--with-moving "
+              "keeps them)")
+    elif moving is not None:
+        print(f"# with the world's {len(moving)} moving obstacle(s): a pass near the column "
+              "raises the thresholds")
     print("perception:\n  descent_flow:")
     print(f"    obstacle_threshold: {o_t:.4g}   # O_T\n    variance_threshold: {v_t:.4g}   # V_T")
     if args.out is not None:

@@ -79,3 +79,28 @@ def test_lander_flow_calibrate_prints_the_thresholds_to_paste(tmp_path, capsys):
     assert o_t > 0 and v_t > 0 and "frame pairs" in out
     assert main(["flow-calibrate", str(mission), "--at", "500,5"]) == 2
     assert "--at 500,5: no ground of the world there" in capsys.readouterr().err
+
+
+def test_lander_flow_calibrate_leaves_moving_obstacles_out_unless_asked(tmp_path, capsys):
+    from autonomy.cli import main
+
+    base = ("waypoints: [[0.0, 0.0, 20.0]]\n"
+            "perception: {descent_flow: {width: 64, height: 48, focal_px: 32.0, rate: 2.0}}\n")
+    world = "world: {kind: flat, size: [60.0, 60.0], cell_size: 0.25%s}\n"
+    car = (", moving_obstacles: {paths: [{kind: vehicle, path: [[7.0, -20.0], [7.0, 20.0]], "
+           "speed: 4.0}]}")
+    static, busy = tmp_path / "static.yaml", tmp_path / "busy.yaml"
+    static.write_text(base + world % "")
+    busy.write_text(base + world % car)
+
+    def thresholds(*argv):
+        assert main(["flow-calibrate", *argv, "--at", "5,0", "--top", "12"]) == 0
+        out = capsys.readouterr().out
+        return out, [float(out.split(key)[1].split()[0])
+                     for key in ("obstacle_threshold:", "variance_threshold:")]
+
+    _, alone = thresholds(str(static))
+    out, left_out = thresholds(str(busy))
+    assert left_out == alone and "1 moving obstacle(s) left out" in out
+    out, kept = thresholds(str(busy), "--with-moving")
+    assert kept != alone and "with the world's 1 moving obstacle(s)" in out
