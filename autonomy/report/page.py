@@ -4,7 +4,8 @@ Everything the page draws comes from here: the trace (decimated to at most
 :data:`MAX_SAMPLES` samples), phases, every retained candidate site with the inputs of its
 loss (thesis eq. 3.1, so the page can split it into its five terms for the drone position
 the slider picks), banned and verified sites, the tree's timeline (from tree.btlog when the
-flight wrote one), the detector's and the LSM's events, and the map's terrain as a PNG.
+flight wrote one), the detector's and the LSM's events, the map's terrain as a PNG, and the
+world's moving obstacles (their paths, where they are along the flight and at touchdown).
 """
 
 from __future__ import annotations
@@ -67,6 +68,35 @@ def _map_image(data: FlightData, window) -> dict[str, Any] | None:
         return None
     return {"href": "data:image/png;base64," + base64.b64encode(png.tobytes()).decode(),
             "extent": extent, "low": float(grid.min()), "high": float(grid.max())}
+
+
+MOVING_SAMPLES = 300  # instants the moving obstacles are placed at for the slider
+
+
+def _moving(data: FlightData, end: float) -> dict[str, Any] | None:
+    """The world's moving obstacles (sitl.terrain.moving): each one's kind, footprint and
+    path (a closed one back to its first point), where each is at :data:`MOVING_SAMPLES`
+    instants over the flight (the slider's), and at touchdown; None when nothing moves."""
+    moving = getattr(data.terrain, "moving", None)
+    if moving is None or len(moving) == 0:
+        return None
+    described = moving.describe()
+    times = np.linspace(0.0, max(end, 0.0), MOVING_SAMPLES)
+    snaps = [moving.at(float(t)) for t in times]
+    page: dict[str, Any] = {
+        "kind": [d["kind"] for d in described],
+        "path": [d["path"] + (d["path"][:1] if d["closed"] else []) for d in described],
+        "half_length": moving.half_length, "half_width": moving.half_width,
+        "t": times,
+        "x": np.round([s.x for s in snaps], 2), "y": np.round([s.y for s in snaps], 2),
+        "heading": np.round([s.heading for s in snaps], 3),
+        "touchdown": None,
+    }
+    if data.touchdown_time is not None:
+        at = moving.at(float(data.touchdown_time))
+        page["touchdown"] = {"t": data.touchdown_time, "x": at.x, "y": at.y,
+                             "heading": at.heading}
+    return page
 
 
 def _events_lane(events: Sequence[dict[str, Any]]) -> list[list[Any]]:
@@ -160,5 +190,6 @@ def build_page(data: FlightData, summary: dict[str, Any], events: Sequence[dict[
         "tree": tree,
         "tree_note": tree_note,
         "events": _events_lane(events),
+        "moving": _moving(data, end),
     }
     return _clean(page)

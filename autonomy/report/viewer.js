@@ -143,6 +143,51 @@
           (b.t !== null ? " at " + fmt(b.t, 1, " s") : "") + ", ban radius " + fmt(b.r, 1, " m"));
     return g;
   });
+  // Moving obstacles: each one's path, its footprint at touchdown (dashed) and where it is
+  // at the slider's time (filled).
+  var MV = D.moving, MOVING_COLOURS = { person: "#ef6c00", vehicle: "#7b1fa2" };
+  function footprint(k, x, y, heading, attrs) {
+    var kind = MV.kind[k], a = MV.half_length[k], b = MV.half_width[k], node;
+    if (kind === "person") {
+      node = el("circle", { cx: mx(x), cy: my(y), r: Math.max(ms(a), 2) }, map);
+    } else {
+      var c = Math.cos(heading), s_ = Math.sin(heading), pts = [];
+      [[a, b], [-a, b], [-a, -b], [a, -b]].forEach(function (p) {
+        pts.push(mx(x + c * p[0] - s_ * p[1]).toFixed(1) + "," + my(y + s_ * p[0] + c * p[1]).toFixed(1));
+      });
+      node = el("polygon", { points: pts.join(" ") }, map);
+    }
+    for (var key in attrs) node.setAttribute(key, attrs[key]);
+    return node;
+  }
+  var movingEls = [];
+  if (MV) {
+    MV.kind.forEach(function (kind, k) {
+      var colour = MOVING_COLOURS[kind];
+      title(el("polyline", { points: MV.path[k].map(function (p) { return mx(p[0]).toFixed(1) + "," + my(p[1]).toFixed(1); }).join(" "),
+                             fill: "none", stroke: colour, "stroke-width": 1.5, opacity: 0.8 }, map),
+            kind + " " + k + " path");
+      if (MV.touchdown) {
+        var td = MV.touchdown;
+        title(footprint(k, td.x[k], td.y[k], td.heading[k],
+                        { fill: "none", stroke: colour, "stroke-width": 1.5, "stroke-dasharray": "3 2" }),
+              kind + " " + k + " at touchdown (" + fmt(td.t, 1, " s") + ")");
+      }
+      movingEls.push(null);
+    });
+  }
+  function placeMoving(t) {
+    if (!MV) return;
+    var i = 0;
+    while (i + 1 < MV.t.length && MV.t[i + 1] <= t) i++;
+    MV.kind.forEach(function (kind, k) {
+      if (movingEls[k]) movingEls[k].remove();
+      movingEls[k] = title(footprint(k, MV.x[i][k], MV.y[i][k], MV.heading[i][k],
+                                     { fill: MOVING_COLOURS[kind], opacity: 0.6, stroke: "#000",
+                                       "pointer-events": "none" }),
+                           kind + " " + k + " at " + fmt(MV.t[i], 1, " s"));
+    });
+  }
   // Candidate sites coloured by their loss at the end of the flight.
   var losses = D.sites.map(function (s) { return s.loss; }).filter(function (v) { return v !== null; });
   var lmin = Math.min.apply(null, losses.concat([0])), lmax = Math.max.apply(null, losses.concat([1e-9]));
@@ -221,7 +266,9 @@
     "<i style='background:rgb(68,1,84);border-radius:5px'></i>high loss" +
     "<i style='border:2px solid #00c853;border-radius:5px'></i>verified" +
     "<i style='border:2px dashed #d50000;border-radius:5px'></i>banned" +
-    " \u2605 chosen \u25bd touchdown \u25cb drone. Hover a site for its loss terms.";
+    " \u2605 chosen \u25bd touchdown \u25cb drone. Hover a site for its loss terms." +
+    (MV ? "<br><i style='background:#7b1fa2'></i>vehicle <i style='background:#ef6c00'></i>person" +
+     " (line: path, dashed: at touchdown, filled: at the slider's time)" : "");
   listeners.push(function (t) {
     var i = sampleAt(t);
     if (i >= 0) {
@@ -230,6 +277,7 @@
     }
     D.sites.forEach(function (s, k) { siteEls[k].classList.toggle("future", s.first_seen > t); });
     D.bans.forEach(function (b, k) { banEls[k].style.opacity = b.t !== null && b.t > t ? 0.15 : 1; });
+    placeMoving(t);
   });
 
   // ------------------------------------------------------------------ time plots

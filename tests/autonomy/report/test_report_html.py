@@ -129,3 +129,65 @@ def embedded_text(text):
     match = re.search(r'<script id="flight-data" type="application/json">(.*?)</script>',
                       text, re.S)
     return json.loads(match.group(1))
+
+
+@pytest.fixture(scope="module")
+def car_flight(tmp_path_factory):
+    """A short flight over a flat world where a car drives a lane past the site."""
+    from autonomy.config import Mission
+    from autonomy.runner import fly
+
+    mission = Mission.model_validate({
+        "name": "car past the site", "cruise_altitude": 15.0,
+        "waypoints": [[10.0, 0.0, 15.0]], "landing": {"verify": False},
+        "world": {"kind": "flat", "size": [60.0, 60.0], "cell_size": 0.5,
+                  "moving_obstacles": {"paths": [
+                      {"kind": "vehicle", "path": [[18.0, -20.0], [18.0, 20.0]], "speed": 3.0},
+                      {"kind": "person", "path": [[5.0, 5.0], [9.0, 9.0], [5.0, 9.0]],
+                       "speed": 1.0, "closed": True}]}},
+        "sitl": {"wind": {"speed": 0.0}},
+        "perception": {"detector": "scripted", "rate": 2.0},
+        "sites": [{"x": 12.0, "y": 0.0, "size": 4.0}], "seed": 1, "time_limit": 120.0,
+    })
+    out = tmp_path_factory.mktemp("car-report")
+    return fly(mission, out_dir=out)
+
+
+def test_the_page_draws_moving_obstacles_their_paths_and_where_they_were_at_touchdown(
+        car_flight, chromium):
+    path = car_flight.out_dir / "report.html"
+    moving = embedded(path)["moving"]
+    world = car_flight.data.terrain.moving
+    assert moving["kind"] == ["vehicle", "person"]
+    assert moving["path"][0] == [[18.0, -20.0], [18.0, 20.0]]
+    assert moving["path"][1][0] == moving["path"][1][-1]  # the closed walk drawn round
+    touchdown = car_flight.summary["touchdown"]
+    at = world.at(touchdown["t"])
+    assert moving["touchdown"]["y"][0] == pytest.approx(at.y[0], abs=1e-3)
+    middle = len(moving["t"]) // 2
+    assert moving["y"][middle][0] == pytest.approx(world.at(moving["t"][middle]).y[0], abs=0.01)
+    report = chromium.inspect(path.resolve().as_uri(), [
+        ("eval", "document.body.getAttribute('data-ready')"),
+        ("eval", "Array.from(document.querySelectorAll('#map title')).map("
+                 "function (t) { return t.textContent; }).join('|')"),
+        ("eval", "(function(){var s=document.getElementById('slider');s.value=3;"
+                 "s.dispatchEvent(new Event('input'));return Array.from("
+                 "document.querySelectorAll('#map title')).filter(function (t) {"
+                 "return / at \\d/.test(t.textContent) && !/touchdown/.test(t.textContent);})"
+                 ".map(function (t) { return t.textContent; }).join('|');})()"),
+    ])
+    assert report.exceptions == [] and report.console_errors == []
+    ready, titles, live = report.results
+    assert ready == "1"
+    for text in ("vehicle 0 path", "person 1 path", "vehicle 0 at touchdown",
+                 "person 1 at touchdown"):
+        assert text in titles
+    shown = _at(moving, 3.0)
+    assert live == f"vehicle 0 at {shown} s|person 1 at {shown} s"  # placed at the slider's
+
+
+def _at(moving, t):
+    """The page's placing time for slider time ``t``, as it prints it."""
+    times = moving["t"]
+    i = max(k for k, v in enumerate(times) if v <= t)
+    return f"{times[i]:.1f}"
