@@ -39,6 +39,7 @@ from autonomy.vehicle.commands import (
 from autonomy.vehicle.settings import LOG_STREAMS, VehicleLinkSettings
 from autonomy.vehicle.tlog import TlogWriter
 from behaviors.ports import Clock, CommandStatus, LandedState, VehicleState
+from sitl.copter.codec import FastMAVLink  # pymavlink's codec, byte for byte, in fewer steps
 
 # Longest MAVLink 2 packet (header 10 + payload 255 + crc 2 + signature 13).
 _MAX_PACKET = 280
@@ -184,7 +185,7 @@ class MavlinkVehicle:
         self._epoch = tlog_epoch
         self._tlog = TlogWriter(tlog_path, tlog_epoch) if tlog_path is not None else None
 
-        self._mav = mavlink.MAVLink(
+        self._mav = FastMAVLink(
             _Outgoing(self), settings.source_system, settings.source_component
         )
         self._mav.robust_parsing = True

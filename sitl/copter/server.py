@@ -20,6 +20,7 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from . import ftp
 from .autopilot import UNSUPPORTED, Autopilot
+from .codec import FastMAVLink
 from .commands import CommandRequest, Commands
 from .kinematics import Setpoint
 from .mission_protocol import MissionProtocol, Upload
@@ -93,7 +94,7 @@ class Link:
     def __init__(self, endpoint, system_id: int, component_id: int) -> None:
         self.endpoint = endpoint
         self.outbox = _Outbox()
-        self.mav = mavlink.MAVLink(self.outbox, srcSystem=system_id, srcComponent=component_id)
+        self.mav = FastMAVLink(self.outbox, srcSystem=system_id, srcComponent=component_id)
         self.mav.robust_parsing = True
         self.open = False  # we talk on it (a packet arrived, or it greets, e.g. TCP)
         self.intervals: dict[int, float] = {}  # msgid -> seconds

@@ -1,0 +1,262 @@
+"""pymavlink's MAVLink codec with its common case done in fewer steps, byte for byte the same.
+
+A lockstep flight packs and parses some forty telemetry packets per simulated second, and
+pymavlink spends most of its time there on bookkeeping around the wire format (a header
+object and a CRC object per packet, a Struct per header, a list per payload). For unsigned
+MAVLink 2 packets of messages without array fields, :class:`FastMAVLink` packs and decodes
+with one precomputed Struct per message type and the compiled CRC pymavlink itself uses
+(fastcrc). Everything else (MAVLink 1, signing, arrays, unknown ids, bad CRCs, a client's
+callbacks) goes through pymavlink unchanged, so the bytes on the wire, the decoded messages
+and the errors are the ones pymavlink gives (tests/sitl/test_codec.py compares them).
+
+Only what pymavlink does to the :class:`MAVLink` object itself is kept on send (sequence
+number, counters, callback); the sent message object is not annotated with its packed form
+(``_msgbuf``, ``_header``), which nothing here reads back.
+"""
+
+from __future__ import annotations
+
+import struct
+from operator import attrgetter
+from typing import Any
+
+from pymavlink.dialects.v20 import ardupilotmega as mavlink
+
+try:  # what pymavlink's own x25crc uses when importable (a dependency of pymavlink)
+    from fastcrc.crc16 import mcrf4xx as _crc16
+except ImportError:  # pragma: no cover - pymavlink requires fastcrc
+    _crc16 = None
+
+_V1 = mavlink.PROTOCOL_MARKER_V1
+_V2 = mavlink.PROTOCOL_MARKER_V2
+_SIGNED = mavlink.MAVLINK_IFLAG_SIGNED
+_SIGNATURE = mavlink.MAVLINK_SIGNATURE_BLOCK_LEN
+_HEADER = struct.Struct("<BBBBBBBHB")
+_CRC = struct.Struct("<H")
+_MAVError = mavlink.MAVError
+_BadData = mavlink.MAVLink_bad_data
+_Header = mavlink.MAVLink_header
+
+
+class _Plan:
+    """How one message type is packed and decoded on the fast path."""
+
+    __slots__ = ("unpacker", "size", "extra", "get", "orders", "names", "strings", "template",
+                 "msgid", "cls", "direct", "arrays", "fields")
+
+    def __init__(self, cls: type) -> None:
+        self.unpacker = cls.unpacker
+        self.size = cls.unpacker.size
+        self.extra = bytes((cls.crc_extra,))
+        self.msgid = cls.id
+        self.cls = cls
+        self.get = attrgetter(*cls.ordered_fieldnames)
+        self.orders = tuple(cls.orders)
+        self.names = tuple(cls.fieldnames)
+        lengths = list(cls.lengths)  # struct values per wire-order field
+        items = _items(cls.unpacker.format)
+        if len(items) != sum(lengths):
+            raise ValueError(f"{cls.msgname}: its Struct does not match its fields")
+        # Wire-order (offset, count) of each declared field, as pymavlink's decode reads them:
+        # count 0 is one value, else a list of that many (a char array is one bytes value).
+        self.fields = []
+        for order in self.orders:
+            tip = sum(lengths[:order])
+            count = lengths[order]
+            scalar = count == 1 or items[tip] in "cs"
+            self.fields.append((tip, 0 if scalar else count))
+        self.fields = tuple(self.fields)
+        self.arrays = tuple(length if length > 1 and items[sum(lengths[:j])] not in "cs" else 0
+                            for j, length in enumerate(lengths))  # wire order, for packing
+        if not any(self.arrays):
+            self.arrays = ()
+        # pymavlink strips trailing NULs off every bytes value: chars ('c') and strings ('Ns').
+        self.strings = tuple(i for i, (tip, count) in enumerate(self.fields)
+                             if count == 0 and items[tip] in "cs")
+        # Attributes every decoded message of this type gets besides its fields, when its
+        # constructor only stores its arguments (some convert them: then it is called).
+        samples = [object() for _ in self.names]
+        try:
+            proto = cls(*samples)
+            stored = (getattr(proto, n) for n in self.names)
+            self.direct = all(a is b for a, b in zip(stored, samples, strict=True))
+        except Exception:  # noqa: BLE001 - a constructor that works on its values
+            self.direct = False
+        self.template = {}
+        if self.direct:
+            self.template = {k: v for k, v in vars(proto).items()
+                             if k not in self.names and k not in (
+                                 "_header", "_payload", "_msgbuf", "_crc", "_signed")}
+
+    def values(self, msg: Any) -> tuple | None:
+        """The Struct's values of ``msg`` in wire order, or None when an array field is not
+        as long as its type says (pymavlink's pack then raises its own error)."""
+        values = self.get(msg)
+        if not isinstance(values, tuple):
+            values = (values,)
+        if not self.arrays:
+            return values
+        flat = []
+        for value, count in zip(values, self.arrays, strict=True):
+            if count:
+                if len(value) < count:
+                    return None
+                flat.extend(value[:count])
+            else:
+                flat.append(value)
+        return tuple(flat)
+
+
+def _items(fmt: str) -> str:
+    """One struct code per value a format packs ("<I2f5s" -> "Iffs")."""
+    out, count = [], ""
+    for ch in fmt.lstrip("<>=!@"):
+        if ch.isdigit():
+            count += ch
+            continue
+        out.append(ch if ch == "s" else ch * int(count or 1))
+        count = ""
+    return "".join(out)
+
+
+def _plans() -> dict[int, _Plan]:
+    plans = {}
+    for msgid, cls in mavlink.mavlink_map.items():
+        try:
+            plans[msgid] = _Plan(cls)
+        except ValueError:  # pymavlink's own code handles it
+            continue
+    return plans
+
+
+_PLANS: dict[int, _Plan] = _plans() if _crc16 is not None else {}
+# Packing reads the fields as stored: only for types whose constructor stores its arguments
+# (the others convert them, and their own pack() converts them back).
+_BY_CLASS: dict[type, _Plan] = {p.cls: p for p in _PLANS.values() if p.direct}
+_IGNORE_CRC = bool(mavlink.MAVLINK_IGNORE_CRC)
+
+
+class FastMAVLink(mavlink.MAVLink):
+    """:class:`pymavlink.dialects.v20.ardupilotmega.MAVLink` with faster ``send``,
+    ``parse_char`` and ``decode`` for unsigned MAVLink 2 packets (see the module docstring);
+    a drop-in replacement."""
+
+    def send(self, mavmsg: Any, force_mavlink1: bool = False) -> None:
+        plan = _BY_CLASS.get(type(mavmsg))
+        if plan is None or force_mavlink1 or self.signing.sign_outgoing:
+            super().send(mavmsg, force_mavlink1=force_mavlink1)
+            return
+        values = plan.values(mavmsg)
+        if values is None:
+            super().send(mavmsg, force_mavlink1=force_mavlink1)
+            return
+        payload = plan.unpacker.pack(*values)
+        # MAVLink 2 drops trailing zero bytes of the payload (at least one byte stays).
+        payload = payload.rstrip(b"\x00") or payload[:1]
+        msgid = plan.msgid
+        body = _HEADER.pack(_V2, len(payload), 0, 0, self.seq, self.srcSystem,
+                            self.srcComponent, msgid & 0xFFFF, msgid >> 16) + payload
+        buf = body + _CRC.pack(_crc16(plan.extra, _crc16(body[1:], 0xFFFF)))
+        self.file.write(buf)
+        self.seq = (self.seq + 1) % 256
+        self.total_packets_sent += 1
+        self.total_bytes_sent += len(buf)
+        if (self.send_callback is not None and self.send_callback_args is not None
+                and self.send_callback_kwargs is not None):
+            self.send_callback(mavmsg, *self.send_callback_args, **self.send_callback_kwargs)
+
+    def parse_char(self, c: Any) -> Any:
+        if not self.robust_parsing:
+            return super().parse_char(c)
+        self.buf.extend(c)
+        self.total_bytes_received += len(c)
+        m = self._parse_robust()
+        if m is not None:
+            self.total_packets_received += 1
+            if (self.callback is not None and self.callback_args is not None
+                    and self.callback_kwargs is not None):
+                self.callback(m, *self.callback_args, **self.callback_kwargs)
+        if self.buf_index != 0 and len(self.buf) == self.buf_index:
+            self.buf = bytearray()
+            self.buf_index = 0
+        return m
+
+    def _parse_robust(self) -> Any:
+        """pymavlink's framing with robust parsing (``__parse_char_legacy``), step for step."""
+        buf = self.buf
+        i = self.buf_index
+        available = len(buf) - i
+        header_len = mavlink.HEADER_LEN_V1
+        magic = incompat = 0
+        if available >= 1:
+            first = buf[i]
+            if first == _V2:
+                header_len = mavlink.HEADER_LEN_V2
+            elif first != _V1:
+                start = i
+                i += 1
+                end = len(buf)
+                while i < end and buf[i] != _V1 and buf[i] != _V2:
+                    i += 1
+                self.buf_index = i
+                self.expected_length = header_len + 2
+                self.total_receive_errors += 1
+                return _BadData(buf[start:i], "Bad prefix")
+        self.have_prefix_error = False
+        if available >= 3:
+            magic, length, incompat = buf[i], buf[i + 1], buf[i + 2]
+            if magic == _V2 and incompat & _SIGNED:
+                length += _SIGNATURE
+            self.expected_length = length + header_len + 2
+        expected = self.expected_length
+        if expected < header_len + 2 or available < expected:
+            return None
+        packet = buf[i : i + expected]
+        self.buf_index = i + expected
+        self.expected_length = header_len + 2
+        try:
+            if magic == _V2 and (incompat & ~_SIGNED) != 0:
+                raise _MAVError(f"invalid incompat_flags 0x{incompat:x} 0x{magic:x} "
+                                f"{self.expected_length}")
+            return self.decode(packet)
+        except _MAVError as reason:
+            self.total_receive_errors += 1
+            return _BadData(packet, reason.message)
+
+    def decode(self, msgbuf: bytearray) -> Any:
+        if (msgbuf[0] != _V2 or msgbuf[2] != 0 or self.signing.secret_key is not None
+                or _IGNORE_CRC or len(msgbuf) != msgbuf[1] + 12):
+            return super().decode(msgbuf)
+        msgid = msgbuf[7] | msgbuf[8] << 8 | msgbuf[9] << 16
+        plan = _PLANS.get(msgid)
+        if plan is None:
+            return super().decode(msgbuf)
+        crc = msgbuf[-2] | msgbuf[-1] << 8
+        if _crc16(plan.extra, _crc16(memoryview(msgbuf)[1:-2], 0xFFFF)) != crc:
+            return super().decode(msgbuf)  # raises pymavlink's own error
+        payload = bytes(msgbuf[10:-2])
+        if len(payload) < plan.size:
+            payload += bytes(plan.size - len(payload))
+        wire = plan.unpacker.unpack(payload[: plan.size])
+        values = [wire[tip] if not count else list(wire[tip : tip + count])
+                  for tip, count in plan.fields]
+        for index in plan.strings:
+            values[index] = values[index].rstrip(b"\x00")
+        if plan.direct:
+            m = mavlink.MAVLink_message.__new__(plan.cls)
+            fields = vars(m)
+            fields.update(plan.template)
+            fields.update(zip(plan.names, values, strict=True))
+        else:
+            m = plan.cls(*values)
+            fields = vars(m)
+        fields["_signed"] = False
+        fields["_msgbuf"] = msgbuf
+        fields["_payload"] = msgbuf[6:-2]  # sic: pymavlink's offset, kept for equality
+        fields["_crc"] = crc
+        fields["_header"] = _Header(msgid, 0, msgbuf[3], msgbuf[1], msgbuf[4], msgbuf[5],
+                                    msgbuf[6])
+        return m
+
+
+__all__ = ["FastMAVLink"]
