@@ -383,6 +383,11 @@ class FileTerrainSettings(_GridSettings):
     vertical_scale: float = Field(
         1.0, gt=0, le=1000, description="factor applied to the heights, up to 1000"
     )
+    moving_obstacles: MovingObstaclesSettings | None = Field(
+        None, description="people and vehicles on given paths (sitl.terrain.moving; random "
+        "ones need a generated world: count must be 0), each point on the model; None: "
+        "nothing moves"
+    )
 
     @field_validator("path")
     @classmethod
@@ -401,7 +406,30 @@ class FileTerrainSettings(_GridSettings):
         from sitl.terrain.files import check_elevation
 
         check_elevation(self)  # the file itself: readable, a grid, fits MAX_CELLS, home inside
+        self._moving_on_model()
         return self
+
+    def _moving_on_model(self) -> None:
+        """Moving obstacles on an elevation model: given paths only, on the model."""
+        moving = self.moving_obstacles
+        if moving is None:
+            return
+        if moving.count:
+            raise ValueError(
+                f"moving_obstacles.count: {moving.count} random obstacles need a generated "
+                "world; on an elevation model give each one's path (moving_obstacles.paths)"
+            )
+        from sitl.terrain.files import model_extent
+
+        xmin, xmax, ymin, ymax = model_extent(self)
+        for i, p in enumerate(moving.paths):
+            for j, (x, y) in enumerate(p.path):
+                if not (xmin <= x <= xmax and ymin <= y <= ymax):
+                    raise ValueError(
+                        f"moving_obstacles.paths.{i}.path.{j}: ({x:g}, {y:g}) is off the "
+                        f"elevation model (x {xmin:g} .. {xmax:g}, y {ymin:g} .. {ymax:g} m "
+                        "about home)"
+                    )
 
 
 TerrainSettings = Annotated[

@@ -49,3 +49,43 @@ def test_terrain_lists_the_moving_obstacles_and_draws_their_paths(tmp_path, caps
     assert still.splitlines()[1] == busy.splitlines()[1]
     assert (tmp_path / "busy" / "terrain.png").read_bytes() != (
         tmp_path / "still" / "terrain.png").read_bytes()
+
+
+def _model(tmp_path) -> Path:
+    import numpy as np
+
+    path = tmp_path / "model.npy"
+    np.save(path, np.zeros((161, 161), np.float32))  # 40 m square at 0.25 m, home central
+    return path
+
+
+def test_an_elevation_model_takes_moving_obstacles_on_given_paths(tmp_path, capsys):
+    model = _model(tmp_path)
+    moving = "moving_obstacles={paths: [{kind: vehicle, path: [[5, -15], [5, 15]], speed: 3}]}"
+    args = ["terrain", "--kind", "file", "--set", f"path={model}", "--set",
+            "source_cell_size=0.25", "--set", "cell_size=0.25", "--set", moving]
+    assert main([*args, "--out", str(tmp_path / "busy")]) == 0
+    line = next(s for s in capsys.readouterr().out.splitlines()
+                if s.startswith("moving obstacles: "))
+    assert line.split()[2:5] == ["0", "people,", "1"]
+
+
+@pytest.mark.parametrize(("moving", "words"), [
+    ({"paths": [{"kind": "person", "path": [[0, 0], [30, 0]]}]},
+     "world.moving_obstacles.paths.0.path.1: (30, 0) is off the elevation model "
+     "(x -20 .. 20, y -20 .. 20 m about home)"),
+    ({"count": 2}, "world.moving_obstacles.count: 2 random obstacles need a generated world"),
+])
+def test_validate_refuses_moving_obstacles_off_an_elevation_model_in_one_line(
+        tmp_path, capsys, moving, words):
+    doc = {"waypoints": [[0.0, 0.0, 10.0]], "landing": {"search_rectangle": [10.0, 10.0],
+                                                         "pattern_center_radius": 2.0},
+           "world": {"kind": "file", "path": str(_model(tmp_path)), "source_cell_size": 0.25,
+                     "cell_size": 0.25, "moving_obstacles": moving}}
+    path = tmp_path / "moving.yaml"
+    path.write_text(yaml.safe_dump(doc))
+    assert main(["validate", str(path)]) == 2
+    captured = capsys.readouterr()
+    lines = captured.err.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in captured.err + captured.out
+    assert words in lines[0]
