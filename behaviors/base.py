@@ -6,11 +6,11 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 
-import py_trees
 from py_trees.common import Access, Status
 
 from behaviors import blackboard as keys
 from behaviors.ports import Clock, CommandHandle, CommandStatus, VehiclePort
+from behaviors.ticking import QuietBehaviour
 
 Point = tuple[float, float, float]
 
@@ -27,7 +27,7 @@ def reached(position: Sequence[float], target: Sequence[float], radius: float) -
     )
 
 
-class MissionBehaviour(py_trees.behaviour.Behaviour):
+class MissionBehaviour(QuietBehaviour):
     """A behaviour that reports the mission phase and why it failed.
 
     On entry it writes ``phase`` (when given) to :data:`behaviors.blackboard.PHASE`;

@@ -9,9 +9,10 @@ from py_trees.common import Access, Status
 from behaviors import blackboard as keys
 from behaviors.failsafe import battery_leaves_room
 from behaviors.ports import Clock, VehiclePort
+from behaviors.ticking import QuietDecorator, Retry
 
 
-class ClockTimeout(py_trees.decorators.Decorator):
+class ClockTimeout(QuietDecorator):
     """Run a child for at most ``duration`` seconds of the injected clock.
 
     Used instead of py_trees' own timeout decorator, which reads the wall clock: the
@@ -62,7 +63,7 @@ class ClockTimeout(py_trees.decorators.Decorator):
         return child.status
 
 
-class RetryWhileBattery(py_trees.decorators.Retry):
+class RetryWhileBattery(Retry):
     """Retry a failed child while the battery allows another try (DESIGN.md section 5: the
     landing tries run "for a fixed number of attempts, or while the battery allows").
 

@@ -5,13 +5,13 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-import py_trees
 from py_trees.common import Access, Status
 
 from behaviors import blackboard as keys
 from behaviors.base import MissionBehaviour
 from behaviors.flight import GPS_FIX_3D
 from behaviors.ports import Clock, VehiclePort
+from behaviors.ticking import QuietBehaviour
 
 
 def battery_below(vehicle: VehiclePort, level: float) -> bool:
@@ -176,7 +176,7 @@ class GpsLost(LatchedFailsafe):
         return None
 
 
-class NoFailsafe(py_trees.behaviour.Behaviour):
+class NoFailsafe(QuietBehaviour):
     """Condition: no failsafe has taken over the mission.
 
     Guards the mission branch so that it cannot restart after a failsafe ended it.

@@ -33,13 +33,13 @@ import math
 from collections import deque
 
 import numpy as np
-import py_trees
 from py_trees.common import Access, Status
 from pydantic import BaseModel, ConfigDict, Field
 
 from behaviors import blackboard as keys
 from behaviors.base import VehicleAction
 from behaviors.ports import Clock, VehiclePort
+from behaviors.ticking import QuietBehaviour
 from guidance import DirectionEstimatorSettings, GuidingDirectionEstimator
 from guidance.detector import ring_bearing
 
@@ -255,7 +255,7 @@ class LaserGuidance(VehicleAction):
         self.feedback_message = f"following the laser, bearing {math.degrees(bearing):.0f} deg"
         return Status.RUNNING
 
-class FailsafeIs(py_trees.behaviour.Behaviour):
+class FailsafeIs(QuietBehaviour):
     """Condition: the latched failsafe (FAILSAFE) is ``kind``.
 
     * SUCCESS: FAILSAFE == ``kind``
@@ -274,7 +274,7 @@ class FailsafeIs(py_trees.behaviour.Behaviour):
         return Status.SUCCESS if failsafe == self.kind else Status.FAILURE
 
 
-class BatteryAbove(py_trees.behaviour.Behaviour):
+class BatteryAbove(QuietBehaviour):
     """Condition: the battery is above ``level`` percent (or unknown): a guard that hands the
     vehicle to the critical-battery landing the moment the level is reached.
 

@@ -39,8 +39,7 @@ from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 import py_trees
-from py_trees.composites import Parallel, Selector, Sequence
-from py_trees.decorators import Inverter, Retry
+from py_trees.composites import Parallel
 from pydantic import BaseModel
 
 from behaviors import blackboard as keys
@@ -66,6 +65,7 @@ from behaviors.laser_guidance import BatteryAbove, FailsafeIs, LaserGuidance
 from behaviors.ports import Clock, VehiclePort
 from behaviors.search import GetNextPatternCenterWP, LandingSiteSearch
 from behaviors.settings import MissionPlan
+from behaviors.ticking import Inverter, QuietDecorator, Retry, Selector, Sequence
 
 if TYPE_CHECKING:
     from lsm import LandingSiteManager
@@ -357,7 +357,7 @@ register(NodeModel(
     "mission's blackboard)", lambda c, n, v, ch: _SubTree(n, ch[0]), children=(0, 0)))
 
 
-class _SubTree(py_trees.decorators.Decorator):
+class _SubTree(QuietDecorator):
     """A subtree reference: mirrors its subtree's root."""
 
     def update(self) -> py_trees.common.Status:

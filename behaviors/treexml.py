@@ -19,6 +19,8 @@ from collections.abc import Iterable
 
 import py_trees
 
+from behaviors import ticking
+
 MAIN_TREE = "LandingMission"
 """The ID of the main ``<BehaviorTree>`` when a tree does not say."""
 
@@ -37,9 +39,9 @@ def bt_id(node: py_trees.behaviour.Behaviour) -> str:
         return "Fallback" if node.memory else "ReactiveFallback"
     if isinstance(node, py_trees.composites.Parallel):
         return "Parallel"
-    if type(node) is py_trees.decorators.Retry:
+    if type(node) in (py_trees.decorators.Retry, ticking.Retry):
         return "RetryUntilSuccessful"
-    if type(node) is py_trees.decorators.Inverter:
+    if type(node) in (py_trees.decorators.Inverter, ticking.Inverter):
         return "Inverter"
     return type(node).__name__
 

@@ -1,0 +1,191 @@
+"""py_trees' tick and stop, step for step, without the debug messages built on every call.
+
+py_trees formats a debug line (the class name and, on stop, both statuses as text) on every
+tick and stop of every node and checks each returned status against ``list(Status)``; the
+lines are dropped unless py_trees' logging is at debug level, but building them was a fifth
+of a lockstep tick of the landing tree. The classes here are py_trees' own (subclasses,
+``isinstance`` holds) with ``tick`` and ``stop`` copied from py_trees 2.x minus those
+messages, so a tree built from them changes state exactly as py_trees' does
+(tests/behaviors/test_ticking.py ticks both side by side). Errors py_trees logs (an invalid
+status) are still logged.
+"""
+
+from __future__ import annotations
+
+import itertools
+from collections.abc import Iterator
+
+import py_trees
+from py_trees.behaviour import Behaviour
+from py_trees.common import Status
+
+_STATUSES = tuple(Status)
+_RUNNING = Status.RUNNING
+_SUCCESS = Status.SUCCESS
+_FAILURE = Status.FAILURE
+_INVALID = Status.INVALID
+
+
+def _checked(node: Behaviour, new_status: Status) -> Status:
+    if new_status not in _STATUSES:
+        node.logger.error(f"A behaviour returned an invalid status, setting to INVALID "
+                          f"[{new_status}][{node.name}]")
+        return _INVALID
+    return new_status
+
+
+class QuietBehaviour(Behaviour):
+    """A leaf: :class:`py_trees.behaviour.Behaviour`'s ``tick`` and ``stop``."""
+
+    def tick(self) -> Iterator[Behaviour]:
+        if self.status != _RUNNING:
+            self.initialise()
+        new_status = _checked(self, self.update())
+        if new_status != _RUNNING:
+            self.stop(new_status)
+        self.status = new_status
+        yield self
+
+    def stop(self, new_status: Status) -> None:
+        self.terminate(new_status)
+        self.status = new_status
+        self.iterator = self.tick()
+
+
+class QuietDecorator(py_trees.decorators.Decorator):
+    """A decorator: :class:`py_trees.decorators.Decorator`'s ``tick`` and ``stop``."""
+
+    def tick(self) -> Iterator[Behaviour]:
+        if self.status != _RUNNING:
+            self.initialise()
+        yield from self.decorated.tick()
+        new_status = _checked(self, self.update())
+        if new_status != _RUNNING:
+            self.stop(new_status)
+        self.status = new_status
+        yield self
+
+    def stop(self, new_status: Status) -> None:
+        self.terminate(new_status)
+        if new_status == _INVALID:
+            self.decorated.stop(new_status)
+        if self.decorated.status == _RUNNING:
+            self.decorated.stop(_INVALID)
+        self.status = new_status
+
+
+class Retry(QuietDecorator, py_trees.decorators.Retry):
+    """:class:`py_trees.decorators.Retry`."""
+
+
+class Inverter(QuietDecorator, py_trees.decorators.Inverter):
+    """:class:`py_trees.decorators.Inverter`."""
+
+
+def _stop_composite(node: py_trees.composites.Composite, new_status: Status) -> None:
+    """py_trees' ``Composite.stop``."""
+    if new_status == _INVALID:
+        node.current_child = None
+        for child in node.children:
+            if child.status != _INVALID:
+                child.stop(new_status)
+    node.terminate(new_status)
+    node.status = new_status
+    node.iterator = node.tick()
+
+
+class Selector(py_trees.composites.Selector):
+    """:class:`py_trees.composites.Selector`."""
+
+    def tick(self) -> Iterator[Behaviour]:
+        children = self.children
+        if self.status != _RUNNING:
+            self.current_child = children[0] if children else None
+            self.initialise()
+        if not children:
+            self.current_child = None
+            self.stop(_FAILURE)
+            yield self
+            return
+        if self.memory:
+            assert self.current_child is not None
+            index = children.index(self.current_child)
+            for child in itertools.islice(children, None, index):
+                if child.status != _INVALID:
+                    child.stop(_INVALID)
+        else:
+            index = 0
+        previous = self.current_child
+        for child in itertools.islice(children, index, None):
+            for node in child.tick():
+                yield node
+                if node is child and (node.status == _RUNNING or node.status == _SUCCESS):
+                    self.current_child = child
+                    if previous is None or previous != self.current_child:
+                        # Interrupted: invalidate everything at a lower priority.
+                        passed = False
+                        for other in children:
+                            if passed and other.status != _INVALID:
+                                other.stop(_INVALID)
+                            passed = True if other == self.current_child else passed
+                    if node.status == _SUCCESS:
+                        self.stop(node.status)
+                    else:
+                        self.status = node.status
+                    yield self
+                    return
+        self.stop(_FAILURE)
+        self.current_child = children[-1] if children else None
+        yield self
+
+    def stop(self, new_status: Status = _INVALID) -> None:
+        _stop_composite(self, new_status)
+
+
+class Sequence(py_trees.composites.Sequence):
+    """:class:`py_trees.composites.Sequence`."""
+
+    def tick(self) -> Iterator[Behaviour]:
+        children = self.children
+        index = 0
+        if self.status != _RUNNING:
+            self.current_child = children[0] if children else None
+            for child in children:
+                if child.status != _INVALID:
+                    child.stop(_INVALID)
+            self.initialise()
+        elif self.memory and self.current_child is not None:
+            index = children.index(self.current_child)
+        else:
+            self.current_child = children[0] if children else None
+        if not children:
+            self.current_child = None
+            self.stop(_SUCCESS)
+            yield self
+            return
+        for child in itertools.islice(children, index, None):
+            for node in child.tick():
+                yield node
+                if node is child and node.status != _SUCCESS:
+                    if not self.memory:
+                        # Kill dangling runners after it.
+                        for other in itertools.islice(children, index + 1, None):
+                            if other.status != _INVALID:
+                                other.stop(_INVALID)
+                    if node.status != _RUNNING:
+                        self.stop(node.status)
+                    else:
+                        self.status = node.status
+                    yield self
+                    return
+            if index + 1 < len(children):
+                self.current_child = children[index + 1]
+                index += 1
+        self.stop(_SUCCESS)
+        yield self
+
+    def stop(self, new_status: Status = _INVALID) -> None:
+        _stop_composite(self, new_status)
+
+
+__all__ = ["Inverter", "QuietBehaviour", "QuietDecorator", "Retry", "Selector", "Sequence"]
