@@ -13,7 +13,8 @@ class FlyApproachTrajectory(VehicleAction):
     """Fly to above the chosen site along a trajectory planned over the known terrain.
 
     On its first tick with a position it asks the planner for a trajectory from the vehicle
-    to ``(site.x, site.y, site.z + min_height)`` (descending on the way from the cruise
+    to ``(site.x, site.y, site.z + min_height)`` or higher where the planner's margin over
+    the map needs it (descending on the way from the cruise
     altitude, so that the descent overlaps the traverse; climbing over its start first from
     a low hover), then streams the trajectory's
     position and velocity to ``vehicle.follow`` on every tick, in clock time from that tick.
@@ -66,7 +67,9 @@ class FlyApproachTrajectory(VehicleAction):
         planned = self.planner.plan(position, goal)
         if isinstance(planned, str):
             return planned
-        self.trajectory, self.goal = planned, goal
+        # The planner may end higher than asked, to keep its margin over an obstacle beside
+        # the site: arrival is judged at the trajectory's end.
+        self.trajectory, self.goal = planned, planned.state_at(planned.duration)[0]
         self.started_at = self.clock.now()
         return None
 

@@ -134,8 +134,9 @@ class ApproachPlanner(Protocol):
     def plan(
         self, start: tuple[float, float, float], goal: tuple[float, float, float]
     ) -> Trajectory | str:
-        """A collision-free trajectory from ``start`` to ``goal`` (ENU m), or why there is
-        none (the caller then flies the climb, traverse and descent instead)."""
+        """A collision-free trajectory from ``start`` to ``goal`` (ENU m; it may end higher
+        over the goal, to keep its margin over the terrain), or why there is none (the
+        caller then flies the climb, traverse and descent instead)."""
         ...
 
 

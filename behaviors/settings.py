@@ -54,9 +54,11 @@ class ApproachSettings(BaseModel):
         1.5, gt=0, le=100, description="m: the vehicle's radius plus a lateral margin; "
         "every mapped obstacle within it counts, up to 100 m"
     )
-    vertical_margin: float = Field(
-        2.0, ge=0, le=MAX_ALTITUDE, description="m kept between the vehicle and the top of "
-        "every obstacle (raised by k_sigma standard deviations of the map), up to 10 km"
+    vertical_margin: float | None = Field(
+        None, ge=0, le=MAX_ALTITUDE, description="m kept between the vehicle and the top of "
+        "every mapped obstacle on the way (raised by k_sigma standard deviations of the map), "
+        "up to 10 km; unset: landing.clear_altitude_buffer, the thesis's z_buffer, so the "
+        "trajectory keeps the clear altitude's margin over the ground it has mapped"
     )
     k_sigma: float = Field(
         2.0, ge=0, le=10, description="standard deviations of a cell's height uncertainty "
@@ -64,8 +66,9 @@ class ApproachSettings(BaseModel):
     )
     min_height: float = Field(
         10.0, gt=0, le=MAX_ALTITUDE, description="m above the site where the trajectory ends "
-        "(descending on the way from higher up, climbing first from lower down; the vehicle "
-        "then descends vertically), up to 10 km"
+        "at least (higher when an obstacle within vehicle_radius of the site needs it for "
+        "vertical_margin; descending on the way from higher up, climbing first from lower "
+        "down; the vehicle then descends vertically), up to 10 km"
     )
     max_speed: float = Field(
         5.0, gt=0, le=50, description="m/s peak speed of the trajectory, up to 50 m/s"

@@ -143,6 +143,12 @@ def fly_one(job: tuple[str, dict, int]) -> dict:
         "peak_jerk": _peak_jerk(t, xyz, _in_phases(t, phases, APPROACH_PHASES)),
         "min_clearance": _transit_clearance(t, xyz, phases, terrain),
         "attempts": _attempts(t, phases, battery),
+        "verified": sum(e.get("behaviour") == "LandingSiteVerification"
+                        and e.get("new") == "SUCCESS" for e in result.events),
+        "flown": sum(e.get("behaviour") == "FlyApproachTrajectory" and e.get("new") == "SUCCESS"
+                     for e in result.events),
+        "fallbacks": sum(e.get("behaviour") == "FlyApproachTrajectory"
+                         and e.get("new") == "FAILURE" for e in result.events),
         "plan_times": plan_times, "trajectory_times": trajectory_times,
     }
 
@@ -193,6 +199,21 @@ def approach_campaign(args) -> None:
               f"{_mean(f['tries'] for f in flights):>6.1f}"
               f"{_median(f['peak_jerk'] for f in flights):>10.1f}"
               f"{min(f['min_clearance'] for f in flights):>12.2f}")
+    print("verification: tries that passed (share, 95 % interval by the normal approximation)")
+    for arm, flights in results.items():
+        tries = sum(f["tries"] or 0 for f in flights)
+        passed = sum(f["verified"] for f in flights)
+        share = passed / tries if tries else float("nan")
+        half = 1.96 * (share * (1 - share) / tries) ** 0.5 if tries else float("nan")
+        print(f"  {arm:<16}{passed} of {tries} ({100 * share:.0f} +- {100 * half:.0f} %)")
+    trajectory = results["trajectory"]
+    mission = apply_overrides(base, arms["trajectory"])
+    buffer = mission.landing.clear_altitude_buffer
+    margin = mission.landing.approach.vertical_margin
+    print(f"trajectory: {sum(f['flown'] for f in trajectory)} approaches flown along it, "
+          f"{sum(f['fallbacks'] for f in trajectory)} handed to the clear altitude; margin over "
+          f"the mapped tops {buffer if margin is None else margin:g} m, clear_altitude_buffer "
+          f"{buffer:g} m")
     print("each approach and descent to a site (navigate_to_site start to verification start),"
           " mean s and battery %:")
     for arm, flights in results.items():

@@ -29,6 +29,10 @@ from planning.min_snap import (
     cruise_trajectory,
 )
 
+GOAL_SLACK = 0.1
+"""m a raised goal is put above the margin over its obstacles: every sample of a trajectory
+must be strictly above the margin."""
+
 
 @dataclass(frozen=True, slots=True)
 class ApproachPlan:
@@ -108,6 +112,20 @@ def _straight_path(
                     length=float(np.hypot(*(goal - start))))
 
 
+def _crossing_altitude(
+    height: ObstacleHeights, reach: float, origin: np.ndarray, resolution: float,
+    start: np.ndarray, goal: np.ndarray, margin: float,
+) -> float:
+    """The lowest altitude at which the straight line from ``start`` to ``goal`` keeps
+    ``margin`` over every mapped top within ``reach`` (its two end cells aside, as in
+    :func:`_straight_path`); inf when it crosses an unobserved cell."""
+    cells = line_cells(origin, resolution, start, goal)
+    ends = np.all(cells == cells[0], axis=1) | np.all(cells == cells[-1], axis=1)
+    if ends.all():
+        return -np.inf
+    return float(clearance_at(height, cells[~ends], reach).max()) + margin
+
+
 def plan_approach(
     start: np.ndarray,
     goal: np.ndarray,
@@ -128,7 +146,9 @@ def plan_approach(
 
     Args:
         start: (3,) ENU m, the vehicle.
-        goal: (3,) ENU m, the point above the site to reach.
+        goal: (3,) ENU m, the point above the site to reach; raised where an obstacle
+            within ``radius`` of it is less than ``margin`` below it (the trajectory's end
+            is where it arrives).
         top, variance: (n0, n1) obstacle top (ENU z, NaN unknown) and its variance (m^2)
             per cell of the vehicle's map.
         origin: (2,) world x, y of the corner of cell [0, 0], m.
@@ -149,10 +169,15 @@ def plan_approach(
     origin = np.asarray(origin, dtype=np.float64)
     height = ObstacleHeights(top, variance, k_sigma)
     reach = radius / resolution
+    # An obstacle beside the site may need more than the goal's height for the margin: the
+    # goal is raised to clear it, so that the margin holds to the trajectory's very end (the
+    # descent below it is the vertical one of every approach).
+    beside = clearance_at(height, _cell_of(goal[:2], origin, resolution)[None], reach)[0]
+    if np.isfinite(beside) and beside + margin >= goal[2]:
+        goal = np.array([goal[0], goal[1], beside + margin + GOAL_SLACK])
     # The path is planned at the goal's altitude: the vehicle climbs to it over the start
     # first, or comes down to it along the path, so it is never lower on the way.
     altitude = goal[2]
-    climb = 1 if start[2] < goal[2] else 0  # the vertical climb is trajectory segment 0
     n0, n1 = height.shape
     path, cell_size = None, resolution
     if all(0 <= c[0] < n0 and 0 <= c[1] < n1
@@ -165,6 +190,18 @@ def plan_approach(
             if path is not None:
                 cell_size = resolution * factor
                 break
+        if path is None:
+            # Nothing around at the goal's altitude (ground rising between, a site in a
+            # hollow): straight over, as high as the mapped tops under the line need, the
+            # goal raised with it (the vertical descent below it follows).
+            over = _crossing_altitude(height, reach, origin, resolution, start[:2], goal[:2],
+                                      margin)
+            if np.isfinite(over):
+                altitude = max(altitude, over + GOAL_SLACK)
+                goal = np.array([goal[0], goal[1], altitude])
+                path = _straight_path(height, reach, origin, resolution, start[:2],
+                                      goal[:2], altitude, margin)
+    climb = 1 if start[2] < goal[2] else 0  # the vertical climb is trajectory segment 0
     if path is None:
         return ApproachPlan(None, None, None, f"no path over the known terrain at "
                             f"{altitude:.1f} m (radius {radius:g} m, margin {margin:g} m)")

@@ -35,11 +35,16 @@ class PlannedApproach:
 
 
 class MapApproachPlanner:
-    """Plans approaches over ``elevation_map`` (read when :meth:`plan` is called)."""
+    """Plans approaches over ``elevation_map`` (read when :meth:`plan` is called), keeping
+    ``settings.vertical_margin`` over every mapped top, or ``default_margin`` when that is
+    unset (the mission's clear_altitude_buffer, the thesis's z_buffer)."""
 
-    def __init__(self, elevation_map: ElevationMap, settings: ApproachSettings) -> None:
+    def __init__(self, elevation_map: ElevationMap, settings: ApproachSettings,
+                 default_margin: float = 10.0) -> None:
         self.map = elevation_map
         self.settings = settings
+        self.margin = (settings.vertical_margin if settings.vertical_margin is not None
+                       else float(default_margin))
 
     def plan(self, start: Vector, goal: Vector) -> PlannedApproach | str:
         m, s = self.map, self.settings
@@ -52,7 +57,7 @@ class MapApproachPlanner:
             return "the site is outside the mapped area"
         planned = plan_approach(
             np.asarray(start), np.asarray(goal), top, m.variance, origin, m.resolution,
-            radius=s.vehicle_radius, margin=s.vertical_margin, max_speed=s.max_speed,
+            radius=s.vehicle_radius, margin=self.margin, max_speed=s.max_speed,
             max_acceleration=s.max_acceleration, k_sigma=s.k_sigma,
             max_climb=s.max_climb_speed, max_descent=s.max_descent_speed,
         )

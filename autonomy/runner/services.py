@@ -36,7 +36,8 @@ def build_services(mission: Any, source: Any, obstacle_watch: Any = None) -> dic
     detector = getattr(source, "detector", None)
     elevation_map = getattr(detector, "map", None)
     if elevation_map is not None and hasattr(elevation_map, "top"):
-        planner: Any = MapApproachPlanner(elevation_map, mission.landing.approach)
+        planner: Any = MapApproachPlanner(elevation_map, mission.landing.approach,
+                                          default_margin=mission.landing.clear_altitude_buffer)
     else:
         planner = NoTerrainMap(mission.perception.detector)
     services: dict[str, Any] = {"approach_planner": planner}

@@ -74,7 +74,15 @@ def test_the_map_planner_goes_around_what_the_map_shows_and_says_when_it_cannot(
     end, velocity = planned.state_at(planned.duration)
     assert end == pytest.approx((10.0, 0.0, 15.0)) and np.allclose(velocity, 0.0, atol=1e-9)
     assert "outside the mapped area" in planner.plan((0.0, -10.0, 15.0), (50.0, 0.0, 15.0))
-    assert "no path" in planner.plan((-10.0, 0.0, 15.0), (0.0, 0.0, 15.0))  # on the wall
+    # A goal beside (here on) the wall is raised to keep the margin over it to the end;
+    # the margin is the mission's clear_altitude_buffer unless vertical_margin says otherwise.
+    over = planner.plan((-10.0, 0.0, 15.0), (0.0, 0.0, 15.0))
+    assert over.state_at(over.duration)[0][2] == pytest.approx(25.0 + 2 * 0.1 + 10.0, abs=0.2)
+    # Ground never seen across the whole window: no way over it, nor around.
+    unseen = _map_with_a_wall()
+    unseen.top[38:42, :] = unseen.mean[38:42, :] = np.nan
+    assert "no path" in MapApproachPlanner(unseen, planner.settings).plan(
+        (-10.0, 0.0, 15.0), (10.0, 0.0, 15.0))
 
 
 def test_the_demo_over_mars_lands_safely_along_a_planned_trajectory():
@@ -89,3 +97,29 @@ def test_the_demo_over_mars_lands_safely_along_a_planned_trajectory():
                and e.get("behaviour") == "FlyApproachTrajectory" and e.get("new") == "SUCCESS"]
     assert arrived and all(e["feedback"] == "arrived" for e in arrived)
     assert result.summary["collisions"] == 0
+
+
+def test_the_trajectory_keeps_the_clear_altitude_buffer_over_the_mapped_terrain():
+    # A 3 m mound between the start and a site 10 m below the goal: with the default
+    # margin (the mission's clear_altitude_buffer, 10 m) the trajectory goes around it,
+    # keeping 10 m over every mapped top (+2 sigma) within the vehicle's radius; a mission
+    # that asks for 2 m flies straight over it.
+    from planning import clearance_grid
+
+    m = _map_with_a_wall()
+    m.top[:] = 0.1
+    m.top[34:46, 30:50] = 3.0  # x = -3 .. 3 m, y = -5 .. 5 m
+    settings = ApproachSettings(method="trajectory")
+    guard = clearance_grid(m.top, m.variance, m.resolution, settings.vehicle_radius)
+    for margin, over_the_mound in ((None, False), (2.0, True)):
+        planner = MapApproachPlanner(
+            m, settings.model_copy(update={"vertical_margin": margin}), default_margin=10.0)
+        planned = planner.plan((-15.0, 0.0, 20.0), (15.0, 0.0, 10.0))
+        assert not isinstance(planned, str), planned
+        p = np.array([planned.state_at(float(t))[0]
+                      for t in np.linspace(0.0, planned.duration, 600)])
+        cells = np.floor(p[:, :2] / m.resolution).astype(int) - m.origin_index
+        above = p[:, 2] - guard[cells[:, 0], cells[:, 1]]
+        assert above.min() > (margin or 10.0)
+        crossing = p[np.abs(p[:, 0]) < 3.0]
+        assert (np.abs(crossing[:, 1]).min() < 5.0) == over_the_mound

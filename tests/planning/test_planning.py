@@ -189,6 +189,21 @@ def test_unknown_terrain_or_a_closed_wall_gives_a_reason_instead_of_a_trajectory
     assert not plan.ok and "no path" in plan.reason
 
 
+def test_a_ridge_across_the_map_is_crossed_straight_over_with_the_margin_and_the_goal_raised():
+    # Nothing leads around a 6 m ridge at the goal's 4 m: the approach goes straight over,
+    # margin (3 m) above the ridge's top + 2 sigma, and ends that high over the goal.
+    top, var = _flat(80)
+    top[:, 30:34] = 6.0
+    plan = plan_approach(np.array([5.0, 5.0, 20.0]), np.array([5.0, 30.0, 4.0]), top, var,
+                         np.zeros(2), RES, radius=1.0, margin=3.0, max_speed=5.0,
+                         max_acceleration=2.0)
+    assert plan.ok and len(plan.waypoints) == 2
+    p = plan.trajectory.sample(np.linspace(0, plan.trajectory.duration, 400))
+    near = np.abs(p[:, 1] - 16.0) < 2.0 + 1.0  # over the ridge (y 15 .. 17) or within radius
+    assert p[near, 2].min() > 6.0 + 2 * 0.1 + 3.0
+    assert p[-1, 2] == pytest.approx(6.0 + 2 * 0.1 + 3.0, abs=0.2)  # the goal, raised
+
+
 def test_from_below_the_goal_the_vehicle_climbs_over_its_start_before_it_goes():
     """After a failed verification the vehicle hovers low; the next approach climbs to the
     goal's altitude over where it is, then flies, never lower than that on the way."""
