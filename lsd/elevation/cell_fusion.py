@@ -19,7 +19,7 @@ TOP_QUANTILE = 0.9  # which percentile of a cell's points is its top
 TOP_NOISE_LIFT = 1.2816  # the standard normal's 90th percentile
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def _nan_max(a: float, b: float) -> float:
     """``np.maximum`` of two scalars (NaN wins)."""
     if a != a or b != b:
@@ -27,7 +27,7 @@ def _nan_max(a: float, b: float) -> float:
     return a if a >= b else b
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def _nan_min(a: float, b: float) -> float:
     """``np.minimum`` of two scalars (NaN wins)."""
     if a != a or b != b:
@@ -35,7 +35,7 @@ def _nan_min(a: float, b: float) -> float:
     return a if a <= b else b
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def _kth_smallest(values: np.ndarray, a: int, b: int, k: int) -> int:
     """The ``k``-th smallest (0-based) of ``values[a:b]``, which it reorders."""
     if b - a <= 32:  # insertion sort: cells mostly hold a few points
@@ -52,7 +52,7 @@ def _kth_smallest(values: np.ndarray, a: int, b: int, k: int) -> int:
     return part[k]
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def fuse_cells(
     x, y, z, variance, count,
     inv_rx, origin_i, inv_ry, origin_j, one,

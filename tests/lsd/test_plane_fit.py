@@ -1,0 +1,57 @@
+"""The window plane fits (lsd.plane_fit, compiled in lsd.plane_fit_kernel) against oracles:
+a weighted least-squares fit of each window by numpy, and OpenCV's box filter, whose sums
+the kernel reproduces bit for bit."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+
+from lsd.plane_fit import fit_planes
+
+
+def _map(shape, seed):
+    rng = np.random.default_rng(seed)
+    i, j = np.mgrid[0 : shape[0], 0 : shape[1]] * 0.1
+    height = 3.0 + 0.2 * i - 0.1 * j + rng.normal(0.0, 0.02, shape)
+    variance = rng.uniform(1e-4, 4e-4, shape)
+    height[rng.random(shape) < 0.3] = np.nan  # unobserved cells
+    variance[np.isnan(height)] = np.inf
+    return height, variance
+
+
+@pytest.mark.parametrize("shape", [(40, 37), (33, 44)])
+def test_plane_is_the_weighted_least_squares_fit_of_each_window(shape):
+    height, variance = _map(shape, 1)
+    fit = fit_planes(height, variance, 0.1, 0.3)  # 7 x 7 windows
+    rng = np.random.default_rng(2)
+    for i, j in zip(rng.integers(0, shape[0], 40), rng.integers(0, shape[1], 40), strict=True):
+        win = tuple(slice(max(k - 3, 0), min(k + 4, n)) for k, n in zip((i, j), shape, strict=True))
+        di, dj = np.mgrid[win]
+        seen = np.isfinite(height[win])
+        w = np.sqrt(1.0 / variance[win][seen])
+        a = np.column_stack([np.ones(seen.sum()), (di[seen] - i) * 0.1, (dj[seen] - j) * 0.1])
+        coef = np.linalg.lstsq(a * w[:, None], height[win][seen] * w, rcond=None)[0]
+        assert fit.height[i, j] == pytest.approx(coef[0], abs=1e-4)
+        assert fit.slope[i, j] == pytest.approx(np.arctan(np.hypot(coef[1], coef[2])), abs=1e-3)
+        assert fit.observed_fraction[i, j] == pytest.approx(seen.sum() / 49, abs=1e-6)
+
+
+@pytest.mark.parametrize(("shape", "radius"), [((41, 38), 1.0), ((30, 29), 0.2), ((25, 27), 0.1)])
+def test_window_sums_are_opencvs_box_filter_bit_for_bit(shape, radius):
+    height, variance = _map(shape, 3)
+    fit = fit_planes(height, variance, 0.1, radius)
+    size = 2 * max(1, round(radius / 0.1)) + 1
+    seen = np.isfinite(height)
+    var = np.where(seen, variance, 0.0).astype(np.float32)
+
+    def box(a):
+        return cv2.boxFilter(a, cv2.CV_32F, (size, size), borderType=cv2.BORDER_CONSTANT)
+
+    frac = box(seen.astype(np.uint8))
+    assert np.array_equal(fit.observed_fraction, np.clip(frac, 0, 1))
+    expected_sigma = np.sqrt(box(var) / frac)
+    ok = np.isfinite(fit.sigma)
+    assert ok.sum() > 0.5 * ok.size
+    assert np.array_equal(fit.sigma[ok], expected_sigma[ok])
