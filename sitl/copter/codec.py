@@ -17,7 +17,7 @@ number, counters, callback); the sent message object is not annotated with its p
 from __future__ import annotations
 
 import struct
-from operator import attrgetter
+from operator import attrgetter, itemgetter
 from typing import Any
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
@@ -36,13 +36,14 @@ _CRC = struct.Struct("<H")
 _MAVError = mavlink.MAVError
 _BadData = mavlink.MAVLink_bad_data
 _Header = mavlink.MAVLink_header
+_new = mavlink.MAVLink_message.__new__
 
 
 class _Plan:
     """How one message type is packed and decoded on the fast path."""
 
     __slots__ = ("unpacker", "size", "extra", "get", "orders", "names", "strings", "template",
-                 "msgid", "cls", "direct", "arrays", "fields")
+                 "msgid", "cls", "direct", "arrays", "fields", "pick")
 
     def __init__(self, cls: type) -> None:
         self.unpacker = cls.unpacker
@@ -66,6 +67,10 @@ class _Plan:
             scalar = count == 1 or items[tip] in "cs"
             self.fields.append((tip, 0 if scalar else count))
         self.fields = tuple(self.fields)
+        # Without arrays, the declared fields are single values picked from the wire tuple.
+        self.pick = None
+        if all(count == 0 for _, count in self.fields) and len(self.fields) > 1:
+            self.pick = itemgetter(*(tip for tip, _ in self.fields))
         self.arrays = tuple(length if length > 1 and items[sum(lengths[:j])] not in "cs" else 0
                             for j, length in enumerate(lengths))  # wire order, for packing
         if not any(self.arrays):
@@ -238,15 +243,20 @@ class FastMAVLink(mavlink.MAVLink):
         if len(payload) < plan.size:
             payload += bytes(plan.size - len(payload))
         wire = plan.unpacker.unpack(payload[: plan.size])
-        values = [wire[tip] if not count else list(wire[tip : tip + count])
-                  for tip, count in plan.fields]
-        for index in plan.strings:
-            values[index] = values[index].rstrip(b"\x00")
+        if plan.pick is not None:
+            values = plan.pick(wire)
+        else:
+            values = [wire[tip] if not count else list(wire[tip : tip + count])
+                      for tip, count in plan.fields]
+        if plan.strings:
+            values = list(values)
+            for index in plan.strings:
+                values[index] = values[index].rstrip(b"\x00")
         if plan.direct:
-            m = mavlink.MAVLink_message.__new__(plan.cls)
-            fields = vars(m)
+            m = _new(plan.cls)
+            fields = dict(zip(plan.names, values, strict=True))
             fields.update(plan.template)
-            fields.update(zip(plan.names, values, strict=True))
+            m.__dict__ = fields
         else:
             m = plan.cls(*values)
             fields = vars(m)

@@ -14,6 +14,7 @@ safe is never a collision.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -80,7 +81,7 @@ class ContactJudge:
         """What the vehicle at ``position`` (ENU, its skids) touches at time ``t`` (s): the
         first moving obstacle, else the terrain, else None."""
         x, y, z = (float(v) for v in position)
-        if not (np.isfinite(x) and np.isfinite(y) and np.isfinite(z)):
+        if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(z)):
             return None
         if z - ROTOR_HEIGHT > self._highest + self._tallest:
             return None  # above everything there is (the cruise): nothing to test
