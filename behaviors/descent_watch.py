@@ -8,7 +8,7 @@ away from is banned like one that fails verification."""
 from __future__ import annotations
 
 import math
-from collections import Counter
+from collections import Counter, deque
 from typing import TYPE_CHECKING
 
 from py_trees.common import Access, Status
@@ -29,6 +29,7 @@ from behaviors.ports import (
     ObstacleSighting,
     ObstacleWatch,
     VehiclePort,
+    VehicleState,
 )
 
 if TYPE_CHECKING:
@@ -58,6 +59,59 @@ def step_within(
     if disc < 0:
         return 0.0
     return max(0.0, min(step, -b + math.sqrt(disc)))
+
+
+class ColumnWatch:
+    """The downward rangefinder's watch over the column below a vehicle descending
+    straight: the ground it reads (vehicle z less the range) stays put, so ground that rises
+    more than ``margin`` m above the lowest read in the last ``window`` s is something that
+    entered the column (a car driving under the vehicle). The window follows slow drift of
+    the vehicle's height estimate; ``reference`` (e.g. the chosen site's height) adds a
+    floor known from elsewhere. The range and the position arrive in different messages, so
+    while the vehicle climbs or descends the margin grows by ``lag`` s of its vertical speed;
+    and the beam tilts with the vehicle (it reads farther than straight down): readings taken
+    while it speeds up or brakes sideways by more than ``max_tilt_acceleration`` m/s^2 are
+    left out."""
+
+    def __init__(self, margin: float = 0.5, window: float = 3.0, lag: float = 0.5,
+                 max_tilt_acceleration: float = 0.5) -> None:
+        self.margin = float(margin)
+        self.window = float(window)
+        self.lag = float(lag)
+        self.max_tilt_acceleration = float(max_tilt_acceleration)
+        self.readings: deque[tuple[float, float]] = deque()
+        self._velocity: tuple[float, float, float] | None = None  # t, vx, vy
+
+    def reset(self) -> None:
+        """Forget the ground read so far (the column moved)."""
+        self.readings.clear()
+        self._velocity = None
+
+    def _tilting(self, state: VehicleState, now: float) -> bool:
+        """Whether the vehicle speeds up or brakes sideways (and so tilts) now."""
+        vx, vy, _ = state.velocity
+        last, self._velocity = self._velocity, (now, vx, vy)
+        if last is None or now <= last[0]:
+            return True  # not known yet
+        accel = math.hypot(vx - last[1], vy - last[2]) / (now - last[0])
+        return accel > self.max_tilt_acceleration
+
+    def intrusion(self, state: VehicleState, now: float,
+                  reference: float = math.inf) -> str | None:
+        """What entered the column, in words, or None (also without a range or position)."""
+        rf, position = state.rangefinder_agl, state.position
+        if self._tilting(state, now) or rf is None or position is None or not math.isfinite(rf):
+            return None
+        below = position[2] - rf  # ENU z of what the rangefinder sees
+        readings = self.readings
+        while readings and readings[0][0] < now - self.window:
+            readings.popleft()
+        floor = min([reference, below, *(g for _, g in readings)])
+        readings.append((now, below))
+        if below - floor > self.margin + self.lag * abs(state.velocity[2]):
+            return (f"something {below - floor:.1f} m high entered the column below "
+                    f"(rangefinder {rf:.1f} m at {position[2]:.1f} m)")
+        return None
 
 
 class WatchAborts:
@@ -105,7 +159,9 @@ class WatchedDescent(VehicleAction):
     vehicle climbs back to the altitude the descent began at and the behaviour fails, so
     the landing try ends and the tree chooses again (re-plans); given the ``lsm``, the
     retreat counts in ``aborts`` and the site is banned after ``ban_after`` of them (see
-    :class:`WatchAborts`).
+    :class:`WatchAborts`). Given ``column_margin``, the rangefinder watches the column too
+    (:class:`ColumnWatch`, while descending straight): something entering it (a car driving
+    under the vehicle: the site is on its way) makes the vehicle climb back and fail alike.
 
     The descent ends over the moved column: the verification hover and the centring over the
     verified site that follow bring the vehicle back over the site, low and slowly.
@@ -133,10 +189,12 @@ class WatchedDescent(VehicleAction):
         lsm: LandingSiteManager | None = None,
         aborts: WatchAborts | None = None,
         ban_after: int = 1,
+        column_margin: float | None = None,
     ) -> None:
         super().__init__(name, vehicle, clock, command_timeout=command_timeout, phase=phase)
         self.height = float(height)
         self.watch = watch
+        self.column = None if column_margin is None else ColumnWatch(column_margin)
         self.lsm = lsm
         self.aborts = aborts if aborts is not None else WatchAborts()
         self.ban_after = int(ban_after)
@@ -178,6 +236,15 @@ class WatchedDescent(VehicleAction):
         self.mode = "descend"
         self.resumed_at = self.clock.now()
         self.watch.watch(True)
+        if self.column is not None:
+            self.column.reset()
+
+    def _climb_back(self, reason: str) -> None:
+        """Give up this column: back up to where the descent began, then fail."""
+        self.watch.watch(False)
+        self.abort_reason = f"{reason}; climbed back to {self.start_z:.1f} m"
+        self._goto((self.site.x + self.offset[0], self.site.y + self.offset[1], self.start_z))
+        self.mode = "climb"
 
     def _avoid(self, position: Point, sighting: ObstacleSighting) -> None:
         ex, ey = away_in_enu(sighting.away, sighting.yaw)
@@ -189,14 +256,10 @@ class WatchedDescent(VehicleAction):
         self.watch.watch(False)
         move = step_within(self.offset, direction, self.step, self.max_offset)
         if move < 0.25 * self.step:
-            self.abort_reason = (
+            self._climb_back(
                 f"obstacle ({where}) beside the descent at {position[2]:.1f} m and no room to "
-                f"step away within {self.max_offset:g} m of the site; climbed back to "
-                f"{self.start_z:.1f} m"
+                f"step away within {self.max_offset:g} m of the site"
             )
-            self._goto((self.site.x + self.offset[0], self.site.y + self.offset[1],
-                        self.start_z))
-            self.mode = "climb"
             return
         self.offset = (self.offset[0] + move * direction[0], self.offset[1] + move * direction[1])
         self.steps += 1
@@ -241,6 +304,11 @@ class WatchedDescent(VehicleAction):
             moved = f", {self.steps} step(s) away from obstacles" if self.steps else ""
             self.feedback_message = f"at {self.height:g} m above the site{moved}"
             return Status.SUCCESS
+        if self.column is not None:
+            intrusion = self.column.intrusion(self.vehicle.state, self.clock.now())
+            if intrusion is not None:
+                self._climb_back(f"{intrusion} during the descent")
+                return Status.RUNNING
         sighting = self.watch.latest()
         if (
             sighting is not None
@@ -260,15 +328,16 @@ class WatchedLand(Land):
     camera's optical flow (``watch``) and the downward rangefinder watch the last metres.
 
     The landing is aborted when a sighting flags an obstacle (from ``settle`` s after the
-    landing began) or when something rises into the column below: the rangefinder reads the
-    ground more than ``column_margin`` m higher than the lowest ground it read during this
-    landing (or than the chosen site, when the vehicle is within 1 m of its column); a car
-    or a person walking under the vehicle. Then the vehicle leaves LAND for a goto (GUIDED
-    or OFFBOARD; ArduPilot and PX4 accept that change out of LAND) to ``height`` m above the
-    site (above the ground it read when no site is chosen), at least where it is, and once
-    there the behaviour fails, so the tree goes on as after a failed verification: the site
-    is counted as backed away from (``aborts``) and banned after ``ban_after`` retreats
-    (0: never), and the next try chooses again. The watch stops at touchdown.
+    landing began) or when something rises into the column below (:class:`ColumnWatch`):
+    the rangefinder reads the ground more than ``column_margin`` m higher than the lowest it
+    read in the last 3 s (or than the chosen site, when the vehicle is within 1 m of its
+    column); a car or a person walking under the vehicle. Then the vehicle leaves LAND for
+    a goto (GUIDED or OFFBOARD; ArduPilot and PX4 accept that change out of LAND) to
+    ``height`` m above the site (above the lowest ground read when no site is chosen), at
+    least where it is, and once there the behaviour fails, so the tree goes on as after a
+    failed verification: the site is counted as backed away from (``aborts``) and banned
+    after ``ban_after`` retreats (0: never), and the next try chooses again. The watch
+    stops at touchdown.
 
     * SUCCESS: landed and disarmed (as Land)
     * FAILURE: the land, goto or disarm command denied or unanswered; the landing aborted
@@ -306,11 +375,11 @@ class WatchedLand(Land):
         self.acceptance_radius = float(acceptance_radius)
         self.blackboard.register_key(key=keys.LANDING_SITE, access=Access.READ)
         self.blackboard.register_key(key=keys.BANNED_SITES, access=Access.WRITE)
+        self.column = ColumnWatch(column_margin)
         self.site = None
         self.mode = "land"  # land | climb
         self.target: Point | None = None
         self.started = 0.0
-        self.ground: float = math.inf  # lowest ground the rangefinder read while landing
         self.abort_reason = ""
         self.watching = False
 
@@ -320,7 +389,7 @@ class WatchedLand(Land):
         self.mode = "land"
         self.target = None
         self.started = self.clock.now()
-        self.ground = math.inf
+        self.column.reset()
         self.abort_reason = ""
         self.watching = True
         self.watch.watch(True)
@@ -328,34 +397,23 @@ class WatchedLand(Land):
     def terminate(self, new_status: Status) -> None:
         self.watch.watch(False)
 
-    def _column_intrusion(self, state) -> str | None:
-        """Why the rangefinder says something entered the column, or None."""
-        rf, position = state.rangefinder_agl, state.position
-        if rf is None or position is None or not math.isfinite(rf):
-            return None
-        below = position[2] - rf  # ENU z of what the rangefinder sees
-        reference = self.ground = min(self.ground, below)
-        site = self.site
-        if site is not None and horizontal_distance(position, site.position) <= 1.0:
-            reference = min(reference, site.z)
-        if below - reference > self.column_margin:
-            return (f"something {below - reference:.1f} m high entered the column below "
-                    f"(rangefinder {rf:.1f} m at {position[2]:.1f} m)")
-        return None
-
     def _threat(self, state) -> str | None:
         sighting = self.watch.latest()
         if (sighting is not None and sighting.obstacle
                 and sighting.time >= self.started + self.settle):
             where = ", ".join(sighting.directions) or "around"
             return f"obstacle ({where}) beside the landing"
-        return self._column_intrusion(state)
+        site = self.site
+        # The chosen site's height is a floor too (a car parked on it from the start).
+        reference = site.z if site is not None and state.position is not None and (
+            horizontal_distance(state.position, site.position) <= 1.0) else math.inf
+        return self.column.intrusion(state, self.clock.now(), reference)
 
     def _abort(self, position: Point, reason: str) -> None:
         self.watching = False
         self.watch.watch(False)
-        floor = self.site.z if self.site is not None else (
-            self.ground if math.isfinite(self.ground) else position[2])
+        lowest = min((g for _, g in self.column.readings), default=position[2])
+        floor = self.site.z if self.site is not None else lowest
         self.target = (position[0], position[1], max(position[2], floor + self.height))
         self.command(self.vehicle.goto(*self.target))
         self.mode = "climb"

@@ -539,6 +539,9 @@ _leaf("FlyApproachTrajectory", "Action", "flies to above the chosen site (landin
 _BAN_AFTER = Port("ban_after", "int", "", "retreats from one site before it is banned "
                   "(0: never)", "{descent_watch_ban_after}")
 
+_COLUMN_MARGIN = Port("column_margin", "double", "m", "the rangefinder's ground rising this "
+                      "much is something in the column", "{descent_watch_column_margin}")
+
 
 def _watch_aborts(context: BuildContext) -> WatchAborts:
     """The tree's one count of the watch's retreats per site (shared by its watched nodes)."""
@@ -551,9 +554,10 @@ _leaf("WatchedDescent", "Action", "descends to `height` above the chosen site (l
           n, c.vehicle, c.clock, v["height"], c.services["obstacle_watch"], step=v["step"],
           max_offset=v["max_offset"], settle=v["settle"],
           acceptance_radius=v["acceptance_radius"], command_timeout=v["command_timeout"],
-          phase=v["phase"], lsm=c.lsm, aborts=_watch_aborts(c), ban_after=v["ban_after"]),
+          phase=v["phase"], lsm=c.lsm, aborts=_watch_aborts(c), ban_after=v["ban_after"],
+          column_margin=v["column_margin"]),
       [Port("height", "double", "m", "above the site", "{verification_altitude}"),
-       _BAN_AFTER,
+       _BAN_AFTER, _COLUMN_MARGIN,
        Port("step", "double", "m", "a step away from an obstacle", "{descent_watch_step}"),
        Port("max_offset", "double", "m", "farthest from the site's column",
             "{descent_watch_max_offset}"),
@@ -576,8 +580,7 @@ _leaf("WatchedLand", "Action", "lands where the vehicle is while the descent cam
        _BAN_AFTER,
        Port("settle", "double", "s", "sightings ignored after the landing began",
             "{descent_watch_settle}"),
-       Port("column_margin", "double", "m", "the ground read this much higher is something "
-            "in the column", "{descent_watch_column_margin}"),
+       _COLUMN_MARGIN,
        Port("phase", "std::string", "", _PHASE, "land"),
        Port("outcome_hint", "std::string", "", "why the mission lands here, for the report",
             optional=True), _RADIUS, _COMMAND],

@@ -16,7 +16,7 @@ unsafe touchdowns judged by the simulator's ground truth.
 
     .venv/bin/python benchmarks/bench_approach.py                       # mars_demo, 8 seeds
     .venv/bin/python benchmarks/bench_approach.py --seeds 20 --mission missions/mars_science.yaml
-    .venv/bin/python benchmarks/bench_approach.py --campaign watch --seeds 8
+    .venv/bin/python benchmarks/bench_approach.py --campaign watch --seeds 8 [--spare-site]
 """
 
 from __future__ import annotations
@@ -270,8 +270,10 @@ def _tower_world(directory: Path) -> Path:
     return path
 
 
-def watch_mission(seed: int, directory: Path, watch: bool, flow: dict):
-    """The seed's scenario (see above) as a Mission, the watch on or off."""
+def watch_mission(seed: int, directory: Path, watch: bool, flow: dict, spare: bool = False):
+    """The seed's scenario (see above) as a Mission, the watch on or off; with ``spare`` the
+    LSM also holds a smaller site 10 m south-west of the waypoint, on open ground (where the
+    tree goes when the first is banned)."""
     from autonomy.config import Mission
 
     rng = np.random.default_rng(seed)
@@ -298,7 +300,8 @@ def watch_mission(seed: int, directory: Path, watch: bool, flow: dict):
         "sitl": {"wind": {"speed": 2.0, "direction": float(rng.uniform(0.0, 360.0))}},
         "perception": {"detector": "scripted", "rate": 2.0, "scripted": {"fov": 90.0},
                        "descent_flow": flow},
-        "sites": [{"x": site[0], "y": site[1], "size": 4.0}],
+        "sites": [{"x": site[0], "y": site[1], "size": 4.0}] + (
+            [{"x": site[0] - 12.0, "y": site[1] - 8.0, "size": 2.0}] if spare else []),
         "seed": seed, "time_limit": 150.0,
     })
 
@@ -314,10 +317,10 @@ def watch_thresholds(directory: Path) -> dict:
     return {"obstacle_threshold": round(o_t, 2), "variance_threshold": round(v_t, 2)}
 
 
-def fly_watch(job: tuple[int, bool, str, dict]) -> dict:
+def fly_watch(job: tuple[int, bool, str, dict, bool]) -> dict:
     """One flight of the watch campaign (a worker process)."""
-    seed, watch, directory, flow = job
-    mission = watch_mission(seed, Path(directory), watch, flow)
+    seed, watch, directory, flow, spare = job
+    mission = watch_mission(seed, Path(directory), watch, flow, spare)
     result = fly(mission)
     s = result.summary
     return {"seed": seed, "outcome": s["outcome"], "time_to_land": s.get("time_to_land"),
@@ -332,13 +335,15 @@ def watch_campaign(args) -> None:
     wall = time.perf_counter()
     with tempfile.TemporaryDirectory() as directory:
         flow = {**watch_thresholds(Path(directory)), **args.override}
-        jobs = [(seed, watch, directory, flow) for watch in (False, True) for seed in seeds]
+        jobs = [(seed, watch, directory, flow, args.spare_site) for watch in (False, True)
+                for seed in seeds]
         with ProcessPoolExecutor(max_workers=args.workers) as pool:
             flights = list(pool.map(fly_watch, jobs))
     n = len(seeds)
     print(f"descent watch campaign: seeds {seeds.start}..{seeds.stop - 1} (even: a 12 m tower "
           f"0.3-0.9 m beside the site; odd: a car driving across the site), {args.workers} "
-          f"workers, {time.perf_counter() - wall:.0f} s wall; thresholds {flow}")
+          f"workers, {time.perf_counter() - wall:.0f} s wall; thresholds {flow}"
+          + ("; a spare site 14 m away" if args.spare_site else ""))
     print(f"{'arm':<12}{'outcomes':<40}{'collisions':>11}{'flights hit':>12}"
           f"{'unsafe':>8}{'flagged':>9}{'land s':>8}")
     for k, arm in enumerate(("watch off", "watch on")):
@@ -373,6 +378,9 @@ def main() -> int:
                         help="the approach campaign's mission")
     parser.add_argument("--seeds", type=int, default=8)
     parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--spare-site", action="store_true",
+                        help="watch campaign: the LSM also holds a smaller site on open ground, "
+                        "where the tree goes once the watch has banned the first")
     parser.add_argument("--set", dest="override", action="append", type=_override,
                         default=[], metavar="KEY=VALUE",
                         help="a mission override for the new arm only (trajectory / watch on)")

@@ -154,3 +154,53 @@ def test_a_step_stops_at_the_offset_bound():
     assert step_within((2.0, 0.0), (1.0, 0.0), 1.5, 3.0) == pytest.approx(1.0)
     assert step_within((3.0, 0.0), (1.0, 0.0), 1.5, 3.0) == pytest.approx(0.0)
     assert step_within((3.0, 0.0), (-1.0, 0.0), 1.5, 3.0) == pytest.approx(1.5)
+
+
+class CarUnderVehicle(FakeVehicle):
+    """The fake vehicle with a downward rangefinder; from ``car_from`` s on, a 1.6 m car
+    stands under it wherever it is."""
+
+    def __init__(self, clock, car_from, **kwargs):
+        super().__init__(clock, **kwargs)
+        self.car_from = car_from
+
+    @property
+    def state(self):
+        import dataclasses
+
+        state = super().state
+        top = 1.6 if self.clock.now() >= self.car_from else 0.0
+        return dataclasses.replace(state, rangefinder_agl=self.position[2] - top)
+
+
+class BanningLsm:
+    def __init__(self):
+        self.banned = []
+
+    def ban(self, site_id):
+        self.banned.append(site_id)
+        return True
+
+
+def test_a_car_under_the_column_makes_it_climb_back_and_ban_the_site():
+    from behaviors.descent_watch import WatchAborts
+
+    aborts, lsm = WatchAborts(), BanningLsm()
+    for attempt, ban_after in ((1, 2), (2, 2)):
+        clock = SimClock()
+        vehicle = CarUnderVehicle(clock, car_from=5.0, speed=3.0, climb_rate=1.5)
+        vehicle.armed, vehicle.position = True, (10.0, 5.0, 21.0)
+        descent = WatchedDescent("Descend", vehicle, clock, 2.5, FakeWatch(clock, vehicle),
+                                 column_margin=0.5, lsm=lsm, aborts=aborts,
+                                 ban_after=ban_after)
+        status, track = _run(vehicle, clock, descent)
+        assert status is Status.FAILURE
+        assert "1.6 m high entered the column below" in descent.feedback_message
+        assert vehicle.position[2] == pytest.approx(21.0, abs=1.0)  # back where it began
+        assert min(z for _, _, z in track) > 21.0 - 1.5 * 5.0 - 1.0  # stopped at once
+        if attempt == 1:  # the first retreat keeps the site for another try
+            assert "site 1 kept (1 retreat(s), banned after 2)" in descent.feedback_message
+            assert lsm.banned == []
+        else:
+            assert descent.feedback_message.endswith("(site 1 banned)")
+            assert lsm.banned == [1]
