@@ -7,10 +7,11 @@ from __future__ import annotations
 
 import cv2
 import numpy as np
+from numba import njit
 from scipy import ndimage
 
 from lsd.elevation.settings import DetectorSettings
-from lsd.plane_fit import PlaneFit, copy_where
+from lsd.plane_fit import PlaneFit
 
 
 def maximum_box(array: np.ndarray, size: int) -> np.ndarray:
@@ -144,21 +145,32 @@ def obstacle_altitude(
     if sites is None:
         top = np.where(np.isfinite(height), height + 2.0 * np.sqrt(variance), -np.inf)
         return maximum_box(top.astype(np.float32), 2 * half + 1).astype(np.float64)
-    # Only the bounding box of the sites' squares is filtered.
     i, j = (np.asarray(a, dtype=np.intp) for a in sites)
     if len(i) == 0:
         return np.zeros(0)
-    i0, j0 = max(int(i.min()) - half, 0), max(int(j.min()) - half, 0)
-    i1 = min(int(i.max()) + half + 1, height.shape[0])
-    j1 = min(int(j.max()) + half + 1, height.shape[1])
-    part = (slice(i0, i1), slice(j0, j1))
-    f32 = np.float32
-    with np.errstate(invalid="ignore"):
-        top = np.sqrt(variance[part].astype(f32))
-        top *= f32(2.0)
-        top += height[part]
-    copy_where(top, -np.inf, np.isnan(top))
-    return maximum_box(top, 2 * half + 1)[i - i0, j - j0].astype(np.float64)
+    return _highest_around(
+        np.asarray(height, dtype=np.float64), np.asarray(variance, dtype=np.float64), i, j, half
+    )
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _highest_around(height, variance, i, j, half):
+    """(k,) largest ``height + 2 sigma`` (in float32, as the whole-grid version computes
+    it) over the square of half-side ``half`` cells around each site, cut at the grid's
+    edge; -inf where it holds no observed cell. Only the sites' squares are visited."""
+    n0, n1 = height.shape
+    out = np.empty(len(i))
+    two = np.float32(2.0)
+    for k in range(len(i)):
+        best = -np.inf
+        for a in range(max(i[k] - half, 0), min(i[k] + half + 1, n0)):
+            for b in range(max(j[k] - half, 0), min(j[k] + half + 1, n1)):
+                top = np.float32(np.float64(np.sqrt(np.float32(variance[a, b])) * two)
+                                 + height[a, b])
+                if top > best:  # NaN (unobserved) never wins
+                    best = top
+        out[k] = np.float32(best)
+    return out
 
 
 def select_sites(
@@ -196,57 +208,90 @@ def select_sites(
     """
     block = max(1, int(round(settings.site_spacing / resolution)))
     cap = settings.footprint_radius + 0.5 * block * resolution
-    capped = np.minimum(size if room is None else np.minimum(size, room), cap)
     eligible = size >= settings.footprint_radius
     if not eligible.any():
         empty = np.zeros(0, dtype=np.int64)
         return empty, empty
+    quality = np.asarray(quality)
+    i, j = _block_winners(
+        np.asarray(size, dtype=np.float64),
+        np.zeros((0, 0)) if room is None else np.asarray(room, dtype=np.float64),
+        quality, quality.dtype.type(1e-3 * resolution), float(cap),
+        float(settings.footprint_radius), 1e-6 * resolution,
+        int(origin_index[0]) % block, int(origin_index[1]) % block, block,
+    )
+    return i[: settings.max_sites], j[: settings.max_sites]
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _block_winners(size, room, quality, quality_weight, cap, least, centre_weight, lead0,
+                   lead1, block):
+    """The sites of :func:`select_sites`, best first (all of them), in one pass over the
+    blocks, with its keys computed as its vectorised form computes them (capped size plus
+    ``quality_weight * clip(quality, 0, 1)`` in the quality's precision, less
+    ``centre_weight * off_centre / block**2``), the first best cell of a block in row-major
+    order, and a stable sort."""
     n0, n1 = size.shape
-    # Pad so that block boundaries fall on world cell indices that are multiples of block.
-    lead = [int(np.mod(o, block)) for o in origin_index]
-    pad0 = (lead[0], (-(n0 + lead[0])) % block)
-    pad1 = (lead[1], (-(n1 + lead[1])) % block)
-    ai = ((np.arange(n0) + lead[0]) % block - (block - 1) / 2) ** 2
-    aj = ((np.arange(n1) + lead[1]) % block - (block - 1) / 2) ** 2
-    off_centre = ai[:, None] + aj[None, :]
-    # Keys are written straight into the padded grid (padding stays -inf).
-    padded = np.full((n0 + sum(pad0), n1 + sum(pad1)), -np.inf)
-    key = padded[pad0[0] : pad0[0] + n0, pad1[0] : pad1[0] + n1]
-    # Size dominates (its distinct values differ by far more than the tie-breaks add).
-    np.add(capped, 1e-3 * resolution * np.clip(quality, 0.0, 1.0), out=key)
-    key -= 1e-6 * resolution * (off_centre / block**2)
-    copy_where(key, -np.inf, ~eligible)
-    b0, b1 = padded.shape[0] // block, padded.shape[1] // block
-    # Each block's first best cell in row-major order: the best column of every row of
-    # the block, then the first row holding the best of those (no transposed copy).
-    rows = padded.reshape(padded.shape[0], b1, block)
-    col = rows.argmax(axis=2)  # (P0, b1)
-    row_best = np.take_along_axis(rows, col[..., None], axis=2)[..., 0].reshape(b0, block, b1)
-    row = row_best.argmax(axis=1)  # (b0, b1)
-    best_key = np.take_along_axis(row_best, row[:, None, :], axis=1)[:, 0, :]
-    bi, bj = np.nonzero(np.isfinite(best_key))
-    r_in = row[bi, bj]
-    c_in = col.reshape(b0, block, b1)[bi, r_in, bj]
-    i = bi * block + r_in - lead[0]
-    j = bj * block + c_in - lead[1]
+    has_room = room.shape[0] > 0
+    half_block = (block - 1) / 2
+    b0 = (n0 + lead0 + block - 1) // block
+    b1 = (n1 + lead1 + block - 1) // block
+    win_i = np.empty((b0, b1), np.int64)
+    win_j = np.empty((b0, b1), np.int64)
+    win_key = np.full((b0, b1), -np.inf)
+    zero = quality.dtype.type(0.0)
+    one = quality.dtype.type(1.0)
+    for bi in range(b0):
+        for bj in range(b1):
+            best = -np.inf
+            bi_, bj_ = 0, 0
+            for r in range(block):
+                i = bi * block + r - lead0
+                if i < 0 or i >= n0:
+                    continue
+                ai = (r - half_block) ** 2
+                for c in range(block):
+                    j = bj * block + c - lead1
+                    if j < 0 or j >= n1:
+                        continue
+                    sz = size[i, j]
+                    if not sz >= least:
+                        continue
+                    capped = min(sz, room[i, j]) if has_room else sz
+                    capped = min(capped, cap)
+                    q = min(max(quality[i, j], zero), one)
+                    key = capped + np.float64(quality_weight * q)
+                    key -= centre_weight * ((ai + (c - half_block) ** 2) / (block * block))
+                    if key > best:
+                        best = key
+                        bi_, bj_ = i, j
+            win_key[bi, bj] = best
+            win_i[bi, bj] = bi_
+            win_j[bi, bj] = bj_
     # A winner closer than half a block (Chebyshev) to a better winner is suppressed; such
-    # a neighbour can only sit in one of the 8 adjacent blocks, so compare block grids.
+    # a neighbour can only sit in one of the 8 adjacent blocks.
     reach = block // 2
-    win_i = np.full((b0 + 2, b1 + 2), -(4 * block), dtype=np.int64)  # far from all
-    win_j = win_i.copy()
-    win_key = np.full((b0 + 2, b1 + 2), -np.inf)
-    win_i[bi + 1, bj + 1], win_j[bi + 1, bj + 1], win_key[bi + 1, bj + 1] = i, j, key[i, j]
-    keep = np.ones(len(i), dtype=bool)
-    for di in (-1, 0, 1):
-        for dj in (-1, 0, 1):
-            if di == 0 and dj == 0:
+    count = 0
+    keep_i = np.empty(b0 * b1, np.int64)
+    keep_j = np.empty(b0 * b1, np.int64)
+    keep_key = np.empty(b0 * b1)
+    for bi in range(b0):
+        for bj in range(b1):
+            key = win_key[bi, bj]
+            if not np.isfinite(key):
                 continue
-            ni, nj = bi + 1 + di, bj + 1 + dj
-            keep &= ~(
-                (np.abs(win_i[ni, nj] - i) <= reach)
-                & (np.abs(win_j[ni, nj] - j) <= reach)
-                & (win_key[ni, nj] > win_key[bi + 1, bj + 1])
-            )
-    i, j = i[keep], j[keep]
-    order = np.argsort(-key[i, j], kind="stable")[: settings.max_sites]
-    return i[order].astype(np.int64), j[order].astype(np.int64)
+            i, j = win_i[bi, bj], win_j[bi, bj]
+            beaten = False
+            for ni in range(max(bi - 1, 0), min(bi + 2, b0)):
+                for nj in range(max(bj - 1, 0), min(bj + 2, b1)):
+                    if (ni != bi or nj != bj) and win_key[ni, nj] > key and abs(
+                        win_i[ni, nj] - i
+                    ) <= reach and abs(win_j[ni, nj] - j) <= reach:
+                        beaten = True
+            if not beaten:
+                keep_i[count] = i
+                keep_j[count] = j
+                keep_key[count] = key
+                count += 1
+    order = np.argsort(-keep_key[:count], kind="mergesort")
+    return keep_i[:count][order], keep_j[:count][order]
