@@ -71,6 +71,44 @@ def _timed_planner():
     return times, generating
 
 
+def _chosen_sites() -> list:
+    """Wrap GetLandingSite.update to collect the record of each site chosen for a try."""
+    from py_trees.common import Status
+
+    from behaviors import landing
+
+    chosen: list = []
+    original = landing.GetLandingSite.update
+
+    def update(self):
+        status = original(self)
+        if status == Status.SUCCESS:
+            chosen.append(self.blackboard.get(self.site_key))
+        return status
+
+    landing.GetLandingSite.update = update
+    return chosen
+
+
+def _tries(chosen, events, terrain, doubtful: float) -> list[tuple[str, bool, bool]]:
+    """Each verification try: (what the chosen site's record rested on, safe by the ground
+    truth, passed). The record: 'first' (the first try, from the cruise), 'doubtful' (seen
+    no lower than the detector's doubtful_altitude: every close look found a step near it
+    that only the noise tolerance forgave), 'high' (seen from above it) or 'low' (below)."""
+    from sitl.terrain import is_safe
+
+    outcomes = [e["new"] == "SUCCESS" for e in events
+                if e.get("behaviour") == "LandingSiteVerification"
+                and e.get("new") in ("SUCCESS", "FAILURE")]
+    out = []
+    for k, (site, passed) in enumerate(zip(chosen, outcomes, strict=False)):
+        altitude = site.verification_altitude
+        kind = ("first" if k == 0 else "doubtful" if abs(altitude - doubtful) < 1e-6
+                else "high" if altitude > doubtful else "low")
+        out.append((kind, bool(is_safe(terrain, site.x, site.y)), passed))
+    return out
+
+
 def _in_phases(t: np.ndarray, phases: list[tuple[float, str]], wanted) -> np.ndarray:
     """(N,) bool: samples taken while one of ``wanted`` phases ran."""
     starts = np.array([s for s, _ in phases] + [np.inf])
@@ -128,6 +166,7 @@ def fly_one(job: tuple[str, dict, int]) -> dict:
     """One flight of the campaign (a worker process): its summary figures."""
     mission_path, overrides, seed = job
     plan_times, trajectory_times = _timed_planner()
+    chosen = _chosen_sites()
     mission = apply_overrides(load_mission(mission_path), overrides)
     result = fly(mission, seed=seed)
     s = result.summary
@@ -150,6 +189,8 @@ def fly_one(job: tuple[str, dict, int]) -> dict:
         "fallbacks": sum(e.get("behaviour") == "FlyApproachTrajectory"
                          and e.get("new") == "FAILURE" for e in result.events),
         "plan_times": plan_times, "trajectory_times": trajectory_times,
+        "tries_by_site": _tries(chosen, result.events, terrain,
+                                mission.perception.detection.doubtful_altitude),
     }
 
 
@@ -206,6 +247,21 @@ def approach_campaign(args) -> None:
         share = passed / tries if tries else float("nan")
         half = 1.96 * (share * (1 - share) / tries) ** 0.5 if tries else float("nan")
         print(f"  {arm:<16}{passed} of {tries} ({100 * share:.0f} +- {100 * half:.0f} %)")
+    print("  by the chosen site's record (first: from the cruise; doubtful: seen no lower than "
+          "doubtful_altitude; high/low: seen from above/below it): tries, passed, safe by the "
+          "ground truth, safe but failed")
+    for arm, flights in results.items():
+        kinds = Counter()
+        for f in flights:
+            for kind, safe, passed in f["tries_by_site"]:
+                kinds[kind, "tries"] += 1
+                kinds[kind, "passed"] += passed
+                kinds[kind, "safe"] += safe
+                kinds[kind, "rejected"] += safe and not passed
+        print(f"  {arm:<16}" + "; ".join(
+            f"{kind} {kinds[kind, 'tries']} {kinds[kind, 'passed']} {kinds[kind, 'safe']} "
+            f"{kinds[kind, 'rejected']}" for kind in ("first", "doubtful", "high", "low")
+            if kinds[kind, "tries"]))
     trajectory = results["trajectory"]
     mission = apply_overrides(base, arms["trajectory"])
     buffer = mission.landing.clear_altitude_buffer
