@@ -159,17 +159,42 @@ def _highest_around(height, variance, i, j, half):
     it) over the square of half-side ``half`` cells around each site, cut at the grid's
     edge; -inf where it holds no observed cell. Only the sites' squares are visited."""
     n0, n1 = height.shape
-    out = np.empty(len(i))
+    i0, i1 = max(i.min() - half, 0), min(i.max() + half + 1, n0)
+    j0, j1 = max(j.min() - half, 0), min(j.max() + half + 1, n1)
+    top = np.empty((i1 - i0, j1 - j0), np.float32)
     two = np.float32(2.0)
+    for a in range(i0, i1):
+        for b in range(j0, j1):
+            t = np.float32(np.float64(np.sqrt(np.float32(variance[a, b])) * two) + height[a, b])
+            top[a - i0, b - j0] = t if t == t else -np.inf  # unobserved (NaN) never wins
+    out = np.empty(len(i))
+    for k in range(len(i)):
+        best = np.float32(-np.inf)
+        for a in range(max(i[k] - half, 0) - i0, min(i[k] + half + 1, n0) - i0):
+            for b in range(max(j[k] - half, 0) - j0, min(j[k] + half + 1, n1) - j0):
+                best = max(best, top[a, b])
+        out[k] = best
+    return out
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def largest_at(grid, i, j, di, dj):
+    """(k,) largest value of ``grid`` (NaN wins, as numpy's max) over the cells
+    ``(i[k] + di, j[k] + dj)``, indices clipped to the grid (the nearest edge cell stands for
+    cells beyond it)."""
+    n0, n1 = grid.shape
+    out = np.empty(len(i))
     for k in range(len(i)):
         best = -np.inf
-        for a in range(max(i[k] - half, 0), min(i[k] + half + 1, n0)):
-            for b in range(max(j[k] - half, 0), min(j[k] + half + 1, n1)):
-                top = np.float32(np.float64(np.sqrt(np.float32(variance[a, b])) * two)
-                                 + height[a, b])
-                if top > best:  # NaN (unobserved) never wins
-                    best = top
-        out[k] = np.float32(best)
+        for m in range(len(di)):
+            a = min(max(i[k] + di[m], 0), n0 - 1)
+            b = min(max(j[k] + dj[m], 0), n1 - 1)
+            v = np.float64(grid[a, b])
+            if v != v or best != best:
+                best = np.nan
+            elif v > best:
+                best = v
+        out[k] = best
     return out
 
 

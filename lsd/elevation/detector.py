@@ -45,6 +45,7 @@ from lsd.elevation.settings import DetectorSettings, ElevationMapSettings
 from lsd.frames import DepthFrame
 from lsd.plane_fit import PlaneFit, copy_where, fit_planes
 from lsd.site_selection import (
+    largest_at,
     maximum_box,
     obstacle_altitude,
     safe_mask,
@@ -643,9 +644,8 @@ def _largest_within(grid: np.ndarray, i: np.ndarray, j: np.ndarray, radius: floa
     n = int(np.floor(radius + 1e-9))
     di, dj = np.mgrid[-n : n + 1, -n : n + 1]
     inside = np.hypot(di, dj) <= radius + 1e-9
-    rows = np.clip(i[:, None] + di[inside], 0, grid.shape[0] - 1)
-    cols = np.clip(j[:, None] + dj[inside], 0, grid.shape[1] - 1)
-    return grid[rows, cols].max(axis=1).astype(np.float64)
+    return largest_at(grid, np.asarray(i, np.int64), np.asarray(j, np.int64),
+                      di[inside].astype(np.int64), dj[inside].astype(np.int64))
 
 
 def _aligned(
