@@ -203,3 +203,26 @@ def fuse_cells(
         if camera_height == camera_height:
             closest[cell] = _nan_min(closest[cell], _nan_max(camera_height - meas, 0.0))
     return fused, inside
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def forget_cells(mean, top, variance, closest, last_update, cutoff):
+    """Forget, in place, the observed cells of the flattened grids last measured before
+    ``cutoff``. Returns (how many, the earliest last measurement of the observed cells
+    kept: inf when none)."""
+    count = 0
+    oldest = np.inf
+    for c in range(len(mean)):
+        if not np.isfinite(mean[c]):
+            continue
+        t = last_update[c]
+        if t < cutoff:
+            mean[c] = np.nan
+            top[c] = np.nan
+            variance[c] = np.inf
+            closest[c] = np.inf
+            last_update[c] = -np.inf
+            count += 1
+        elif t < oldest:
+            oldest = t
+    return count, oldest

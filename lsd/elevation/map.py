@@ -14,7 +14,7 @@ import math
 import cv2
 import numpy as np
 
-from lsd.elevation.cell_fusion import fuse_cells
+from lsd.elevation.cell_fusion import forget_cells, fuse_cells
 from lsd.elevation.settings import ElevationMapSettings
 from lsd.plane_fit import copy_where
 
@@ -230,17 +230,14 @@ class ElevationMap:
         cutoff = now - self.settings.max_age
         if cutoff <= self._oldest:
             return 0
-        # Every cell kept was measured at or after the cutoff.
-        self._oldest = cutoff
-        stale = np.isfinite(self.mean) & (self.last_update < cutoff)
-        count = int(np.count_nonzero(stale))
-        if count:
-            self.mean[stale] = np.nan
-            self.top[stale] = np.nan
-            self.variance[stale] = np.inf
-            self.closest[stale] = np.inf
-            self.last_update[stale] = -np.inf
-        return count
+        count, oldest = forget_cells(
+            self.mean.reshape(-1), self.top.reshape(-1), self.variance.reshape(-1),
+            self.closest.reshape(-1), self.last_update.reshape(-1), cutoff,
+        )
+        # Every cell kept was measured at or after the cutoff; the earliest of them bounds
+        # when the next one can be forgotten (until then nothing need be scanned).
+        self._oldest = max(cutoff, oldest)
+        return int(count)
 
     def clear(self) -> None:
         """Forget everything (the window stays where it is)."""
