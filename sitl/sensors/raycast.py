@@ -1,21 +1,19 @@
-"""Ray / height-field intersection, vectorised over rays.
+"""Ray / height-field intersection.
 
-:func:`cast_rays` marches any set of rays (the LiDAR's, and the fine-step reference);
-:func:`cast_pinhole_rays` (or :meth:`PinholeRays.cast`, keeping what it derives from the
-rays between frames) renders a downward pinhole camera's image many times faster, from
-bounds on the ground a :class:`HeightBounds` pyramid gives per image tile;
-:func:`coarse_terrain` gives the mean-height levels of detail a distant camera renders.
-
-Longer than 500 lines: the general ray march and the camera's tiled march share the
-height-bounds pyramid and the refinement of hits.
+:func:`cast_rays` marches any set of rays, vectorised over rays (the LiDAR's, and the
+fine-step reference); :func:`cast_pinhole_rays` (or :meth:`PinholeRays.cast`, keeping what
+it derives from the rays between frames) renders a downward pinhole camera's image many
+times faster, from bounds on the ground a :class:`HeightBounds` pyramid gives per image tile
+(the march itself is compiled: :mod:`sitl.sensors.march`); :func:`coarse_terrain` gives the
+mean-height levels of detail a distant camera renders.
 """
 
 from __future__ import annotations
 
-import cv2
 import numpy as np
 from scipy import ndimage
 
+from sitl.sensors import march
 from sitl.sensors.region import GroundRegion, pixels_needed, tiles_needed
 from sitl.terrain import Terrain
 
@@ -213,18 +211,12 @@ def cast_rays(
 
 
 # --- Fast pinhole rendering: bracket each ray between bounds from a min/max pyramid, then
-# refine with bilinear samples from cv2.remap. -------------------------------------------
+# march and refine each ray in compiled code (sitl.sensors.march). ----------------------
 
 # Tile sizes (px) of the image-space hierarchy and bound iterations at each.
 _TILE_PASSES = ((16, 3), (4, 2))
-# Most regula falsi (Illinois) iterations on a ray's final bracket.
-_FALSI = 16
 # A ray point this close (m, vertically) to the ground is the hit.
 _CLOSE = 5e-4
-# Steps a marching ray may skip at once over open air.
-_SKIP = 8
-# cv2.remap refuses images with a side of SHRT_MAX or more: sample in rows of this width.
-_ROW = 256
 
 
 class HeightBounds:
@@ -255,8 +247,6 @@ class HeightBounds:
         self.offset = np.cumsum([0] + [a.size for a in his[:-1]]).astype(np.intp)
         self.high = np.concatenate([a.ravel() for a in his])
         self.low = np.concatenate([a.ravel() for a in los])
-        # (high, -low) per node: one gather and one max give both bounds.
-        self._high_neg_low = np.stack((self.high, -self.low), axis=1)
         self.scale = np.ldexp(1.0, -np.arange(self.levels))
         self.cells = (g.shape[0] - 1, g.shape[1] - 1)
         self.top = float(his[-1][0, 0])
@@ -264,38 +254,20 @@ class HeightBounds:
         self.grid = g
         self.origin = terrain.origin
         self.cell_size = terrain.cell_size
+        # What the compiled march reads of the pyramid (sitl.sensors.march.box_bounds).
+        self.pyramid = (self.high, self.low, self.width, self.offset, self.scale,
+                        self.levels, self.cells[1], self.cells[0])
 
     def region(self, u0, u1, v0, v1) -> tuple[np.ndarray, np.ndarray]:
         """Bounds (high, low) on the ground over boxes ``[u0, u1] x [v0, v1]`` given in
         cell-centre coordinates (column u, row v; u = (x - origin x) / cell size). Arrays
         of any one shape; the bounds are float32, conservative (a box reads at most 2 x 2
         nodes of the finest level whose nodes are at least as wide as it)."""
-        ncy, ncx = self.cells
-        top_u, top_v = ncx - 1e-3, ncy - 1e-3
-        u0 = np.minimum(np.maximum(u0, 0.0), top_u)
-        u1 = np.minimum(np.maximum(u1, 0.0), top_u)
-        v0 = np.minimum(np.maximum(v0, 0.0), top_v)
-        v1 = np.minimum(np.maximum(v1, 0.0), top_v)
-        # Level ceil(log2(span)), or one coarser when the span is a power of two: the
-        # exponent e of span = m 2**e, 0.5 <= m < 1.
-        level = np.frexp(np.maximum(u1 - u0, v1 - v0))[1]
-        np.minimum(np.maximum(level, 0, out=level), self.levels - 1, out=level)
-        scale = self.scale.take(level)
-        width = self.width.take(level)
-        row0 = (v0 * scale).astype(np.intp)
-        row0 *= width
-        row0 += self.offset.take(level)
-        row1 = (v1 * scale).astype(np.intp)
-        row1 *= width
-        row1 += self.offset.take(level)
-        col0 = (u0 * scale).astype(np.intp)
-        col1 = (u1 * scale).astype(np.intp)
-        nodes = self._high_neg_low
-        both = np.maximum(
-            np.maximum(nodes.take(row0 + col0, axis=0), nodes.take(row0 + col1, axis=0)),
-            np.maximum(nodes.take(row1 + col0, axis=0), nodes.take(row1 + col1, axis=0)),
-        )
-        high, low = both[..., 0], -both[..., 1]
+        boxes = np.broadcast_arrays(*(np.asarray(x, dtype=np.float64) for x in (u0, u1, v0, v1)))
+        high = np.empty(boxes[0].shape, dtype=np.float32)
+        low = np.empty_like(high)
+        march.boxes_bounds(self.pyramid, *(np.ascontiguousarray(b).ravel() for b in boxes),
+                           high.reshape(-1), low.reshape(-1))
         return high, low
 
 
@@ -390,15 +362,20 @@ class PinholeRays:
                 lo = np.minimum(np.minimum(at[0], at[1]), np.minimum(at[2], at[3]))
                 hi = np.maximum(np.maximum(at[0], at[1]), np.maximum(at[2], at[3]))
                 ext += [lo.astype(np.float64), hi.astype(np.float64)]
-            tiles.append((tile, passes, ext))
+            tiles.append((tile, passes, np.stack(ext)))
         hor = np.hypot(du, dv)
         np.maximum(hor, np.float32(1e-6), out=hor)
+        finest = _TILE_PASSES[-1][0]
         got = {
             "du": du.ravel(),
             "dv": dv.ravel(),
             "dz": dz.ravel(),
             "inv_hor": np.divide(np.float32(1.0), hor.ravel()),
             "nadir": bool(np.all(dz == -1.0)),  # ray height oz - t: one product less
+            "all": np.arange(height * width),
+            # The finest tile of each pixel (flat indices; the march reads its bracket).
+            "tile_of": ((np.arange(height) // finest)[:, None] * (-(-width // finest))
+                        + np.arange(width) // finest).ravel(),
             "tiles": tiles,
         }
         self._per_cell[cell_size] = got
@@ -453,9 +430,8 @@ def cast_pinhole_rays(
     have (below the lowest), narrowed with :meth:`HeightBounds.region` over the footprint
     between the two. A ray whose bracket spans more than ``step`` horizontally is then
     marched through it ``step`` at a time (so no cell is skipped and the hit is the first);
-    the crossing is refined by regula falsi with bilinear heights from ``cv2.remap``
-    (whose interpolation weights are fixed point, 1/32 of a cell: heights are exact to
-    about slope x 3 mm at 0.2 m cells).
+    the crossing is refined by regula falsi with bilinear heights computed as OpenCV's
+    ``remap`` computes them. Each ray is one compiled loop (:mod:`sitl.sensors.march`).
 
     Args:
         bounds: the terrain's :class:`HeightBounds` (build once per terrain).
@@ -484,240 +460,29 @@ def _cast(bounds, rays: PinholeRays, origin, t_max, step, close, region=None):
     # Cell-centre coordinates: u = u_o + t * du (columns), v = v_o + t * dv (rows).
     u_o = (ox - bounds.origin[0]) / cs
     v_o = (oy - bounds.origin[1]) / cs
-
-    lo = hi = None
-    tile_prev = 1
+    lo = hi = np.empty((0, 0))
+    tile_prev = 0
     for tile, passes, ext in per["tiles"]:
-        du_min, du_max, dv_min, dv_max, z_lo, z_hi = ext
-        shape = du_min.shape
-        if lo is None:
-            lo = np.maximum(0.0, (oz - bounds.top) / -z_lo)
-            hi = (oz - bounds.bottom) / -z_hi
-        else:
-            lo = _expand(lo, tile_prev // tile, shape)
-            hi = _expand(hi, tile_prev // tile, shape)
-        for _ in range(passes):
-            u0 = u_o + np.minimum(du_min * lo, du_min * hi)
-            u1 = u_o + np.maximum(du_max * lo, du_max * hi)
-            v0 = v_o + np.minimum(dv_min * lo, dv_min * hi)
-            v1 = v_o + np.maximum(dv_max * lo, dv_max * hi)
-            top, bottom = bounds.region(u0, u1, v0, v1)
-            lo = np.maximum(lo, (oz - top) / -z_lo)
-            hi = np.maximum(lo, np.minimum(hi, (oz - bottom) / -z_hi))
+        lo, hi = march.tile_brackets(bounds.pyramid, ext, lo, hi, tile_prev // tile, passes,
+                                     (u_o, v_o, oz), (bounds.top, bounds.bottom))
         tile_prev = tile
-    # Per ray, in single precision, flat: the bracket to pixels, f(t) = ray height - ground.
-    # (Random masks are slow in numpy: subsets go through index arrays and take, and
-    # selections are written as arithmetic blends.)
-    du, dv, dz = per["du"], per["dv"], per["dz"]
     step = per["inv_hor"] if step is None else per["inv_hor"] * np.float32(float(step) / cs)
-    rendered = pick = None
+    rendered = None
+    pick = per["all"]
     if region is not None:
+        ext = per["tiles"][-1][2]
         need = tiles_needed(region[0], tuple(ext[:4]), lo, hi, (u_o, v_o),
                             (bounds.origin[0], bounds.origin[1], cs), tile_prev, region[1])
         if not need.all():
             rendered = pixels_needed(region[0], need, tile_prev, (height, width))
             pick = np.flatnonzero(rendered)
-    lo = _expand(lo.astype(np.float32), tile_prev, (height, width)).ravel()
-    hi = _expand(hi.astype(np.float32), tile_prev, (height, width)).ravel()
-    if pick is not None:  # the rays of the needed tiles only
-        lo, hi, du, dv, dz, step = (x.take(pick) for x in (lo, hi, du, dv, dz, step))
-    grid = bounds.grid
-    u_o, v_o, oz = np.float32(u_o), np.float32(v_o), np.float32(oz)
-
-    nadir = per["nadir"]
-
-    def f(t, du, dv, dz):
-        u = t * du
-        u += u_o
-        v = t * dv
-        v += v_o
-        h = _bilinear(grid, u, v)
-        if nadir:
-            z = oz - t
-        else:
-            z = t * dz
-            z += oz
-        z -= h
-        return z
-
-    # March a step at a time (horizontally) from lo; a ray's step reaching hi has crossed.
-    # Each ray's bracket [a, b] with f(a) > 0 >= f(b) (fa <= 0: under ground at lo): after
-    # the first step for most rays; the others march on (the g_ arrays) and write theirs.
-    a, fa = lo, f(lo, du, dv, dz)
-    b = np.minimum(lo + step, hi)
-    fb = f(b, du, dv, dz)
-    ahead = (fb > 0) & (b < hi)
-    _thin_features(bounds, (u_o, v_o, oz), a, fa, b, fb, ahead, du, dv, dz, f)
-    going = np.flatnonzero(ahead)
-    g_a, g_fa = b.take(going), fb.take(going)
-    g_du, g_dv, g_dz = du.take(going), dv.take(going), dz.take(going)
-    g_step, g_hi = step.take(going), hi.take(going)
-    while going.size:
-        # Rays still marching have far to go: jump over the steps under which the ground
-        # stays below them (_SKIP steps at a time).
-        g_a, g_fa = _skip(bounds, (u_o, v_o, oz), g_a, g_fa, g_step, g_hi, g_du, g_dv, g_dz, f)
-        g_b = np.minimum(g_a + g_step, g_hi)
-        g_fb = f(g_b, g_du, g_dv, g_dz)
-        ahead = (g_fb > 0) & (g_b < g_hi)
-        _thin_features(bounds, (u_o, v_o, oz), g_a, g_fa, g_b, g_fb, ahead, g_du, g_dv, g_dz, f)
-        done = np.flatnonzero(~ahead)
-        k = going.take(done)
-        a[k], fa[k], b[k], fb[k] = (x.take(done) for x in (g_a, g_fa, g_b, g_fb))
-        on = np.flatnonzero(ahead)
-        going, g_a, g_fa = going.take(on), g_b.take(on), g_fb.take(on)
-        g_du, g_dv, g_dz = g_du.take(on), g_dv.take(on), g_dz.take(on)
-        g_step, g_hi = g_step.take(on), g_hi.take(on)
-    under = np.flatnonzero(fa <= 0)
-    if under.size:
-        # A ray under ground at a (by the fixed-point heights' millimetres at a bound, or
-        # the camera inside the terrain) keeps a: a bracket [a, a] with f(a) > 0 pretended.
-        b[under] = a.take(under)
-        fb[under] = fa.take(under)
-        fa[under] = np.float32(1e-30)
-    # Regula falsi (Illinois) on [a, b], fa > 0 >= fb, until the ray point is within
-    # ``close`` of the ground. First step on every ray, then on those not yet close.
-    t = _secant(a, b, fa, fb)
-    fc = f(t, du, dv, dz)
-    live = np.flatnonzero(np.abs(fc) > close)
-    a, b, fa, fb, c, fc, du, dv, dz = (x.take(live) for x in (a, b, fa, fb, t, fc, du, dv, dz))
-    half = np.float32(0.5)
-    # Which end the previous step replaced (+1: a, -1: b).
-    last = None
-    for k in range(1, _FALSI):
-        if not live.size:
-            break
-        # c replaces a where f(c) > 0, else b; Illinois: an end kept twice in a row has
-        # its value halved.
-        above = fc > 0
-        if last is None:
-            fb = np.where(above, fb, fc)
-            fa = np.where(above, fc, fa)
-        else:
-            fb = np.where(above, np.where(last > 0, half * fb, fb), fc)
-            fa = np.where(above, fc, np.where(last < 0, half * fa, fa))
-        a = np.where(above, c, a)
-        b = np.where(above, b, c)
-        last = np.where(above, np.int8(1), np.int8(-1))
-        c = _secant(a, b, fa, fb)
-        fc = f(c, du, dv, dz)
-        t[live] = c  # final for the close ones, overwritten later for the others
-        if k == _FALSI - 1:
-            break
-        near = np.abs(fc) <= close
-        n_close = np.count_nonzero(near)
-        if n_close == live.size:
-            break
-        if n_close > live.size // 4:
-            on = np.flatnonzero(~near)
-            live, a, b, fa, fb, c, fc, du, dv, dz, last = (
-                x.take(on) for x in (live, a, b, fa, fb, c, fc, du, dv, dz, last)
-            )
-    if pick is not None:
-        full = np.full(height * width, np.nan, dtype=np.float32)
-        full[pick] = t
-        t = full
+    t = np.full(height * width, np.nan, dtype=np.float32)
+    march.march_rays(bounds.grid, bounds.pyramid,
+                     (np.float32(u_o), np.float32(v_o), np.float32(oz)), per["nadir"], close,
+                     lo.astype(np.float32).ravel(), hi.astype(np.float32).ravel(),
+                     per["tile_of"], pick, per["du"], per["dv"],
+                     per["dz"], step, t)
     t = t.reshape(height, width)
     if t_max < np.inf:
         t[t > t_max] = np.nan
     return t, rendered
-
-
-def _skip(bounds, start, a, fa, step, hi, du, dv, dz, f):
-    """Advance marching rays from ``a`` as far as the highest ground under their next
-    _SKIP steps allows (to the end of those steps, or where the ray comes down to that
-    height); returns the new (a, f(a))."""
-    u_o, v_o, oz = start
-    e = np.minimum(a + np.float32(_SKIP) * step, hi)
-    ua, ue = u_o + a * du, u_o + e * du
-    va, ve = v_o + a * dv, v_o + e * dv
-    high, _ = bounds.region(
-        np.minimum(ua, ue), np.maximum(ua, ue), np.minimum(va, ve), np.maximum(va, ve)
-    )
-    new = np.minimum(np.maximum((oz - high) / -dz, a), e)
-    moved = np.flatnonzero(new > a)
-    if moved.size:
-        fa = fa.copy()
-        fa[moved] = f(new.take(moved), du.take(moved), dv.take(moved), dz.take(moved))
-    return new, fa
-
-
-def _thin_features(bounds, start, a, fa, b, fb, ahead, du, dv, dz, f) -> None:
-    """Look inside march steps [a, b] that saw no crossing (``ahead``) for ground rising
-    above the ray between the two samples (a wall or rock edge thinner than a step): where
-    the ray at b is under the highest ground of the cells the step crosses, sample eighths
-    of the step; a crossing found there replaces the step's bracket (in place: a, fa, b,
-    fb, and ahead set False)."""
-    idx = np.flatnonzero(ahead)
-    if not idx.size:
-        return
-    u_o, v_o, oz = start
-    sa, sb = a.take(idx), b.take(idx)
-    sdu, sdv, sdz = du.take(idx), dv.take(idx), dz.take(idx)
-    ua, ub = u_o + sa * sdu, u_o + sb * sdu
-    va, vb = v_o + sa * sdv, v_o + sb * sdv
-    high, _ = bounds.region(
-        np.minimum(ua, ub), np.maximum(ua, ub), np.minimum(va, vb), np.maximum(va, vb)
-    )
-    sus = np.flatnonzero(oz + sb * sdz <= high)
-    if not sus.size:
-        return
-    sa, sb, sdu, sdv, sdz = (x.take(sus) for x in (sa, sb, sdu, sdv, sdz))
-    # The eighths of all suspicious steps in one lookup: (8, n) samples, row 0 = a.
-    frac = np.arange(8, dtype=np.float32)[:, None] / np.float32(8)
-    s = sa + frac * (sb - sa)
-    fs = f(s[1:], sdu, sdv, sdz)
-    under = fs <= 0
-    first = under.argmax(axis=0)  # first eighth under ground (0 if none)
-    hit = np.flatnonzero(under.any(axis=0))
-    if not hit.size:
-        return
-    row = first.take(hit)
-    fs = np.concatenate((fa.take(idx.take(sus))[None], fs))
-    # crossing between eighth `row` (above ground) and `row + 1` (under it)
-    k = idx.take(sus.take(hit))
-    a[k], fa[k] = s[row, hit], fs[row, hit]
-    b[k], fb[k] = s[row + 1, hit], fs[row + 1, hit]
-    ahead[k] = False
-
-
-def _expand(a: np.ndarray, n: int, shape: tuple[int, int]) -> np.ndarray:
-    """Per-tile values of ``n`` x ``n`` pixel tiles to pixels, cut to ``shape``."""
-    ny, nx = a.shape
-    full = np.broadcast_to(a[:, None, :, None], (ny, n, nx, n)).reshape(ny * n, nx * n)
-    return full[: shape[0], : shape[1]]
-
-
-def _secant(a, b, fa, fb):
-    """Zero of the line through (a, fa) and (b, fa), fa > 0 >= fb, clipped to [a, b]."""
-    frac = fa - fb
-    np.maximum(frac, np.float32(1e-30), out=frac)
-    np.divide(fa, frac, out=frac)
-    np.minimum(frac, np.float32(1.0), out=frac)
-    c = b - a
-    c *= frac
-    c += a
-    return c
-
-
-def _bilinear(grid: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """Bilinear heights of ``grid`` at cell-centre coordinates (u column, v row), edge
-    values beyond it; float32 arrays of one shape, any size."""
-    shape, n = u.shape, u.size
-    if n == 0:
-        return np.empty(shape, dtype=np.float32)
-    if n < 32767 or n % _ROW == 0:
-        rows = 1 if n < 32767 else n // _ROW
-        h = cv2.remap(
-            grid,
-            u.reshape(rows, -1),
-            v.reshape(rows, -1),
-            cv2.INTER_LINEAR,
-            borderMode=cv2.BORDER_REPLICATE,
-        )
-        return h.reshape(shape)
-    rows = -(-n // _ROW)
-    pad = rows * _ROW - n
-    uu = np.pad(u.ravel(), (0, pad)).reshape(rows, _ROW)
-    vv = np.pad(v.ravel(), (0, pad)).reshape(rows, _ROW)
-    h = cv2.remap(grid, uu, vv, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-    return h.ravel()[:n].reshape(shape)

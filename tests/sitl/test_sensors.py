@@ -386,3 +386,28 @@ def test_pinhole_rays_must_point_down():
         cast_pinhole_rays(HeightBounds(terrain), [0.0, 0.0, 10.0], rays)
     rays[0, 0, 2] = -1.0
     np.testing.assert_allclose(cast_pinhole_rays(HeightBounds(terrain), [0, 0, 10.0], rays), 10)
+
+
+def test_compiled_bilinear_heights_are_opencv_remap_bit_for_bit():
+    # The compiled march samples heights as OpenCV's remap does (float32, INTER_LINEAR,
+    # BORDER_REPLICATE: floor, fractions, fused multiply-adds), so depths rendered before
+    # and after the march was compiled are the same bits; OpenCV is the oracle.
+    import cv2
+    from numba import njit
+
+    from sitl.sensors import march
+
+    if not cv2.checkHardwareSupport(12):  # CV_CPU_FMA3: remap blends without fusing
+        pytest.skip("OpenCV's remap does not use fused multiply-adds on this CPU")
+
+    @njit
+    def heights(grid, u, v):
+        return np.array([march.bilinear(grid, u[k], v[k]) for k in range(u.size)])
+
+    rng = np.random.default_rng(3)
+    grid = (rng.standard_normal((90, 120)) * 5.0).astype(np.float32)
+    u = rng.uniform(-4.0, 124.0, 64 * 80).astype(np.float32)  # edges and beyond included
+    v = rng.uniform(-4.0, 94.0, 64 * 80).astype(np.float32)
+    expected = cv2.remap(grid, u.reshape(64, 80), v.reshape(64, 80), cv2.INTER_LINEAR,
+                         borderMode=cv2.BORDER_REPLICATE).ravel()
+    np.testing.assert_array_equal(heights(grid, u, v), expected)
