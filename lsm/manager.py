@@ -54,6 +54,7 @@ _OBS_FIELDS = attrgetter(
 _BATCH = 1024  # observations processed per lock acquisition by the worker
 _MAX_COORDINATE = 1e7  # m: farther from home than any mission's local frame reaches
 _KEY_STRIDE = 1 << 32  # spatial-hash key = ix * stride + iy (|iy| < 2**31 cells)
+_SMALL_BATCH = 32  # observations below which per-row Python beats numpy's per-call cost
 _TREE_K = 2  # nearest snapshot entries examined per observation
 _SNAPSHOT_MIN = 64  # changed sites tolerated in the hash before the k-d tree is rebuilt
 
@@ -448,6 +449,15 @@ class LandingSiteManager:
     def _match_keys(self, xy: np.ndarray) -> list[int]:
         """Key of the lower-left of the 2 x 2 cells each match circle can overlap."""
         r, c = self.settings.match_radius, self._cell_size
+        if len(xy) <= _SMALL_BATCH:
+            # The same floor of the same double quotient, without numpy's per-call cost.
+            keys = []
+            for x, y in xy[:, :2].tolist():
+                try:
+                    keys.append(math.floor((x - r) / c) * _KEY_STRIDE + math.floor((y - r) / c))
+                except (ValueError, OverflowError):  # NaN or inf: the row is rejected anyway
+                    keys.append(0)
+            return keys
         with np.errstate(invalid="ignore"):  # rows with NaN are rejected anyway
             ix = np.floor((xy[:, 0] - r) / c).astype(np.int64)
             iy = np.floor((xy[:, 1] - r) / c).astype(np.int64)
@@ -672,6 +682,8 @@ class LandingSiteManager:
         )
         bad = np.zeros(n, dtype=bool)
         for reason, mask in checks:
+            if not mask.any():
+                continue  # nothing to name, nothing to add to bad
             hit = mask & ~bad
             for i in np.flatnonzero(hit).tolist():
                 if reasons[i] is None:

@@ -142,7 +142,7 @@ class ScriptedSiteSource:
         if state.position is None:
             return self._drop("no_position")
         pos = np.asarray(state.position, dtype=np.float64)
-        if pos.shape != (3,) or not np.all(np.isfinite(pos)):
+        if pos.shape != (3,) or not all(math.isfinite(v) for v in pos.tolist()):
             return self._drop("bad_position")
         if len(self._z) == 0:
             return []
@@ -167,21 +167,30 @@ class ScriptedSiteSource:
                  "y": float(self._xy[i, 1]), "height": float(height[i])}
             )
         self._revealed[idx] = True
-        observed_z = self._z[idx] + noise[:, 2]
+        observed_z = (self._z[idx] + noise[:, 2]).tolist()
+        # Python floats from here: the same double arithmetic as numpy scalars, cheaper.
+        xy = self._xy[idx].tolist()
+        shift = noise[:, :2].tolist()
+        rough = self._roughness[idx].tolist()
+        unc = self._uncertainty[idx].tolist()
+        size = self._size[idx].tolist()
+        obstacle = self._obstacle[idx].tolist()
+        above = height[idx].tolist()
+        now = float(now)
         observations = [
             SiteObservation(
-                x=float(self._xy[i, 0] + noise[k, 0]),
-                y=float(self._xy[i, 1] + noise[k, 1]),
-                z=float(observed_z[k]),
-                roughness=float(self._roughness[i]),
-                uncertainty=float(self._uncertainty[i]),
-                size=float(self._size[i]),
-                obstacle_altitude=float(max(self._obstacle[i], observed_z[k])),
-                observation_altitude=float(height[i]),
-                timestamp=float(now),
+                x=xy[k][0] + shift[k][0],
+                y=xy[k][1] + shift[k][1],
+                z=observed_z[k],
+                roughness=rough[k],
+                uncertainty=unc[k],
+                size=size[k],
+                obstacle_altitude=max(obstacle[k], observed_z[k]),
+                observation_altitude=above[k],
+                timestamp=now,
                 source="scripted",
             )
-            for k, i in enumerate(idx)
+            for k in range(len(xy))
         ]
         self.observations += len(observations)
         return observations

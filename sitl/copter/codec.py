@@ -239,10 +239,11 @@ class FastMAVLink(mavlink.MAVLink):
         crc = msgbuf[-2] | msgbuf[-1] << 8
         if _crc16(plan.extra, _crc16(memoryview(msgbuf)[1:-2], 0xFFFF)) != crc:
             return super().decode(msgbuf)  # raises pymavlink's own error
-        payload = bytes(msgbuf[10:-2])
-        if len(payload) < plan.size:
-            payload += bytes(plan.size - len(payload))
-        wire = plan.unpacker.unpack(payload[: plan.size])
+        if len(msgbuf) - 12 >= plan.size:
+            wire = plan.unpacker.unpack_from(msgbuf, 10)
+        else:  # MAVLink 2 cut the payload's trailing zeros: put them back
+            payload = bytes(msgbuf[10:-2])
+            wire = plan.unpacker.unpack(payload + bytes(plan.size - len(payload)))
         if plan.pick is not None:
             values = plan.pick(wire)
         else:
