@@ -6,6 +6,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 
+import py_trees
 from py_trees.common import Access, Status
 
 from behaviors import blackboard as keys
@@ -48,6 +49,15 @@ class MissionBehaviour(QuietBehaviour):
         self.feedback_message = ""
         if self.phase is not None:
             self.blackboard.set(keys.PHASE, self.phase)
+
+    def peek(self, key: str) -> object:
+        """``self.blackboard.get(key)`` for a key registered unremapped, read straight from
+        the storage when no activity stream records reads (the client's access checks cost
+        more than the condition checked on every tick)."""
+        if (py_trees.blackboard.Blackboard.activity_stream is None
+                and self.blackboard.remappings.get(key) == key and "." not in key):
+            return py_trees.blackboard.Blackboard.storage[key]
+        return self.blackboard.get(key)
 
     def fail(self, reason: str) -> Status:
         """Record ``reason`` (feedback message and FAILURE_REASON) and return FAILURE."""

@@ -111,7 +111,7 @@ class LatchedFailsafe(MissionBehaviour):
         raise NotImplementedError
 
     def update(self) -> Status:
-        if self.blackboard.get(keys.FAILSAFE) is not None:
+        if self.peek(keys.FAILSAFE) is not None:
             return Status.SUCCESS
         why = self.triggered()
         if why is None:

@@ -110,6 +110,29 @@ def _fixed_cost(mission, seed: int) -> None:
     setup = time.thread_time() - start
     print(f"  fixed cost per run (CPU): world {world:.2f} s, height bounds {bounds:.2f} s, "
           f"a one-tick flight with its world {setup:.2f} s")
+    start_cpu, start_wall = _process_start()
+    print(f"  fixed cost per worker process: importing the flight stack {start_cpu:.2f} s CPU "
+          f"({start_wall:.2f} s wall); a local pool's workers fork from a server that "
+          "imported it once, so a campaign pays it once, a `lander fly` every time")
+
+
+def _process_start() -> tuple[float, float]:
+    """CPU and wall seconds of a fresh interpreter importing what a flight needs (the best
+    of three, as a worker or `lander fly` starts)."""
+    import resource
+    import subprocess
+
+    best = (float("inf"), float("inf"))
+    for _ in range(3):
+        before = resource.getrusage(resource.RUSAGE_CHILDREN)
+        start = time.perf_counter()
+        subprocess.run([sys.executable, "-c", "import autonomy.runner, autonomy.campaign"],
+                       check=True, cwd=ROOT)
+        wall = time.perf_counter() - start
+        after = resource.getrusage(resource.RUSAGE_CHILDREN)
+        cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+        best = min(best, (cpu, wall))
+    return best
 
 
 if __name__ == "__main__":

@@ -113,3 +113,30 @@ def test_an_invalid_status_is_logged_and_made_invalid(caplog):
     for _ in node.tick():
         pass
     assert node.status == Status.INVALID
+
+
+def test_peek_reads_what_the_blackboard_client_reads():
+    from behaviors import blackboard as keys
+    from behaviors.base import MissionBehaviour
+
+    class Peeker(MissionBehaviour):
+        def update(self):
+            return Status.SUCCESS
+
+    keys.reset()
+    node = Peeker("peeker")
+    node.blackboard.register_key(key=keys.FAILSAFE, access=py_trees.common.Access.WRITE)
+    for value in (None, "battery_critical"):
+        node.blackboard.set(keys.FAILSAFE, value)
+        assert node.peek(keys.FAILSAFE) == node.blackboard.get(keys.FAILSAFE) == value
+    py_trees.blackboard.Blackboard.enable_activity_stream()
+    try:
+        assert node.peek(keys.FAILSAFE) == "battery_critical"
+        stream = py_trees.blackboard.Blackboard.activity_stream
+        assert any(item.key == keys.FAILSAFE for item in stream.data)  # the read is recorded
+    finally:
+        py_trees.blackboard.Blackboard.disable_activity_stream()
+    py_trees.blackboard.Blackboard.unset(keys.FAILSAFE)
+    with pytest.raises(KeyError):
+        node.peek(keys.FAILSAFE)
+    keys.reset()
