@@ -8,6 +8,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from numba import njit
 from scipy.special import ndtri
 
 from sitl.sensors.rangefinder import RangeFinder
@@ -84,6 +85,34 @@ def nadir_rotation(yaw: float) -> np.ndarray:
 def depth_sigma(depth: np.ndarray, focal_px: float, baseline: float, disparity_sigma: float):
     """Thesis eq. 3.2: sigma_z = z^2 / (f b) * sigma_d (same shape as ``depth``)."""
     return np.square(depth) * (disparity_sigma / (focal_px * baseline))
+
+
+@njit(cache=True, nogil=True)
+def _error_bounds(deviates, scale, below, above):
+    """How far each measured depth can fall below and rise above the true one, per unit
+    t**2: ``max(-deviate, 0) * scale`` and ``max(deviate, 0) * scale`` (float32)."""
+    zero = np.float32(0.0)
+    for i in range(deviates.shape[0]):
+        for j in range(deviates.shape[1]):
+            d = deviates[i, j]
+            b, a = -d, d
+            below[i, j] = (b if b >= zero else zero) * scale
+            above[i, j] = (a if a >= zero else zero) * scale
+
+
+@njit(cache=True, nogil=True)
+def _sigma_and_noise(depth, factor, deviates, sigma):
+    """Eq. 3.2 per pixel into ``sigma`` (``depth**2 * factor``, as :func:`depth_sigma`),
+    and, with ``deviates``, the noise ``deviate * sigma`` added to ``depth`` in place (a
+    depth that falls to zero or below is NaN)."""
+    for i in range(depth.shape[0]):
+        for j in range(depth.shape[1]):
+            d = depth[i, j]
+            s = d * d * factor
+            sigma[i, j] = s
+            if deviates is not None:
+                d = d + deviates[i, j] * s
+                depth[i, j] = d if not d <= 0 else np.nan
 
 
 class DepthSourceSelector:
@@ -268,7 +297,8 @@ class DepthCamera:
             error = (0.0, 0.0)
             if deviates is not None:
                 scale = np.float32(s.disparity_sigma_px / (s.focal_px * baseline))
-                error = (np.maximum(-deviates, 0.0) * scale, np.maximum(deviates, 0.0) * scale)
+                error = (np.empty_like(deviates), np.empty_like(deviates))
+                _error_bounds(deviates, scale, *error)
             depth, rendered = rays.cast_within(
                 bounds, p, region, error, t_max=max_range, step=s.march_step,
                 tolerance=tolerance,
@@ -280,14 +310,10 @@ class DepthCamera:
         if self.terrain.moving is not None:  # the nearer of the terrain and what moves
             moving = see_moving(self.terrain.moving.at(timestamp), p, rotation, self, depth,
                                 max_range)
-        sigma = depth_sigma(
-            depth, np.float32(s.focal_px), np.float32(baseline), np.float32(s.disparity_sigma_px)
-        )
-        if deviates is not None:
-            noise = deviates
-            noise *= sigma
-            depth += noise
-            depth[depth <= 0] = np.nan
+        # depth_sigma's factor, in its precision; then sigma and the noise in one pass.
+        factor = np.float32(s.disparity_sigma_px) / (np.float32(s.focal_px) * np.float32(baseline))
+        sigma = np.empty_like(depth)
+        _sigma_and_noise(depth, factor, deviates, sigma)
         self._last_skip = None
         return RenderedDepth(
             depth=depth,

@@ -70,7 +70,7 @@ def _bits(typingctx, x):
     return sig, codegen
 
 
-@njit(cache=True, nogil=True, _nrt=False)
+@njit(cache=True, nogil=True, _nrt=False, inline="always")
 def _exponent(x):
     """The exponent of ``math.frexp(x)`` (x = m 2**e, 0.5 <= |m| < 1; 0 for zero, inf,
     NaN) from the bits (math.frexp calls the C library)."""
@@ -113,7 +113,7 @@ def bilinear(grid, u, v):
     return _fma(av, h1 - h0, h0)
 
 
-@njit(cache=True, nogil=True, _nrt=False)
+@njit(cache=True, nogil=True, _nrt=False, inline="always")
 def box_bounds(high, low, width, offset, scale, levels, zero, top_u, top_v, u0, u1, v0, v1):
     """(highest, lowest) ground over the box ``[u0, u1] x [v0, v1]`` (cell-centre
     coordinates) from the pyramid of :class:`~sitl.sensors.raycast.HeightBounds`: the 2 x 2
@@ -139,6 +139,32 @@ def box_bounds(high, low, width, offset, scale, levels, zero, top_u, top_v, u0, 
     top = max(max(high[r0 + c0], high[r0 + c1]), max(high[r1 + c0], high[r1 + c1]))
     bottom = min(min(low[r0 + c0], low[r0 + c1]), min(low[r1 + c0], low[r1 + c1]))
     return top, bottom
+
+
+@njit(cache=True, nogil=True)
+def build_pyramid(grid, rows, cols, offset, high, low):
+    """Fill the flat level arrays of :class:`~sitl.sensors.raycast.HeightBounds`: level 0
+    the max and min of each cell's four corners, each next level the 2 x 2 nodes of the one
+    before (the last row or column of an odd side pooled alone)."""
+    h0, w0 = rows[0], cols[0]
+    for i in range(h0):
+        for j in range(w0):
+            a, b = grid[i, j], grid[i + 1, j]
+            c, d = grid[i, j + 1], grid[i + 1, j + 1]
+            high[i * w0 + j] = max(max(a, b), max(c, d))
+            low[i * w0 + j] = min(min(a, b), min(c, d))
+    for level in range(1, rows.size):
+        ph, pw, po = rows[level - 1], cols[level - 1], offset[level - 1]
+        h, w, o = rows[level], cols[level], offset[level]
+        for i in range(h):
+            r0 = po + 2 * i * pw
+            r1 = po + min(2 * i + 1, ph - 1) * pw
+            for j in range(w):
+                c0, c1 = 2 * j, min(2 * j + 1, pw - 1)
+                high[o + i * w + j] = max(max(high[r0 + c0], high[r1 + c0]),
+                                          max(high[r0 + c1], high[r1 + c1]))
+                low[o + i * w + j] = min(min(low[r0 + c0], low[r1 + c0]),
+                                         min(low[r0 + c1], low[r1 + c1]))
 
 
 @njit(cache=True, nogil=True)
@@ -207,7 +233,7 @@ def _above(grid, start, nadir, t, du, dv, dz):
     return z - h
 
 
-@njit(cache=True, nogil=True, _nrt=False)
+@njit(cache=True, nogil=True, _nrt=False, inline="always")
 def _top(pyramid, start, a, b, du, dv):
     """Highest ground under the ray's footprint between parameters ``a`` and ``b``."""
     high, low, width, offset, scale, levels, ncx, ncy = pyramid

@@ -234,23 +234,23 @@ class HeightBounds:
 
     def __init__(self, terrain: Terrain) -> None:
         g = terrain.grid
-        corners = (g[:-1, :-1], g[1:, :-1], g[:-1, 1:], g[1:, 1:])
-        hi = np.maximum.reduce(corners)
-        lo = np.minimum.reduce(corners)
-        his, los = [hi], [lo]
-        while max(hi.shape) > 1:
-            hi, lo = _pool_extreme(hi, np.maximum), _pool_extreme(lo, np.minimum)
-            his.append(hi)
-            los.append(lo)
-        self.levels = len(his)
-        self.width = np.array([a.shape[1] for a in his], dtype=np.intp)
-        self.offset = np.cumsum([0] + [a.size for a in his[:-1]]).astype(np.intp)
-        self.high = np.concatenate([a.ravel() for a in his])
-        self.low = np.concatenate([a.ravel() for a in los])
+        rows, cols = [g.shape[0] - 1], [g.shape[1] - 1]
+        while max(rows[-1], cols[-1]) > 1:  # sides halved, odd ones rounded up
+            rows.append((rows[-1] + 1) // 2)
+            cols.append((cols[-1] + 1) // 2)
+        rows, cols = np.array(rows, dtype=np.intp), np.array(cols, dtype=np.intp)
+        sizes = rows * cols
+        self.levels = len(rows)
+        self.width = cols
+        self.offset = np.concatenate(([0], np.cumsum(sizes)[:-1])).astype(np.intp)
+        # Every level in one flat array (one pass over the grid, then over each level).
+        self.high = np.empty(int(sizes.sum()), dtype=g.dtype)
+        self.low = np.empty_like(self.high)
+        march.build_pyramid(g, rows, cols, self.offset, self.high, self.low)
         self.scale = np.ldexp(1.0, -np.arange(self.levels))
         self.cells = (g.shape[0] - 1, g.shape[1] - 1)
-        self.top = float(his[-1][0, 0])
-        self.bottom = float(los[-1][0, 0])
+        self.top = float(self.high[-1])
+        self.bottom = float(self.low[-1])
         self.grid = g
         self.origin = terrain.origin
         self.cell_size = terrain.cell_size
@@ -285,18 +285,6 @@ def coarse_terrain(terrain: Terrain, level: int) -> Terrain:
     shift = (n - 1) / 2 * terrain.cell_size
     origin = (terrain.origin[0] + shift, terrain.origin[1] + shift)
     return Terrain(grid, n * terrain.cell_size, origin=origin, kind=terrain.kind)
-
-
-def _pool_extreme(a: np.ndarray, pick) -> np.ndarray:
-    """2 x 2 pooling by ``pick`` (np.maximum or np.minimum; edge-padded to even sides):
-    the four strided quarters compared, several times faster than a reduction over the
-    reshaped axes, and the same values."""
-    ny, nx = a.shape
-    if ny % 2 or nx % 2:
-        a = np.pad(a, ((0, ny % 2), (0, nx % 2)), mode="edge")
-    out = pick(a[0::2, 0::2], a[1::2, 0::2])
-    pick(out, a[0::2, 1::2], out=out)
-    return pick(out, a[1::2, 1::2], out=out)
 
 
 def _pool(a: np.ndarray, reduce) -> np.ndarray:

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
+from numba import njit
 
 
 @dataclass(frozen=True)
@@ -82,25 +83,9 @@ def tiles_needed(
             and v_o + max(float(dv_max.max()) * far, 0.0) <= box[3]):
         return np.ones(lo.shape, dtype=bool)
     below, above = (_per_tile(e, tile, lo.shape) for e in depth_error)
-    # Float32 brackets, fixed-point bilinear heights: a centimetre of slack.
-    slack = 0.01 + 1e-4 * hi
-    square = np.square(hi)  # hi >= t: t^2 <= hi^2
-    a = np.maximum(lo - below * square - slack, 0.0)
-    b = hi + above * square + slack
-    reach = -(-max(region.reach, 0) // tile)
-    if reach:  # the placement depth is a mean of the measured depths within reach
-        a = _spread(a, reach, np.minimum)
-        b = _spread(b, reach, np.maximum)
-    u0 = u_o + np.minimum(du_min * a, du_min * b)
-    u1 = u_o + np.maximum(du_max * a, du_max * b)
-    v0 = v_o + np.minimum(dv_min * a, dv_min * b)
-    v1 = v_o + np.maximum(dv_max * a, dv_max * b)
-    group = max(region.block, 1) // tile
-    if group > 1:  # a block's point is the mean of its pixels'
-        u0, v0 = (_pooled(x, group, np.minimum) for x in (u0, v0))
-        u1, v1 = (_pooled(x, group, np.maximum) for x in (u1, v1))
-    need = (u1 >= box[0]) & (u0 <= box[1])
-    need &= (v1 >= box[2]) & (v0 <= box[3])
+    need = np.empty(lo.shape, dtype=bool)
+    _needed(box, (u_o, v_o), -(-max(region.reach, 0) // tile), max(region.block, 1) // tile,
+            du_min, du_max, dv_min, dv_max, lo, hi, below, above, need)
     return need
 
 
@@ -115,44 +100,97 @@ def pixels_needed(region: GroundRegion, need: np.ndarray, tile: int,
     return pixels.view(bool)
 
 
-def _per_tile(error, tile: int, shape: tuple[int, int]):
-    """A scalar as it is; per-pixel values as each tile's largest (tiles cut by the image
-    edge included)."""
+def _per_tile(error, tile: int, shape: tuple[int, int]) -> np.ndarray:
+    """Per tile (float64): a scalar everywhere, or of per-pixel values each tile's largest
+    (tiles cut by the image edge included)."""
     if np.ndim(error) == 0:
-        return float(error)
-    return _extremes(np.asarray(error), tile, np.maximum)[: shape[0], : shape[1]].astype(
-        np.float64
-    )
-
-
-def _spread(a: np.ndarray, reach: int, pick) -> np.ndarray:
-    """``pick`` over the (2 reach + 1)^2 tiles around each tile (edge tiles repeated),
-    as a row pass then a column pass of shifted copies (the grids are small)."""
-    p = np.pad(a, reach, mode="edge")
-    ny, nx = a.shape
-    rows = p[:, 0:nx].copy()
-    for k in range(1, 2 * reach + 1):
-        pick(rows, p[:, k : k + nx], out=rows)
-    out = rows[0:ny].copy()
-    for k in range(1, 2 * reach + 1):
-        pick(out, rows[k : k + ny], out=out)
+        return np.full(shape, float(error))
+    out = np.empty(shape)
+    _tile_maxima(np.asarray(error), tile, out)
     return out
 
 
-def _extremes(a: np.ndarray, group: int, pick) -> np.ndarray:
-    """``pick`` over aligned ``group`` x ``group`` blocks of ``a`` (edge-padded)."""
+@njit(cache=True, nogil=True)
+def _tile_maxima(a, tile, out):
+    """The largest value of ``a`` in each ``tile`` x ``tile`` block, into ``out``."""
     ny, nx = a.shape
-    by, bx = -(-ny // group), -(-nx // group)
-    if by * group != ny or bx * group != nx:
-        a = np.pad(a, ((0, by * group - ny), (0, bx * group - nx)), mode="edge")
-    out = a[0::group, 0::group].copy()
-    for i in range(group):
-        for j in range(group):
-            pick(out, a[i::group, j::group], out=out)
+    for i in range(out.shape[0]):
+        r0, r1 = i * tile, min((i + 1) * tile, ny)
+        for j in range(out.shape[1]):
+            c0, c1 = j * tile, min((j + 1) * tile, nx)
+            best = a[r0, c0]
+            for r in range(r0, r1):
+                for c in range(c0, c1):
+                    x = a[r, c]
+                    best = x if x > best else best
+            out[i, j] = best
+
+
+@njit(cache=True, nogil=True)
+def _needed(box, start, reach, group, du_min, du_max, dv_min, dv_max, lo, hi, below, above,
+            need):
+    """The body of :func:`tiles_needed` over its tile arrays, into ``need``."""
+    rows, cols = lo.shape
+    u_o, v_o = start
+    a = np.empty((rows, cols))
+    b = np.empty((rows, cols))
+    for i in range(rows):
+        for j in range(cols):
+            h = hi[i, j]
+            # Float32 brackets, bilinear heights rounded: a centimetre of slack.
+            slack = 0.01 + 1e-4 * h
+            square = h * h  # hi >= t: t^2 <= hi^2
+            a[i, j] = max(lo[i, j] - below[i, j] * square - slack, 0.0)
+            b[i, j] = h + above[i, j] * square + slack
+    if reach:  # the placement depth is a mean of the measured depths within reach
+        a = _window(a, reach, False)
+        b = _window(b, reach, True)
+    u0 = np.empty((rows, cols))
+    u1 = np.empty((rows, cols))
+    v0 = np.empty((rows, cols))
+    v1 = np.empty((rows, cols))
+    for i in range(rows):
+        for j in range(cols):
+            ta, tb = a[i, j], b[i, j]
+            u0[i, j] = u_o + min(du_min[i, j] * ta, du_min[i, j] * tb)
+            u1[i, j] = u_o + max(du_max[i, j] * ta, du_max[i, j] * tb)
+            v0[i, j] = v_o + min(dv_min[i, j] * ta, dv_min[i, j] * tb)
+            v1[i, j] = v_o + max(dv_max[i, j] * ta, dv_max[i, j] * tb)
+    if group > 1:  # a block's point is the mean of its pixels'
+        u0, v0 = _blocks(u0, group, False), _blocks(v0, group, False)
+        u1, v1 = _blocks(u1, group, True), _blocks(v1, group, True)
+    for i in range(rows):
+        for j in range(cols):
+            need[i, j] = (u1[i, j] >= box[0] and u0[i, j] <= box[1]
+                          and v1[i, j] >= box[2] and v0[i, j] <= box[3])
+
+
+@njit(cache=True, nogil=True)
+def _window(a, reach, largest):
+    """The smallest (or largest) value over the (2 reach + 1)^2 tiles around each tile
+    (edge tiles repeated)."""
+    rows, cols = a.shape
+    out = a.copy()
+    for i in range(rows):
+        for j in range(cols):
+            for r in range(max(i - reach, 0), min(i + reach + 1, rows)):
+                for c in range(max(j - reach, 0), min(j + reach + 1, cols)):
+                    out[i, j] = max(out[i, j], a[r, c]) if largest else min(out[i, j], a[r, c])
     return out
 
 
-def _pooled(a: np.ndarray, group: int, pick) -> np.ndarray:
-    """``pick`` over aligned ``group`` x ``group`` blocks of ``a``, spread back over them."""
-    full = np.repeat(np.repeat(_extremes(a, group, pick), group, axis=0), group, axis=1)
-    return full[: a.shape[0], : a.shape[1]]
+@njit(cache=True, nogil=True)
+def _blocks(a, group, largest):
+    """The smallest (or largest) value of each aligned ``group`` x ``group`` block, spread
+    over the block."""
+    rows, cols = a.shape
+    out = np.empty((rows, cols))
+    for i0 in range(0, rows, group):
+        for j0 in range(0, cols, group):
+            i1, j1 = min(i0 + group, rows), min(j0 + group, cols)
+            best = a[i0, j0]
+            for r in range(i0, i1):
+                for c in range(j0, j1):
+                    best = max(best, a[r, c]) if largest else min(best, a[r, c])
+            out[i0:i1, j0:j1] = best
+    return out
