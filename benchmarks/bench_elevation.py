@@ -171,20 +171,20 @@ def main(argv: list[str] | None = None) -> int:
     digests = {r["sites_sha256"] for name in names for r in results[name]}
     print(f"sites per frame: {'the same' if len(digests) == 1 else 'DIFFERENT'} in every replay")
     header = "".join(f"{name:>10s}" for name in names)
-    print(f"  CPU ms per frame                         {header}"
+    print(f"  {'CPU ms per frame':46s} {header}"
           + ("   speed-up" if len(names) == 2 else ""))
 
     def row(label, values):
         cells = "".join(f"{v:10.2f}" for v in values)
         ratio = f"{values[0] / values[1]:10.2f}x" if len(values) == 2 and values[1] else ""
-        print(f"  {label:40s} {cells} {ratio}")
+        print(f"  {label:46s} {cells} {ratio}")
 
     bands = sorted(results[names[0]][0]["bands"])
     for band in bands:
         count = results[names[0]][0]["bands"][band][0]
         for index, what in ((1, "map update"), (2, "detection")):
             values = [min(r["bands"][band][index] for r in results[name]) for name in names]
-            row(f"{what}, {band} ({count})", values)
+            row(f"{what}, {band}, {count}", values)
     print("  low frames' detection by part (min over rounds):")
     parts = sorted({k for name in names for r in results[name] for k in r["low_parts"]})
     for part in parts:
