@@ -26,12 +26,16 @@ _FAILURE = Status.FAILURE
 _INVALID = Status.INVALID
 
 
-def _checked(node: Behaviour, new_status: Status) -> Status:
+def _conclude(node: Behaviour, new_status: Status) -> None:
+    """The end of py_trees' tick: an invalid status is logged and made INVALID; a finished
+    node is stopped; the status is set."""
     if new_status not in _STATUSES:
         node.logger.error(f"A behaviour returned an invalid status, setting to INVALID "
                           f"[{new_status}][{node.name}]")
-        return _INVALID
-    return new_status
+        new_status = _INVALID
+    if new_status != _RUNNING:
+        node.stop(new_status)
+    node.status = new_status
 
 
 class QuietBehaviour(Behaviour):
@@ -40,10 +44,7 @@ class QuietBehaviour(Behaviour):
     def tick(self) -> Iterator[Behaviour]:
         if self.status != _RUNNING:
             self.initialise()
-        new_status = _checked(self, self.update())
-        if new_status != _RUNNING:
-            self.stop(new_status)
-        self.status = new_status
+        _conclude(self, self.update())
         yield self
 
     def stop(self, new_status: Status) -> None:
@@ -59,10 +60,7 @@ class QuietDecorator(py_trees.decorators.Decorator):
         if self.status != _RUNNING:
             self.initialise()
         yield from self.decorated.tick()
-        new_status = _checked(self, self.update())
-        if new_status != _RUNNING:
-            self.stop(new_status)
-        self.status = new_status
+        _conclude(self, self.update())
         yield self
 
     def stop(self, new_status: Status) -> None:
