@@ -99,6 +99,23 @@ def test_the_demo_over_mars_lands_safely_along_a_planned_trajectory():
     assert result.summary["collisions"] == 0
 
 
+def test_the_mars_survey_lands_safely_with_its_retries_flown_along_planned_trajectories():
+    # The Mars science mission (100 m cruise) with the trajectory approach: its first
+    # approach starts over unmapped ground and is handed to the climb-traverse-descend
+    # fallback with the planner's reason; the retry after the failed verification is flown
+    # along its trajectory to arrival, and the flight ends on safe ground with no collision.
+    mission = apply_overrides(load_mission(MISSIONS / "mars_science.yaml"),
+                              {"landing.approach.method": "trajectory"})
+    result = fly(mission, seed=2)
+    assert result.outcome == "landed" and result.summary["touchdown_safe"] is True
+    assert result.summary["collisions"] == 0
+    ends = [(e["new"], e["feedback"]) for e in result.events if e.get("kind") == "tree"
+            and e.get("behaviour") == "FlyApproachTrajectory"
+            and e.get("new") in ("SUCCESS", "FAILURE")]
+    assert ends[0][0] == "FAILURE" and ends[0][1]
+    assert ("SUCCESS", "arrived") in ends[1:]
+
+
 def test_the_trajectory_keeps_the_clear_altitude_buffer_over_the_mapped_terrain():
     # A 3 m mound between the start and a site 10 m below the goal: with the default
     # margin (the mission's clear_altitude_buffer, 10 m) the trajectory goes around it,
