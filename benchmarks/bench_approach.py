@@ -194,6 +194,12 @@ def fly_one(job: tuple[str, dict, int]) -> dict:
     }
 
 
+def _outcomes(flights) -> str:
+    """How the flights ended, e.g. "crashed 3, landed 19"."""
+    outcomes = Counter(f["outcome"] for f in flights)
+    return ", ".join(f"{key} {count}" for key, count in sorted(outcomes.items()))
+
+
 def _mean(values) -> float:
     values = [v for v in values if v is not None and np.isfinite(v)]
     return statistics.fmean(values) if values else float("nan")
@@ -232,8 +238,7 @@ def approach_campaign(args) -> None:
     print(f"{'method':<16}{'outcomes':<28}{'land s':>8}{'battery %':>10}{'Wh':>7}"
           f"{'tries':>6}{'jerk m/s3':>10}{'min clear m':>12}")
     for arm, flights in results.items():
-        outcomes = Counter(f["outcome"] for f in flights)
-        text = ", ".join(f"{k} {v}" for k, v in sorted(outcomes.items()))
+        text = _outcomes(flights)
         print(f"{arm:<16}{text:<28}{_mean(f['time_to_land'] for f in flights):>8.1f}"
               f"{_mean(f['battery'] for f in flights):>10.1f}"
               f"{_mean(f['wh'] for f in flights):>7.1f}"
@@ -404,8 +409,7 @@ def watch_campaign(args) -> None:
           f"{'unsafe':>8}{'flagged':>9}{'land s':>8}")
     for k, arm in enumerate(("watch off", "watch on")):
         group = flights[k * n:(k + 1) * n]
-        outcomes = Counter(f["outcome"] for f in group)
-        text = ", ".join(f"{key} {v}" for key, v in sorted(outcomes.items()))
+        text = _outcomes(group)
         print(f"{arm:<12}{text:<40}{sum(f['collisions'] for f in group):>11}"
               f"{sum(f['collisions'] > 0 for f in group):>12}"
               f"{sum(f['touchdown_safe'] is False for f in group):>8}"
