@@ -22,6 +22,7 @@ unsafe touchdowns judged by the simulator's ground truth.
 from __future__ import annotations
 
 import argparse
+import json
 import statistics
 import sys
 import time
@@ -117,21 +118,21 @@ def _in_phases(t: np.ndarray, phases: list[tuple[float, str]], wanted) -> np.nda
     return np.array([i >= 0 and names[i] in wanted for i in index], dtype=bool)
 
 
-def _transit_clearance(t, xyz, phases, terrain) -> float:
-    """Smallest height above the true terrain while crossing to a site: samples of each
-    approach (navigate_to_site) more than 2 m horizontally from where it began and ended
+def _transit_clearances(t, xyz, phases, terrain) -> list[float]:
+    """Smallest height above the true terrain while crossing to a site, one per approach
+    (navigate_to_site): its samples more than 2 m horizontally from where it began and ended
     (the climb out of a low hover and the arrival are the descent's business)."""
     mask = _in_phases(t, phases, APPROACH_PHASES)
     edges = np.flatnonzero(np.diff(np.concatenate([[0], mask.astype(int), [0]])))
-    lowest = np.inf
+    lowest = []
     for a, b in zip(edges[::2], edges[1::2], strict=True):
         p = xyz[a:b]
         away = (np.hypot(*(p[:, :2] - p[0, :2]).T) > 2.0) & (np.hypot(*(p[:, :2] - p[-1, :2]).T)
                                                              > 2.0)
         if away.any():
             q = p[away]
-            lowest = min(lowest, float(np.min(q[:, 2] - terrain.height(q[:, 0], q[:, 1]))))
-    return float(lowest) if np.isfinite(lowest) else float("nan")
+            lowest.append(float(np.min(q[:, 2] - terrain.height(q[:, 0], q[:, 1]))))
+    return lowest
 
 
 def _attempts(t, phases, battery) -> list[tuple[bool, float, float]]:
@@ -180,7 +181,7 @@ def fly_one(job: tuple[str, dict, int]) -> dict:
         "distance": s["distance"], "tries": s.get("verification_attempts"),
         "touchdown_safe": s.get("touchdown_safe"), "collisions": s.get("collisions") or 0,
         "peak_jerk": _peak_jerk(t, xyz, _in_phases(t, phases, APPROACH_PHASES)),
-        "min_clearance": _transit_clearance(t, xyz, phases, terrain),
+        "clearances": _transit_clearances(t, xyz, phases, terrain),
         "attempts": _attempts(t, phases, battery),
         "verified": sum(e.get("behaviour") == "LandingSiteVerification"
                         and e.get("new") == "SUCCESS" for e in result.events),
@@ -225,6 +226,42 @@ def run_arms(mission: str, arms: dict[str, dict], seeds: range, workers: int):
     return {arm: flights[k * n:(k + 1) * n] for k, arm in enumerate(arms)}
 
 
+def _clearance_table(results, mission) -> None:
+    """Each approach's lowest crossing over the true ground against the clearance the
+    mission asks of both arms: clear_altitude_buffer (the thesis's z_buffer over the
+    obstacle altitude, climbing by the distance for terrain rising at 45 degrees) and the
+    trajectory's vertical margin over the mapped tops (k_sigma standard deviations up)."""
+    buffer = mission.landing.clear_altitude_buffer
+    margin = mission.landing.approach.vertical_margin
+    required = {"clear_altitude": buffer, "trajectory": buffer if margin is None else margin}
+    print("clearance over the true ground while crossing, per approach: lowest, 5th "
+          "percentile, median (m), and approaches below the clearance the arm promises")
+    for arm, flights in results.items():
+        lows = np.array([c for f in flights for c in f["clearances"]])
+        if not lows.size:
+            continue
+        below = int(np.sum(lows < required[arm]))
+        print(f"  {arm:<16}{lows.size:>4} approaches: {lows.min():6.2f} "
+              f"{np.percentile(lows, 5):6.2f} {np.median(lows):6.2f}; below "
+              f"{required[arm]:g} m: {below}")
+
+
+def _landed_by_one_arm(results) -> None:
+    """Seeds only one arm landed on, and the exact two-sided sign test over them (the chance,
+    were both arms equally likely to land, of a split at least this uneven)."""
+    from scipy.stats import binomtest
+
+    a, b = results["clear_altitude"], results["trajectory"]
+    only_a = [x["seed"] for x, y in zip(a, b, strict=True)
+              if x["outcome"] == "landed" != y["outcome"]]
+    only_b = [y["seed"] for x, y in zip(a, b, strict=True)
+              if y["outcome"] == "landed" != x["outcome"]]
+    split = len(only_a) + len(only_b)
+    p = binomtest(len(only_a), split).pvalue if split else 1.0
+    print(f"landed by one arm only: clear_altitude {len(only_a)} {only_a}, trajectory "
+          f"{len(only_b)} {only_b}; sign test p = {p:.2f}")
+
+
 def approach_campaign(args) -> None:
     base = load_mission(args.mission)
     seeds = range(base.seed, base.seed + args.seeds)
@@ -232,6 +269,8 @@ def approach_campaign(args) -> None:
             "trajectory": {"landing.approach.method": "trajectory", **args.override}}
     wall = time.perf_counter()
     results = run_arms(args.mission, arms, seeds, args.workers)
+    if args.save:
+        Path(args.save).write_text(json.dumps(results, indent=1) + "\n")
     print(f"approach campaign: {Path(args.mission).name}, seeds {seeds.start}..{seeds.stop - 1}"
           f", {args.workers} workers, {time.perf_counter() - wall:.0f} s wall"
           + (f"; trajectory arm with {args.override}" if args.override else ""))
@@ -244,7 +283,9 @@ def approach_campaign(args) -> None:
               f"{_mean(f['wh'] for f in flights):>7.1f}"
               f"{_mean(f['tries'] for f in flights):>6.1f}"
               f"{_median(f['peak_jerk'] for f in flights):>10.1f}"
-              f"{min(f['min_clearance'] for f in flights):>12.2f}")
+              f"{min((c for f in flights for c in f['clearances']), default=np.nan):>12.2f}")
+    _clearance_table(results, apply_overrides(base, arms["trajectory"]))
+    _landed_by_one_arm(results)
     print("verification: tries that passed (share, 95 % interval by the normal approximation)")
     for arm, flights in results.items():
         tries = sum(f["tries"] or 0 for f in flights)
@@ -441,6 +482,8 @@ def main() -> int:
     parser.add_argument("--spare-site", action="store_true",
                         help="watch campaign: the LSM also holds a smaller site on open ground, "
                         "where the tree goes once the watch has banned the first")
+    parser.add_argument("--save", metavar="PATH",
+                        help="approach campaign: write every flight's figures to PATH (JSON)")
     parser.add_argument("--set", dest="override", action="append", type=_override,
                         default=[], metavar="KEY=VALUE",
                         help="a mission override for the new arm only (trajectory / watch on)")
