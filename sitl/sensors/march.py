@@ -168,6 +168,23 @@ def build_pyramid(grid, rows, cols, offset, high, low):
 
 
 @njit(cache=True, nogil=True)
+def pool_mean(grid):
+    """The mean of each 2 x 2 block of ``grid`` (float64; an odd side's last row or column
+    repeated to fill its blocks) as numpy's ``mean(axis=(1, 3))`` of the blocks computes it:
+    in float64, the two pairs along a row summed first, then the pairs' sums, over 4."""
+    ny, nx = grid.shape
+    out = np.empty(((ny + 1) // 2, (nx + 1) // 2))
+    for i in range(out.shape[0]):
+        r0, r1 = 2 * i, min(2 * i + 1, ny - 1)
+        for j in range(out.shape[1]):
+            c0, c1 = 2 * j, min(2 * j + 1, nx - 1)
+            top = np.float64(grid[r0, c0]) + np.float64(grid[r0, c1])
+            bottom = np.float64(grid[r1, c0]) + np.float64(grid[r1, c1])
+            out[i, j] = (top + bottom) / 4.0
+    return out
+
+
+@njit(cache=True, nogil=True)
 def boxes_bounds(pyramid, u0, u1, v0, v1, high_out, low_out):
     """:func:`box_bounds` of every box of the flat float64 arrays, into ``high_out`` and
     ``low_out``."""

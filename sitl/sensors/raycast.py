@@ -278,20 +278,13 @@ def coarse_terrain(terrain: Terrain, level: int) -> Terrain:
     ``terrain`` itself. A planar terrain stays the same plane."""
     if level <= 0:
         return terrain
-    grid = terrain.grid.astype(np.float64)
+    grid = terrain.grid
     for _ in range(level):
-        grid = _pool(grid, np.mean)
+        grid = march.pool_mean(grid)
     n = 2**level
     shift = (n - 1) / 2 * terrain.cell_size
     origin = (terrain.origin[0] + shift, terrain.origin[1] + shift)
     return Terrain(grid, n * terrain.cell_size, origin=origin, kind=terrain.kind)
-
-
-def _pool(a: np.ndarray, reduce) -> np.ndarray:
-    """2 x 2 pooling (edge-padded to even sides)."""
-    ny, nx = a.shape
-    a = np.pad(a, ((0, ny % 2), (0, nx % 2)), mode="edge")
-    return reduce(a.reshape(a.shape[0] // 2, 2, a.shape[1] // 2, 2), axis=(1, 3))
 
 
 class PinholeRays:

@@ -14,7 +14,7 @@ from sitl.sensors import (
     depth_sigma,
     nadir_rotation,
 )
-from sitl.sensors.raycast import HeightBounds, cast_pinhole_rays, cast_rays
+from sitl.sensors.raycast import HeightBounds, cast_pinhole_rays, cast_rays, coarse_terrain
 from sitl.terrain import Terrain, make_terrain
 
 CELL = 0.2
@@ -411,3 +411,28 @@ def test_compiled_bilinear_heights_are_opencv_remap_bit_for_bit():
     expected = cv2.remap(grid, u.reshape(64, 80), v.reshape(64, 80), cv2.INTER_LINEAR,
                          borderMode=cv2.BORDER_REPLICATE).ravel()
     np.testing.assert_array_equal(heights(grid, u, v), expected)
+
+
+def test_levels_of_detail_are_the_block_means_numpy_computes_bit_for_bit():
+    # A distant camera renders the mean-height levels; their heights (so every depth
+    # rendered from them) are those of numpy's mean over 2 x 2 blocks in float64 (edge
+    # cells repeated to fill the last blocks), on heights of wildly different magnitudes
+    # where the summation order shows, and odd sides.
+    rng = np.random.default_rng(8)
+    grid = (rng.standard_normal((61, 46)) * 10.0 ** rng.integers(-20, 9, (61, 46)))
+    terrain = Terrain(grid, 0.2, origin=(-3.0, 5.0))
+
+    def block_means(a, level):
+        a = a.astype(np.float64)
+        for _ in range(level):
+            a = np.pad(a, ((0, a.shape[0] % 2), (0, a.shape[1] % 2)), mode="edge")
+            a = a.reshape(a.shape[0] // 2, 2, a.shape[1] // 2, 2).mean(axis=(1, 3))
+        return a.astype(np.float32)
+
+    for level in (1, 2, 3):
+        coarse = coarse_terrain(terrain, level)
+        np.testing.assert_array_equal(coarse.grid.view(np.int32),
+                                      block_means(terrain.grid, level).view(np.int32))
+        shift = (2**level - 1) / 2 * 0.2
+        assert coarse.origin == (-3.0 + shift, 5.0 + shift)
+        assert coarse.cell_size == 0.2 * 2**level
