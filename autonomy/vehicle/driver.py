@@ -512,8 +512,16 @@ class MavlinkVehicle:
         handlers = self._handlers
         stats = self.stats
         backlog = self._backlog
+        read_record = mav.read_record
         while budget > 0:
-            if mav.buf_len() < _MAX_PACKET and self._backlog_pos < len(backlog):
+            found = None
+            if mav.buf_index == len(mav.buf) and self._backlog_pos < len(backlog):
+                # pymavlink's parser holds nothing: a clean packet next in the backlog is
+                # decoded straight into the fields the handlers read.
+                found = read_record(backlog, self._backlog_pos)
+            if found is not None:
+                msg, self._backlog_pos = found
+            elif mav.buf_len() < _MAX_PACKET and self._backlog_pos < len(backlog):
                 end = self._backlog_pos + _CHUNK
                 chunk = backlog[self._backlog_pos : end]
                 self._backlog_pos += len(chunk)

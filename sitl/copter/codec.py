@@ -43,7 +43,7 @@ class _Plan:
     """How one message type is packed and decoded on the fast path."""
 
     __slots__ = ("unpacker", "size", "extra", "get", "orders", "names", "strings", "template",
-                 "msgid", "cls", "direct", "arrays", "fields", "pick")
+                 "msgid", "cls", "direct", "arrays", "fields", "pick", "record")
 
     def __init__(self, cls: type) -> None:
         self.unpacker = cls.unpacker
@@ -92,6 +92,26 @@ class _Plan:
             self.template = {k: v for k, v in vars(proto).items()
                              if k not in self.names and k not in (
                                  "_header", "_payload", "_msgbuf", "_crc", "_signed")}
+        self.record = _record_type(cls.msgname, self.names) if self.direct else None
+
+    def decoded(self, msgbuf: bytes | bytearray) -> tuple | list:
+        """The declared fields' values of the whole MAVLink 2 packet ``msgbuf`` (header to
+        CRC), as pymavlink's decode makes them."""
+        if len(msgbuf) - 12 >= self.size:
+            wire = self.unpacker.unpack_from(msgbuf, 10)
+        else:  # MAVLink 2 cut the payload's trailing zeros: put them back
+            payload = bytes(msgbuf[10:-2])
+            wire = self.unpacker.unpack(payload + bytes(self.size - len(payload)))
+        if self.pick is not None:
+            values = self.pick(wire)
+        else:
+            values = [wire[tip] if not count else list(wire[tip : tip + count])
+                      for tip, count in self.fields]
+        if self.strings:
+            values = list(values)
+            for index in self.strings:
+                values[index] = values[index].rstrip(b"\x00")
+        return values
 
     def values(self, msg: Any) -> tuple | None:
         """The Struct's values of ``msg`` in wire order, or None when an array field is not
@@ -110,6 +130,34 @@ class _Plan:
             else:
                 flat.append(value)
         return tuple(flat)
+
+
+class MessageRecord(tuple):
+    """A decoded message as a tuple: its fields in pymavlink's declaration order, then the
+    sender's system and component ids and the packet. Each message type has a subclass whose
+    fields read by name as on pymavlink's message (``record.yaw``), with the few methods of
+    pymavlink's a reader of fields uses; built by :meth:`FastMAVLink.read_record`."""
+
+    __slots__ = ()
+    _type = ""
+
+    def get_type(self) -> str:
+        return self._type
+
+    def get_srcSystem(self) -> int:  # noqa: N802 - pymavlink's name
+        return self[-3]
+
+    def get_srcComponent(self) -> int:  # noqa: N802 - pymavlink's name
+        return self[-2]
+
+    def get_msgbuf(self) -> bytes:
+        return self[-1]
+
+
+def _record_type(msgname: str, names: tuple[str, ...]) -> type[MessageRecord]:
+    space: dict[str, Any] = {name: property(itemgetter(i)) for i, name in enumerate(names)}
+    space.update(__slots__=(), _type=msgname)
+    return type(f"{msgname}_record", (MessageRecord,), space)
 
 
 def _items(fmt: str) -> str:
@@ -228,6 +276,35 @@ class FastMAVLink(mavlink.MAVLink):
             self.total_receive_errors += 1
             return _BadData(packet, reason.message)
 
+    def read_record(self, buf: bytes | bytearray, pos: int) -> tuple[Any, int] | None:
+        """The packet starting at ``buf[pos]`` and the index after it, when it is a whole
+        unsigned MAVLink 2 packet with a good CRC of a type packed here and no signing key is
+        set: a :class:`MessageRecord` (a pymavlink message for the few types whose
+        constructor converts its values). Otherwise None: those bytes are ``parse_char``'s,
+        which says what pymavlink makes of them (a message, bad data, or wait for more).
+
+        A reader that only reads fields takes a clean packet here in one step instead of
+        through the parse buffer and a message object; from a packet boundary with
+        ``parse_char``'s buffer empty, both read the same packet. The parser's counters
+        (``total_packets_received``, ...) do not count the packets read here."""
+        end = len(buf)
+        if (end - pos < 12 or buf[pos] != _V2 or buf[pos + 2] != 0
+                or self.signing.secret_key is not None or _IGNORE_CRC):
+            return None
+        stop = pos + buf[pos + 1] + 12
+        if stop > end:
+            return None
+        plan = _PLANS.get(buf[pos + 7] | buf[pos + 8] << 8 | buf[pos + 9] << 16)
+        if plan is None:
+            return None
+        packet = bytes(buf[pos:stop])
+        if _crc16(plan.extra, _crc16(memoryview(packet)[1:-2], 0xFFFF)) != (
+                packet[-2] | packet[-1] << 8):
+            return None
+        if plan.record is None:
+            return self.decode(bytearray(packet)), stop
+        return plan.record((*plan.decoded(packet), packet[5], packet[6], packet)), stop
+
     def decode(self, msgbuf: bytearray) -> Any:
         if (msgbuf[0] != _V2 or msgbuf[2] != 0 or self.signing.secret_key is not None
                 or _IGNORE_CRC or len(msgbuf) != msgbuf[1] + 12):
@@ -239,20 +316,7 @@ class FastMAVLink(mavlink.MAVLink):
         crc = msgbuf[-2] | msgbuf[-1] << 8
         if _crc16(plan.extra, _crc16(memoryview(msgbuf)[1:-2], 0xFFFF)) != crc:
             return super().decode(msgbuf)  # raises pymavlink's own error
-        if len(msgbuf) - 12 >= plan.size:
-            wire = plan.unpacker.unpack_from(msgbuf, 10)
-        else:  # MAVLink 2 cut the payload's trailing zeros: put them back
-            payload = bytes(msgbuf[10:-2])
-            wire = plan.unpacker.unpack(payload + bytes(plan.size - len(payload)))
-        if plan.pick is not None:
-            values = plan.pick(wire)
-        else:
-            values = [wire[tip] if not count else list(wire[tip : tip + count])
-                      for tip, count in plan.fields]
-        if plan.strings:
-            values = list(values)
-            for index in plan.strings:
-                values[index] = values[index].rstrip(b"\x00")
+        values = plan.decoded(msgbuf)
         if plan.direct:
             m = _new(plan.cls)
             fields = dict(zip(plan.names, values, strict=True))
@@ -270,4 +334,4 @@ class FastMAVLink(mavlink.MAVLink):
         return m
 
 
-__all__ = ["FastMAVLink"]
+__all__ = ["FastMAVLink", "MessageRecord"]
