@@ -8,6 +8,13 @@ of a lockstep tick of the landing tree. The classes here are py_trees' own (subc
 messages, so a tree built from them changes state exactly as py_trees' does
 (tests/behaviors/test_ticking.py ticks both side by side). Errors py_trees logs (an invalid
 status) are still logged.
+
+Each class also has ``run``, the same tick as a plain call: a tree nobody visits (no
+py_trees visitor, the flight's case; see :class:`behaviors.tree.MissionTree`) needs none of
+the nodes a tick yields, and a generator per node per tick was a third of the tick. ``run``
+makes the same calls in the same order as draining ``tick`` (tests/behaviors/test_ticking.py).
+``stop`` no longer makes the fresh, never-started ``tick`` generator py_trees stores in
+``iterator`` on every stop (nothing reads it).
 """
 
 from __future__ import annotations
@@ -38,7 +45,34 @@ def _conclude(node: Behaviour, new_status: Status) -> None:
     node.status = new_status
 
 
-class QuietBehaviour(Behaviour):
+class Direct:
+    """What the classes here share: ``run``, their tick without yielding. A subclass that
+    writes its own ``tick`` (and no ``run``) is run through that ``tick``."""
+
+    def __init_subclass__(cls, **kwargs) -> None:
+        super().__init_subclass__(**kwargs)
+        if "tick" in cls.__dict__ and "run" not in cls.__dict__:
+            cls.run = _drain
+
+    def run(self) -> None:  # pragma: no cover - every class here defines its own
+        _drain(self)
+
+
+def _drain(node: Behaviour) -> None:
+    """Tick ``node`` through its generator (a node from elsewhere, e.g. py_trees' Parallel)."""
+    for _ in node.tick():
+        pass
+
+
+def run(node: Behaviour) -> None:
+    """Tick ``node`` once, as draining its ``tick`` does."""
+    if isinstance(node, Direct):
+        node.run()
+    else:
+        _drain(node)
+
+
+class QuietBehaviour(Direct, Behaviour):
     """A leaf: :class:`py_trees.behaviour.Behaviour`'s ``tick`` and ``stop``."""
 
     def tick(self) -> Iterator[Behaviour]:
@@ -47,13 +81,17 @@ class QuietBehaviour(Behaviour):
         _conclude(self, self.update())
         yield self
 
+    def run(self) -> None:
+        if self.status != _RUNNING:
+            self.initialise()
+        _conclude(self, self.update())
+
     def stop(self, new_status: Status) -> None:
         self.terminate(new_status)
         self.status = new_status
-        self.iterator = self.tick()
 
 
-class QuietDecorator(py_trees.decorators.Decorator):
+class QuietDecorator(Direct, py_trees.decorators.Decorator):
     """A decorator: :class:`py_trees.decorators.Decorator`'s ``tick`` and ``stop``."""
 
     def tick(self) -> Iterator[Behaviour]:
@@ -62,6 +100,12 @@ class QuietDecorator(py_trees.decorators.Decorator):
         yield from self.decorated.tick()
         _conclude(self, self.update())
         yield self
+
+    def run(self) -> None:
+        if self.status != _RUNNING:
+            self.initialise()
+        run(self.decorated)
+        _conclude(self, self.update())
 
     def stop(self, new_status: Status) -> None:
         self.terminate(new_status)
@@ -89,10 +133,9 @@ def _stop_composite(node: py_trees.composites.Composite, new_status: Status) -> 
                 child.stop(new_status)
     node.terminate(new_status)
     node.status = new_status
-    node.iterator = node.tick()
 
 
-class Selector(py_trees.composites.Selector):
+class Selector(Direct, py_trees.composites.Selector):
     """:class:`py_trees.composites.Selector`."""
 
     def tick(self) -> Iterator[Behaviour]:
@@ -136,11 +179,48 @@ class Selector(py_trees.composites.Selector):
         self.current_child = children[-1] if children else None
         yield self
 
+    def run(self) -> None:
+        children = self.children
+        if self.status != _RUNNING:
+            self.current_child = children[0] if children else None
+            self.initialise()
+        if not children:
+            self.current_child = None
+            self.stop(_FAILURE)
+            return
+        if self.memory:
+            assert self.current_child is not None
+            index = children.index(self.current_child)
+            for child in itertools.islice(children, None, index):
+                if child.status != _INVALID:
+                    child.stop(_INVALID)
+        else:
+            index = 0
+        previous = self.current_child
+        for child in itertools.islice(children, index, None):
+            run(child)
+            if child.status == _RUNNING or child.status == _SUCCESS:
+                self.current_child = child
+                if previous is None or previous != self.current_child:
+                    # Interrupted: invalidate everything at a lower priority.
+                    passed = False
+                    for other in children:
+                        if passed and other.status != _INVALID:
+                            other.stop(_INVALID)
+                        passed = True if other == self.current_child else passed
+                if child.status == _SUCCESS:
+                    self.stop(child.status)
+                else:
+                    self.status = child.status
+                return
+        self.stop(_FAILURE)
+        self.current_child = children[-1] if children else None
+
     def stop(self, new_status: Status = _INVALID) -> None:
         _stop_composite(self, new_status)
 
 
-class Sequence(py_trees.composites.Sequence):
+class Sequence(Direct, py_trees.composites.Sequence):
     """:class:`py_trees.composites.Sequence`."""
 
     def tick(self) -> Iterator[Behaviour]:
@@ -182,8 +262,44 @@ class Sequence(py_trees.composites.Sequence):
         self.stop(_SUCCESS)
         yield self
 
+    def run(self) -> None:
+        children = self.children
+        index = 0
+        if self.status != _RUNNING:
+            self.current_child = children[0] if children else None
+            for child in children:
+                if child.status != _INVALID:
+                    child.stop(_INVALID)
+            self.initialise()
+        elif self.memory and self.current_child is not None:
+            index = children.index(self.current_child)
+        else:
+            self.current_child = children[0] if children else None
+        if not children:
+            self.current_child = None
+            self.stop(_SUCCESS)
+            return
+        for child in itertools.islice(children, index, None):
+            run(child)
+            if child.status != _SUCCESS:
+                if not self.memory:
+                    # Kill dangling runners after it.
+                    for other in itertools.islice(children, index + 1, None):
+                        if other.status != _INVALID:
+                            other.stop(_INVALID)
+                if child.status != _RUNNING:
+                    self.stop(child.status)
+                else:
+                    self.status = child.status
+                return
+            if index + 1 < len(children):
+                self.current_child = children[index + 1]
+                index += 1
+        self.stop(_SUCCESS)
+
     def stop(self, new_status: Status = _INVALID) -> None:
         _stop_composite(self, new_status)
 
 
-__all__ = ["Inverter", "QuietBehaviour", "QuietDecorator", "Retry", "Selector", "Sequence"]
+__all__ = ["Direct", "Inverter", "QuietBehaviour", "QuietDecorator", "Retry", "Selector",
+           "Sequence", "run"]

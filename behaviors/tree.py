@@ -76,6 +76,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import py_trees
 
+from behaviors import ticking
 from behaviors.loader import BUILTIN_TREE, TreeDocument, build_tree, read_tree
 from behaviors.ports import Clock, VehiclePort
 from behaviors.registry import BuildContext, mission_settings
@@ -107,7 +108,8 @@ class MissionTree(py_trees.trees.BehaviourTree):
     ``BehaviourTree.tick`` also walks every node after each tick for "full" visitors, which
     this project never adds; with a thousand waypoints that walk cost more than the tick.
     Here it runs only when a full visitor is there, so a tick costs what the ticked branch
-    costs, however many waypoints the mission has.
+    costs, however many waypoints the mission has. Without any visitor the tick is
+    :func:`behaviors.ticking.run` (no generators).
     """
 
     def tick(self, pre_tick_handler=None, post_tick_handler=None) -> None:
@@ -118,13 +120,16 @@ class MissionTree(py_trees.trees.BehaviourTree):
             pre_tick_handler(self)
         for handler in self.pre_tick_handlers:
             handler(self)
-        for visitor in self.visitors:
-            visitor.initialise()
-        for node in self.root.tick():
+        if self.visitors:
             for visitor in self.visitors:
-                node.visit(visitor)
-        for visitor in self.visitors:
-            visitor.finalise()
+                visitor.initialise()
+            for node in self.root.tick():
+                for visitor in self.visitors:
+                    node.visit(visitor)
+            for visitor in self.visitors:
+                visitor.finalise()
+        else:  # nobody looks at the nodes a tick passes: tick without yielding them
+            ticking.run(self.root)
         for handler in self.post_tick_handlers:
             handler(self)
         if post_tick_handler is not None:

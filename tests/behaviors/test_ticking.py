@@ -87,21 +87,42 @@ def test_random_trees_tick_as_with_py_trees(seed):
     guard = ("leaf", [Status.FAILURE, Status.FAILURE, Status.RUNNING, Status.SUCCESS])
     plan = ("selector", False, [guard, _plan(rng), ("sequence", True, [_plan(rng), _plan(rng)])])
     trees, calls = [], []
-    for quiet in (False, True):
+    for quiet in (False, True, True):  # py_trees, ours ticked, ours run (no generators)
         log: list = []
         root = _build(plan, _kit(quiet), log, iter(range(10_000)))
         trees.append(root)
         calls.append(log)
-    plain, quiet = trees
+    plain, quiet, direct = trees
     for tick in range(30):
         if tick == 17:  # an interruption from above, as a higher-priority branch does
-            plain.stop(Status.INVALID)
-            quiet.stop(Status.INVALID)
-        visited = [[n.name for n in root.tick()] for root in trees]
+            for root in trees:
+                root.stop(Status.INVALID)
+        visited = [[n.name for n in root.tick()] for root in (plain, quiet)]
+        ticking.run(direct)
         assert visited[0] == visited[1], f"tick {tick}"
-        assert _state(plain) == _state(quiet), f"tick {tick}"
-        assert calls[0] == calls[1], f"tick {tick}"
+        assert _state(plain) == _state(quiet) == _state(direct), f"tick {tick}"
+        assert calls[0] == calls[1] == calls[2], f"tick {tick}"
     assert any(call[1] == "terminate" for call in calls[1])
+
+
+def test_run_ticks_a_node_from_elsewhere_and_an_own_tick_through_its_generator():
+    """A py_trees Parallel among our nodes, and a subclass of ours with a tick of its own,
+    are run through their ``tick``."""
+    calls: list = []
+    leaf = _leaf_class(ticking.QuietBehaviour)
+
+    class Counted(leaf):
+        def tick(self):
+            calls.append((self.name, "own tick"))
+            yield from super().tick()
+
+    parallel = py_trees.composites.Parallel(
+        "p", policy=py_trees.common.ParallelPolicy.SuccessOnAll(synchronise=False),
+        children=[leaf("a", [Status.SUCCESS], calls), Counted("b", [Status.RUNNING], calls)])
+    root = ticking.Sequence("root", memory=False, children=[parallel])
+    ticking.run(root)
+    assert ("b", "own tick") in calls and ("a", "update", Status.SUCCESS) in calls
+    assert (root.status, parallel.status) == (Status.RUNNING, Status.RUNNING)
 
 
 def test_an_invalid_status_is_logged_and_made_invalid(caplog):
