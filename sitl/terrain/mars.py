@@ -9,10 +9,10 @@ from sitl.terrain.features import (
     fractal_relief,
     poisson_points,
     power_law_sizes,
-    smoothstep_edge,
     stamp,
 )
 from sitl.terrain.settings import MarsTerrainSettings
+from sitl.terrain.terrace_kernel import add_terrace
 from sitl.terrain.worlds import home_keep_out, procedural_frame
 
 # Crater shape ratios for simple craters (Pike 1977): depth ~ 0.2 D, rim height ~ 0.04 D;
@@ -137,14 +137,5 @@ def _add_scarps(grid, origin, cs, extent, settings: MarsTerrainSettings, rng) ->
         rows = slice(*np.clip(np.searchsorted(ys, [cy - reach, cy + reach]), 0, len(ys)))
         if cols.start == cols.stop or rows.start == rows.stop:
             continue
-        dx = xs[None, cols] - cx
-        dy = ys[rows, None] - cy
-        n = (np.cos(theta), np.sin(theta))
-        across = n[0] * dx + n[1] * dy  # 0 at the steep face, +depth at the back edge
-        along = -n[1] * dx + n[0] * dy
-        h = (
-            smoothstep_edge(across, steep)
-            * smoothstep_edge(depth - across, gentle)
-            * smoothstep_edge(length / 2 - np.abs(along), gentle)
-        )
-        grid[rows, cols] += (height * h).astype(np.float32)
+        add_terrace(grid[rows, cols], xs[cols], ys[rows], cx, cy, theta, steep, gentle, depth,
+                    length, height)
