@@ -11,14 +11,10 @@ import os
 from collections.abc import Sequence
 from typing import Any
 
-import matplotlib
+import numpy as np
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from autonomy.campaign.spec import Variant  # noqa: E402
-from autonomy.campaign.summary import OUTCOME_TITLES, OUTCOMES, outcome_class  # noqa: E402
+from autonomy.campaign.spec import Variant
+from autonomy.campaign.summary import OUTCOME_TITLES, OUTCOMES, outcome_class
 
 OUTCOME_COLOURS = {
     "landed": "#2ca02c",
@@ -67,6 +63,11 @@ def plot_campaign(
     title: str = "",
 ) -> None:
     """Write the three-panel campaign figure to ``path`` (PNG)."""
+    # imported here: a campaign that draws no figure does not pay for pyplot
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
     fig, (ax_out, ax_ttl, ax_map) = plt.subplots(
         1, 3, figsize=(18, max(5.0, 0.45 * len(variants) + 3)), layout="constrained"
     )

@@ -2,23 +2,26 @@
 
 from __future__ import annotations
 
+import functools
 from pathlib import Path
 
-import matplotlib
+import numpy as np
 
-matplotlib.use("Agg")  # files only, no display
+from autonomy.report.data import FlightData
 
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-from matplotlib.colors import LightSource, ListedColormap  # noqa: E402
-from matplotlib.patches import Circle  # noqa: E402
-
-from autonomy.report.data import FlightData  # noqa: E402
+# matplotlib is imported where a function draws: a flight or a campaign worker that writes
+# no report.png does not pay for pyplot at start-up.
 
 _MAX_PIXELS = 600  # map raster side after striding the terrain grid
-_PHASE_COLOURS = plt.get_cmap("tab20").colors
-# Land colours only (gist_earth without its sea blues), low to high.
-_GROUND = ListedColormap(plt.get_cmap("gist_earth")(np.linspace(0.35, 0.95, 256)))
+
+
+@functools.cache
+def _ground_colours():
+    """Land colours only (gist_earth without its sea blues), low to high."""
+    import matplotlib
+    from matplotlib.colors import ListedColormap
+
+    return ListedColormap(matplotlib.colormaps["gist_earth"](np.linspace(0.35, 0.95, 256)))
 
 
 def map_window(data: FlightData, xyz: np.ndarray) -> tuple[float, float, float, float]:
@@ -47,8 +50,10 @@ def shaded_terrain(terrain, window, max_pixels: int = _MAX_PIXELS):
     step = max(1, int(max(i1 - i0, j1 - j0) // max_pixels))
     grid = np.asarray(terrain.grid[i0:i1:step, j0:j1:step], dtype=np.float64)
     lo, hi = float(grid.min()), float(grid.max())
+    from matplotlib.colors import LightSource
+
     shaded = LightSource(azdeg=315, altdeg=45).shade(
-        grid, cmap=_GROUND, blend_mode="overlay",
+        grid, cmap=_ground_colours(), blend_mode="overlay",
         vmin=lo - 0.5, vmax=max(hi, lo + 5.0),  # a flat world is a plain colour, not black
         vert_exag=1.0, dx=terrain.cell_size * step, dy=terrain.cell_size * step,
     )
@@ -90,6 +95,13 @@ def plot_moving(ax, moving) -> None:
 
 def write_report_png(data: FlightData, path: Path, *, outcome: str = "") -> None:
     """Draw the two-panel flight report into ``path`` (PNG)."""
+    import matplotlib
+
+    matplotlib.use("Agg")  # files only, no display
+    import matplotlib.pyplot as plt
+    from matplotlib.patches import Circle
+
+    phase_colours = plt.get_cmap("tab20").colors
     t, xyz, _ = data.trace.arrays()
     fig, (ax_map, ax_alt) = plt.subplots(
         1, 2, figsize=(15, 6.5), gridspec_kw={"width_ratios": [1, 1.3]}
@@ -144,7 +156,7 @@ def write_report_png(data: FlightData, path: Path, *, outcome: str = "") -> None
         names = sorted({p for _, p in data.trace.phases})
         seen: set[str] = set()
         for (start, phase), end in zip(data.trace.phases, ends, strict=True):
-            colour = _PHASE_COLOURS[names.index(phase) % len(_PHASE_COLOURS)]
+            colour = phase_colours[names.index(phase) % len(phase_colours)]
             ax_alt.axvspan(start, end, color=colour, alpha=0.35,
                            label=None if phase in seen else phase)
             seen.add(phase)
