@@ -9,8 +9,10 @@ shipping missions, appending runs.jsonl, the summary and the plot.
     flight-hours per wall-hour per core = (sum of simulated mission times / wall time) / cores
 
 It also prints the fixed cost every run pays before it flies (world generation and the
-depth camera's height bounds, both from the run's seed) and the wall time of
-``--extrapolate`` runs (default 200) at the measured rate.
+depth camera's height bounds, both from the run's seed), what a fresh process pays to import
+the flight stack, what a pool worker pays from its fork to the end of a one-tick flight with
+and without the fork server's preloading, and the wall time of ``--extrapolate`` runs
+(default 200) at the measured rate.
 
 Run: .venv/bin/python benchmarks/bench_campaign.py [--runs 8] [--workers K]
      [--mission missions/demo.yaml] [--scheduler tcp://HOST:PORT | local] [--extrapolate 200]
@@ -29,6 +31,10 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def main(argv: list[str] | None = None) -> int:
+    argv = sys.argv[1:] if argv is None else argv
+    if argv[:1] == ["--probe-worker"]:  # a fresh process measuring one pool worker
+        _probe_worker(*argv[1:3])
+        return 0
     from autonomy.campaign import run_campaign, run_seed
     from autonomy.campaign.backends import default_workers
     from autonomy.config import load_mission
@@ -69,7 +75,7 @@ def main(argv: list[str] | None = None) -> int:
                               workers=args.workers, scheduler=args.scheduler, quiet=True)
         wall = time.perf_counter() - start
     flown = [r for r in result.records if r["outcome"] != "error"]
-    _fixed_cost(mission, args.seed)
+    _fixed_cost(mission, args.mission, args.seed)
     sim = sum(r["mission_time"] or 0.0 for r in flown)
     per_run = sorted(r["wall_time"] for r in flown if r.get("wall_time"))
     median = per_run[len(per_run) // 2] if per_run else float("nan")
@@ -86,7 +92,7 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
-def _fixed_cost(mission, seed: int) -> None:
+def _fixed_cost(mission, mission_path: str, seed: int) -> None:
     """What every run pays before it flies: the world (generated from the run's seed, so
     it cannot be shared between runs), the depth camera's height bounds of it (built on
     the first frame), and the rest of a flight's setup (a flight of one tick)."""
@@ -111,9 +117,60 @@ def _fixed_cost(mission, seed: int) -> None:
     print(f"  fixed cost per run (CPU): world {world:.2f} s, height bounds {bounds:.2f} s, "
           f"a one-tick flight with its world {setup:.2f} s")
     start_cpu, start_wall = _process_start()
-    print(f"  fixed cost per worker process: importing the flight stack {start_cpu:.2f} s CPU "
-          f"({start_wall:.2f} s wall); a local pool's workers fork from a server that "
-          "imported it once, so a campaign pays it once, a `lander fly` every time")
+    print(f"  fixed cost per fresh process (`lander fly`, a Dask worker): importing the flight "
+          f"stack {start_cpu:.2f} s CPU ({start_wall:.2f} s wall)")
+    cold, warm = (_worker_start(mission_path, preload) for preload in ("worker", "stack"))
+    print(f"  a local pool worker's CPU from its fork to the end of a one-tick flight: "
+          f"{cold:.2f} s forked from a server that imported only the worker module, "
+          f"{warm:.2f} s from one that imported the flight stack and loaded its compiled "
+          f"kernels (as the pool does; the server pays that once per campaign)")
+
+
+def _worker_start(mission_path: str, preload: str) -> float:
+    """CPU seconds a fork-server worker spends from its fork to the end of a one-tick
+    flight of the mission, its server having preloaded ``preload`` ("worker": the worker
+    module only; "stack": what the local pool preloads for lander flights); the best of
+    three fresh servers."""
+    import subprocess
+
+    best = float("inf")
+    for _ in range(3):
+        out = subprocess.run([sys.executable, __file__, "--probe-worker", preload, mission_path],
+                             check=True, cwd=ROOT, capture_output=True, text=True).stdout
+        best = min(best, float(out.split()[-1]))
+    return best
+
+
+def _probe_worker(preload: str, mission_path: str) -> None:
+    """Start a fork server with ``preload``, fly one tick in a worker, print its CPU."""
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    from autonomy.config import load_mission
+
+    modules = ["__main__", "autonomy.campaign.worker"]
+    if preload == "stack":
+        from autonomy.campaign.warm import preload_modules
+
+        modules += preload_modules([load_mission(mission_path)])
+    context = multiprocessing.get_context("forkserver")
+    context.set_forkserver_preload(modules)
+    with ProcessPoolExecutor(1, mp_context=context) as pool:
+        print(pool.submit(_one_tick_cpu, mission_path).result())
+
+
+def _one_tick_cpu(mission_path: str) -> float:
+    """This process's CPU seconds so far after a one-tick flight of the mission (a worker
+    flies as :func:`autonomy.campaign.worker.fly_with_page` does)."""
+    import resource
+
+    from autonomy.campaign.worker import fly_with_page
+    from autonomy.config import load_mission
+
+    mission = load_mission(mission_path)
+    fly_with_page(mission.model_copy(update={"time_limit": 1.0 / mission.tick_rate}), seed=0)
+    usage = resource.getrusage(resource.RUSAGE_SELF)
+    return usage.ru_utime + usage.ru_stime
 
 
 def _process_start() -> tuple[float, float]:

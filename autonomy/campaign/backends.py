@@ -19,7 +19,8 @@ from concurrent.futures.process import BrokenProcessPool
 from typing import Any, Protocol
 
 from autonomy.campaign.plan import RunTask
-from autonomy.campaign.worker import error_record, fly_run
+from autonomy.campaign.warm import preload_modules
+from autonomy.campaign.worker import error_record, fly_run, fly_with_page
 from autonomy.errors import UserError
 
 WORKER_DIED = "worker process died while flying this run"
@@ -48,7 +49,8 @@ def _start_context(preload: Sequence[str]) -> multiprocessing.context.BaseContex
 
     Either way workers start from a clean interpreter (never a fork of this process and its
     threads), so flights only see what they are sent. The fork server imports ``preload``
-    once, so each new worker starts without re-importing the flight stack.
+    once, so each new worker starts without re-importing the flight stack or reloading its
+    compiled kernels (:mod:`autonomy.campaign.warm`).
     """
     if "forkserver" in multiprocessing.get_all_start_methods():
         context = multiprocessing.get_context("forkserver")
@@ -80,6 +82,8 @@ class LocalPool:
             # The server imports these once; every worker forked from it starts with them.
             preload = ["__main__", "autonomy.campaign.worker"]
             preload += [flight_module] if flight_module else []
+            if tasks[0].flight is fly_with_page:  # lander flights: the stack, warm
+                preload += preload_modules({id(t.mission): t.mission for t in tasks}.values())
             self._context = _start_context(preload)
         empty_breaks = 0
         while pending:

@@ -32,7 +32,7 @@ def make_terrain(settings: TerrainSettings | dict[str, Any], seed: int = 0) -> T
     """
     settings = parse_terrain_settings(settings)
     rng = np.random.default_rng(seed)
-    module = importlib.import_module(_GENERATORS[settings.kind])
+    module = importlib.import_module(generator_module(settings.kind))
     grid, origin, *known = module.generate(settings, rng)  # elevation models: + known mask
     grid = clear_home(grid, origin, settings.cell_size, settings.home_clear_radius)
     known = known[0] if known else None
@@ -45,6 +45,11 @@ def make_terrain(settings: TerrainSettings | dict[str, Any], seed: int = 0) -> T
                                       terrain.height, moving_stream(seed),
                                       streets=settings.kind == "urban")
     return terrain
+
+
+def generator_module(kind: str) -> str:
+    """Name of the module that generates worlds of ``kind`` (imported on first use)."""
+    return _GENERATORS[kind]
 
 
 def procedural_frame(settings) -> tuple[tuple[int, int], tuple[float, float]]:
