@@ -436,3 +436,23 @@ def test_levels_of_detail_are_the_block_means_numpy_computes_bit_for_bit():
         shift = (2**level - 1) / 2 * 0.2
         assert coarse.origin == (-3.0 + shift, 5.0 + shift)
         assert coarse.cell_size == 0.2 * 2**level
+
+
+def test_noise_bins_are_the_generators_bytes_and_leave_it_where_bytes_would():
+    # The camera's noise draws raw 64-bit outputs where that gives the bytes
+    # Generator.bytes gives (so seeded flights keep their noise), and bytes otherwise.
+    from sitl.sensors.camera import _noise_bins
+
+    for n, offset in ((65536, 0), (4, 0), (6, 0), (65536, 1), (12, 3)):
+        ours, theirs = np.random.default_rng(9), np.random.default_rng(9)
+        for g in (ours, theirs):  # a 32-bit half left over when offset is odd
+            g.integers(0, 2**32, size=offset, dtype=np.uint32)
+            g.standard_normal(3)
+        got = _noise_bins(ours, n)
+        expected = np.frombuffer(theirs.bytes(2 * n), dtype=np.uint16)
+        np.testing.assert_array_equal(got, expected)
+        for g in (ours, theirs):  # and what they draw next is the same
+            g.bytes(2)
+        np.testing.assert_array_equal(ours.integers(0, 2**32, size=5, dtype=np.uint32),
+                                      theirs.integers(0, 2**32, size=5, dtype=np.uint32))
+        assert ours.standard_normal() == theirs.standard_normal()
