@@ -43,7 +43,8 @@ class _Plan:
     """How one message type is packed and decoded on the fast path."""
 
     __slots__ = ("unpacker", "size", "extra", "get", "orders", "names", "strings", "template",
-                 "msgid", "cls", "direct", "arrays", "fields", "pick", "record")
+                 "msgid", "cls", "direct", "arrays", "fields", "pick", "record", "flat",
+                 "gather", "spread")
 
     def __init__(self, cls: type) -> None:
         self.unpacker = cls.unpacker
@@ -67,14 +68,28 @@ class _Plan:
             scalar = count == 1 or items[tip] in "cs"
             self.fields.append((tip, 0 if scalar else count))
         self.fields = tuple(self.fields)
-        # Without arrays, the declared fields are single values picked from the wire tuple.
+        # Without arrays, the declared fields are single values picked from the wire tuple;
+        # else a function made for the type gathers them (lists for the arrays).
         self.pick = None
         if all(count == 0 for _, count in self.fields) and len(self.fields) > 1:
             self.pick = itemgetter(*(tip for tip, _ in self.fields))
+        self.gather = _function("w", "[" + ", ".join(
+            f"w[{tip}]" if not count else f"list(w[{tip}:{tip + count}])"
+            for tip, count in self.fields) + "]")
         self.arrays = tuple(length if length > 1 and items[sum(lengths[:j])] not in "cs" else 0
                             for j, length in enumerate(lengths))  # wire order, for packing
         if not any(self.arrays):
             self.arrays = ()
+        # The Struct's values from the wire-order fields, arrays spread out; None when an
+        # array is shorter than its type says.
+        self.spread = None
+        if self.arrays:
+            short = " or ".join(f"len(v[{j}]) < {n}" for j, n in enumerate(self.arrays) if n)
+            spread = ", ".join(f"v[{j}]" if not n else ", ".join(f"v[{j}][{k}]" for k in range(n))
+                               for j, n in enumerate(self.arrays))
+            self.spread = _function("v", f"None if {short} else ({spread},)")
+        # Several fields and no arrays: ``get`` alone gives the values to pack.
+        self.flat = not self.arrays and len(self.orders) > 1
         # pymavlink strips trailing NULs off every bytes value: chars ('c') and strings ('Ns').
         self.strings = tuple(i for i, (tip, count) in enumerate(self.fields)
                              if count == 0 and items[tip] in "cs")
@@ -102,11 +117,7 @@ class _Plan:
         else:  # MAVLink 2 cut the payload's trailing zeros: put them back
             payload = bytes(msgbuf[10:-2])
             wire = self.unpacker.unpack(payload + bytes(self.size - len(payload)))
-        if self.pick is not None:
-            values = self.pick(wire)
-        else:
-            values = [wire[tip] if not count else list(wire[tip : tip + count])
-                      for tip, count in self.fields]
+        values = self.pick(wire) if self.pick is not None else self.gather(wire)
         if self.strings:
             values = list(values)
             for index in self.strings:
@@ -121,15 +132,13 @@ class _Plan:
             values = (values,)
         if not self.arrays:
             return values
-        flat = []
-        for value, count in zip(values, self.arrays, strict=True):
-            if count:
-                if len(value) < count:
-                    return None
-                flat.extend(value[:count])
-            else:
-                flat.append(value)
-        return tuple(flat)
+        return self.spread(values)
+
+
+def _function(arg: str, expression: str) -> Any:
+    """``lambda arg: expression``, compiled once per message type (as namedtuple makes its
+    methods): a plan's indexing spelled out runs faster than a loop over the plan."""
+    return eval(f"lambda {arg}: {expression}", {})  # noqa: S307 - indices made here, no input
 
 
 class MessageRecord(tuple):
@@ -199,11 +208,14 @@ class FastMAVLink(mavlink.MAVLink):
         if plan is None or force_mavlink1 or self.signing.sign_outgoing:
             super().send(mavmsg, force_mavlink1=force_mavlink1)
             return
-        values = plan.values(mavmsg)
-        if values is None:
-            super().send(mavmsg, force_mavlink1=force_mavlink1)
-            return
-        payload = plan.unpacker.pack(*values)
+        if plan.flat:  # the attributes in wire order are the Struct's values
+            payload = plan.unpacker.pack(*plan.get(mavmsg))
+        else:
+            values = plan.values(mavmsg)
+            if values is None:
+                super().send(mavmsg, force_mavlink1=force_mavlink1)
+                return
+            payload = plan.unpacker.pack(*values)
         # MAVLink 2 drops trailing zero bytes of the payload (at least one byte stays).
         payload = payload.rstrip(b"\x00") or payload[:1]
         msgid = plan.msgid
@@ -304,6 +316,23 @@ class FastMAVLink(mavlink.MAVLink):
         if plan.record is None:
             return self.decode(bytearray(packet)), stop
         return plan.record((*plan.decoded(packet), packet[5], packet[6], packet)), stop
+
+    def parse_records(self, data: bytes) -> list:
+        """The messages of ``data`` as ``parse_buffer`` gives them (but a list, maybe
+        empty), clean packets as records (:meth:`read_record`) while the parser holds
+        nothing; from the first packet that is not clean, pymavlink's parser reads the
+        rest."""
+        out = []
+        pos, end = 0, len(data)
+        while pos < end and self.buf_index == len(self.buf):
+            found = self.read_record(data, pos)
+            if found is None:
+                break
+            msg, pos = found
+            out.append(msg)
+        if pos < end:
+            out.extend(self.parse_buffer(data[pos:]) or ())
+        return out
 
     def decode(self, msgbuf: bytearray) -> Any:
         if (msgbuf[0] != _V2 or msgbuf[2] != 0 or self.signing.secret_key is not None

@@ -78,13 +78,11 @@ _MAVLINK_EPOCH = 1420070400.0  # 2015-01-01, origin of MAVLink signing timestamp
 class _Outbox:
     """File-like sink for pymavlink: collects the packets of one step."""
 
-    __slots__ = ("chunks",)
+    __slots__ = ("chunks", "write")
 
     def __init__(self) -> None:
         self.chunks: list[bytes] = []
-
-    def write(self, data: bytes) -> None:
-        self.chunks.append(data)
+        self.write = self.chunks.append  # write(data): no Python frame per packet
 
 
 class Link:
@@ -236,10 +234,7 @@ class MavlinkServer:
             data = link.endpoint.read()
             if not data:
                 continue
-            msgs = link.mav.parse_buffer(data)
-            if not msgs:
-                continue
-            for msg in msgs:
+            for msg in link.mav.parse_records(data):
                 name = msg.get_type()
                 if name == "BAD_DATA":
                     link.corrupt_packets += 1
