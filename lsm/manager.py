@@ -282,9 +282,10 @@ class LandingSiteManager:
     # ------------------------------------------------------------------ drone position
     def set_drone_position(self, position: Sequence[float]) -> None:
         """Tell the manager where the drone is (ENU m). Sites beyond max_distance fall off."""
-        p = (float(position[0]), float(position[1]), float(position[2]))
-        if not all(math.isfinite(v) for v in p):
+        x, y, z = float(position[0]), float(position[1]), float(position[2])
+        if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(z)):
             return
+        p = (x, y, z)
         with self._lock:
             self._drone = p
             self._maybe_rekey()

@@ -39,7 +39,10 @@ from autonomy.vehicle.commands import (
 from autonomy.vehicle.settings import LOG_STREAMS, VehicleLinkSettings
 from autonomy.vehicle.tlog import TlogWriter
 from behaviors.ports import Clock, CommandStatus, LandedState, VehicleState
-from sitl.copter.codec import FastMAVLink  # pymavlink's codec, byte for byte, in fewer steps
+from sitl.copter.codec import (  # pymavlink's codec, byte for byte, in fewer steps
+    FastMAVLink,
+    MessageRecord,
+)
 
 # Longest MAVLink 2 packet (header 10 + payload 255 + crc 2 + signature 13).
 _MAX_PACKET = 280
@@ -533,18 +536,21 @@ class MavlinkVehicle:
                     break
                 continue
             budget -= 1
-            mtype = msg.get_type()
-            if mtype == "BAD_DATA":
-                if msg.reason == "Invalid signature":
-                    stats.bad_signature += 1
-                else:
-                    stats.corrupt_packets += 1
-                    stats.corrupt_bytes += len(msg.data)
-                continue
+            if isinstance(msg, MessageRecord):  # its type and sender without method calls
+                mtype, src, component = msg._type, msg[-3], msg[-2]
+            else:
+                mtype = msg.get_type()
+                if mtype == "BAD_DATA":
+                    if msg.reason == "Invalid signature":
+                        stats.bad_signature += 1
+                    else:
+                        stats.corrupt_packets += 1
+                        stats.corrupt_bytes += len(msg.data)
+                    continue
+                src, component = msg.get_srcSystem(), msg.get_srcComponent()
             stats.messages += 1
             if self._tlog is not None:
                 self._tlog.write(msg.get_msgbuf(), now)
-            src = msg.get_srcSystem()
             if src == 0 or (self._target_system is not None and src != self._target_system):
                 stats.ignored += 1
                 continue
@@ -556,7 +562,7 @@ class MavlinkVehicle:
             if handler is not None:
                 handler(msg, now)
             boot_ms = getattr(msg, "time_boot_ms", None)
-            if boot_ms is not None and msg.get_srcComponent() == self._target_component:
+            if boot_ms is not None and component == self._target_component:
                 newest_ms = max(newest_ms, boot_ms)
         if newest_ms >= 0 and self._on_vehicle_time is not None:
             self._on_vehicle_time(newest_ms / 1000.0)
@@ -630,12 +636,14 @@ class MavlinkVehicle:
         self._gps_fix = int(msg.fix_type)
 
     def _on_local_position_ned(self, msg: Any, now: float) -> None:
-        values = (msg.x, msg.y, msg.z, msg.vx, msg.vy, msg.vz)
-        if not all(math.isfinite(v) for v in values):
+        x, y, z, vx, vy, vz = msg.x, msg.y, msg.z, msg.vx, msg.vy, msg.vz
+        finite = math.isfinite
+        if not (finite(x) and finite(y) and finite(z) and finite(vx) and finite(vy)
+                and finite(vz)):
             self.stats.dropped_sensor["LOCAL_POSITION_NED"] += 1
             return
-        self._position_ned = (msg.x, msg.y, msg.z)
-        self._velocity_ned = (msg.vx, msg.vy, msg.vz)
+        self._position_ned = (x, y, z)
+        self._velocity_ned = (vx, vy, vz)
 
     def _on_attitude(self, msg: Any, now: float) -> None:
         if not math.isfinite(msg.yaw):
