@@ -56,9 +56,11 @@ class LandedState(enum.Enum):
     LANDING = "landing"
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(slots=True)
 class VehicleState:
-    """Immutable snapshot of what the autopilot last reported."""
+    """Snapshot of what the autopilot last reported; the driver makes a new one on every
+    poll and nobody changes one after (not frozen: a frozen dataclass sets each field
+    through ``object.__setattr__``, and a snapshot is made on every tick)."""
 
     time: float = 0.0  # clock seconds when the snapshot was taken
     position: tuple[float, float, float] | None = None  # ENU m; None until known

@@ -35,9 +35,12 @@ class Touchdown(NamedTuple):
     speed: float
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(slots=True)
 class TruthState:
-    """Ground truth of the simulated vehicle, for reports and tests (not sent over MAVLink).
+    """Ground truth of the simulated vehicle, for reports and tests (not sent over MAVLink);
+    a new one on every read of :attr:`Sitl.truth`, not changed after (not frozen: a frozen
+    dataclass sets each field through ``object.__setattr__``, and the runner reads the truth
+    on every tick).
 
     position: ENU m; velocity: ENU m/s; yaw: rad ENU (counter-clockwise from east);
     mode: flight mode name of the personality ("GUIDED", "AUTO.LOITER", ...);
@@ -223,7 +226,10 @@ class Sitl:
         if dt > 0.0:
             n = max(1, math.ceil(dt / self.settings.physics_step - 1e-9))
             h = dt / n
-            ground = self._ground = self._height(model.x, model.y)
+            if (model.x, model.y) == self._ground_xy:  # _agl looked it up after the last step
+                ground = self._ground = self._ground_now
+            else:
+                ground = self._ground = self._height(model.x, model.y)
             moving = getattr(self.terrain, "moving", None)
             if moving is not None:  # a car's roof under the vehicle is what it lands on
                 ground = max(ground, top_below(moving, model.position, self._time))
