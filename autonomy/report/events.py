@@ -22,6 +22,15 @@ import py_trees
 
 def _clean(value: Any) -> Any:
     """A JSON-able copy: numpy scalars to Python, floats rounded to 0.1 mm / 0.1 ms."""
+    kind = type(value)  # the common plain types first, each as the chain below treats it
+    if kind is float:
+        return round(value, 4) if math.isfinite(value) else None
+    if kind is str or kind is int or kind is bool or value is None:
+        return value
+    if kind is dict:
+        return {str(k): _clean(v) for k, v in value.items()}
+    if kind is tuple or kind is list:
+        return [_clean(v) for v in value]
     if isinstance(value, (bool, np.bool_)):
         return bool(value)
     if isinstance(value, (int, np.integer)):

@@ -219,7 +219,8 @@ class Flight:
     def _record(self, now: float, state: Any) -> None:
         truth = self._truth = self.truth() if self.truth is not None else None
         if truth is not None:
-            xyz = tuple(float(v) for v in truth.position)
+            p = truth.position
+            xyz = (float(p[0]), float(p[1]), float(p[2]))
             battery = getattr(truth, "battery_percent", None)
             if battery is None:
                 battery = state.battery_percent
