@@ -3,6 +3,7 @@ vectorised stamping of many small features (rocks, trees, craters) into a grid."
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 
 import numpy as np
@@ -39,11 +40,7 @@ def fractal_relief(
         coarse = fractal_relief(small, cell_size * coarsen, rms, wavelength, beta, rng)
         return _upsample(coarse, coarsen, shape)
     ny, nx = (scipy.fft.next_fast_len(n, real=True) for n in shape)
-    ky = scipy.fft.fftfreq(ny, d=cell_size).astype(np.float32)[:, None]
-    kx = scipy.fft.rfftfreq(nx, d=cell_size).astype(np.float32)[None, :]
-    k = np.maximum(np.hypot(kx, ky), np.float32(1.0 / wavelength))
-    amplitude = (k * np.float32(wavelength)) ** np.float32(-beta / 2.0)
-    amplitude[0, 0] = 0.0
+    amplitude = _spectral_amplitude(ny, nx, float(cell_size), float(wavelength), float(beta))
     # single precision throughout: the surface is stored as float32 anyway.
     spectrum = np.empty(amplitude.shape, dtype=np.complex64)
     spectrum.real = amplitude * rng.standard_normal(amplitude.shape, dtype=np.float32)
@@ -55,19 +52,34 @@ def fractal_relief(
     return np.ascontiguousarray(surface, dtype=np.float32)
 
 
+@functools.lru_cache(maxsize=8)
+def _spectral_amplitude(
+    ny: int, nx: int, cell_size: float, wavelength: float, beta: float
+) -> np.ndarray:
+    """Amplitude of each rfft2 coefficient of :func:`fractal_relief` (read-only float32):
+    independent of the seed, so kept for the next world of the same settings."""
+    ky = scipy.fft.fftfreq(ny, d=cell_size).astype(np.float32)[:, None]
+    kx = scipy.fft.rfftfreq(nx, d=cell_size).astype(np.float32)[None, :]
+    k = np.maximum(np.hypot(kx, ky), np.float32(1.0 / wavelength))
+    amplitude = (k * np.float32(wavelength)) ** np.float32(-beta / 2.0)
+    amplitude[0, 0] = 0.0
+    amplitude.flags.writeable = False
+    return amplitude
+
+
 def _upsample(coarse: np.ndarray, factor: int, shape: tuple[int, int]) -> np.ndarray:
     """Bilinear interpolation of ``coarse`` (cell i at fine index i * factor) to ``shape``,
-    one separable axis at a time."""
-    out = coarse
+    one separable axis at a time: along the rows, then along the columns."""
+    from sitl.terrain.bilinear_kernel import upsample_rows_then_columns
+
+    lower, weight = [], []
     for axis, n in enumerate(shape):
         pos = np.arange(n, dtype=np.float64) / factor
         i0 = np.minimum(pos.astype(np.intp), coarse.shape[axis] - 2)
-        w = (pos - i0).astype(np.float32)
-        a = np.take(out, i0, axis=axis)
-        b = np.take(out, i0 + 1, axis=axis)
-        w = w[:, None] if axis == 0 else w[None, :]
-        out = a + w * (b - a)
-    return np.ascontiguousarray(out, dtype=np.float32)
+        lower.append(i0)
+        weight.append((pos - i0).astype(np.float32))
+    coarse = np.ascontiguousarray(coarse, dtype=np.float32)
+    return upsample_rows_then_columns(coarse, lower[0], weight[0], lower[1], weight[1])
 
 
 def power_law_sizes(

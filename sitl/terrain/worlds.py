@@ -74,12 +74,14 @@ def clear_home(
     """Flatten the ground within ``radius`` of home (0, 0) and shift all heights so that
     h(0, 0) = 0. Beyond the radius the level blends back into the terrain over
     ``max(radius, 5 m)`` (a smoothstep), so no cliff is made at the clearing's edge."""
-    grid = np.asarray(grid, dtype=np.float32)
-    level = float(Terrain(grid, cell_size, origin).height(0.0, 0.0))
+    grid = np.ascontiguousarray(grid, dtype=np.float32)
+    # one view of the grid for every lookup below (it sees the in-place changes): each
+    # Terrain checks its whole grid when built
+    tmp = Terrain(grid, cell_size, origin)
+    level = float(tmp.height(0.0, 0.0))
     if radius > 0:
         blend = max(radius, 5.0)
         reach = radius + blend
-        tmp = Terrain(grid, cell_size, origin)
         rows, cols = tmp.window((-reach, reach, -reach, reach))
         xs, ys = tmp.coordinates()
         d = np.hypot(xs[cols][None, :], ys[rows][:, None])
@@ -94,5 +96,5 @@ def clear_home(
     grid -= np.float32(level)
     # Bilinear h(0, 0) is exactly 0 when the clearing covers the four neighbouring cells;
     # without a clearing subtract the remaining offset too.
-    grid -= np.float32(Terrain(grid, cell_size, origin).height(0.0, 0.0))
+    grid -= np.float32(tmp.height(0.0, 0.0))
     return grid

@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+import sitl.terrain.features as features
 import sitl.terrain.mars as mars
 from sitl.terrain import make_terrain
 from sitl.terrain.terrace_kernel import add_terrace, terrace_heights
@@ -51,3 +52,56 @@ def test_terrace_kernel_handles_overflowing_faces_exactly():
         _terrace_by_arrays(slow, xs, ys, *args)
         assert np.array_equal(fast.view(np.uint32), slow.view(np.uint32)), (steep, gentle)
         assert not np.array_equal(fast, ground)
+
+
+def _upsample_by_arrays(coarse, factor, shape):
+    """Bilinear upsampling as the relief did it before the kernel: one axis at a time with
+    whole-array temporaries."""
+    out = coarse
+    for axis, n in enumerate(shape):
+        pos = np.arange(n, dtype=np.float64) / factor
+        i0 = np.minimum(pos.astype(np.intp), coarse.shape[axis] - 2)
+        w = (pos - i0).astype(np.float32)
+        a = np.take(out, i0, axis=axis)
+        b = np.take(out, i0 + 1, axis=axis)
+        w = w[:, None] if axis == 0 else w[None, :]
+        out = a + w * (b - a)
+    return np.ascontiguousarray(out, dtype=np.float32)
+
+
+@pytest.mark.parametrize("world, seeds", [
+    ({"kind": "mars", "size": (200.0, 160.0), "cell_size": 0.2}, range(3)),  # 0.5 m relief
+    ({"kind": "rubble", "size": (120.0, 100.0), "cell_size": 0.1}, range(2)),  # 1 m piles
+    ({"kind": "rubble", "size": (150.0, 130.0), "cell_size": 0.3}, range(2)),  # 0.9 m
+])
+def test_coarse_reliefs_upsample_as_the_array_evaluation_bit_for_bit(world, seeds,
+                                                                      monkeypatch):
+    fast = [make_terrain(world, seed=s) for s in seeds]
+    monkeypatch.setattr(features, "_upsample", _upsample_by_arrays)
+    for seed, terrain in zip(seeds, fast, strict=True):
+        assert np.array_equal(_bits(terrain), _bits(make_terrain(world, seed=seed))), seed
+
+
+def test_upsampling_kernel_matches_the_array_evaluation_on_odd_shapes():
+    rng = np.random.default_rng(2)
+    for factor, shape in [(2, (7, 9)), (3, (20, 31)), (5, (101, 64)), (10, (33, 250))]:
+        small = tuple((n - 1 + factor - 1) // factor + 1 for n in shape)
+        coarse = rng.normal(0.0, 3.0, small).astype(np.float32)
+        fine = features._upsample(coarse, factor, shape)
+        assert fine.shape == shape and fine.dtype == np.float32
+        assert np.array_equal(fine.view(np.uint32),
+                              _upsample_by_arrays(coarse, factor, shape).view(np.uint32))
+
+
+def test_fractal_relief_is_the_same_with_its_spectrum_kept_between_worlds():
+    """The seed-independent amplitudes are kept for the next world: the surface of a seed is
+    the same whether they were computed for it or kept, and nobody can alter them."""
+    args = ((90, 70), 0.25, 1.5, 40.0, 3.2)
+    features._spectral_amplitude.cache_clear()
+    first = features.fractal_relief(*args, np.random.default_rng(4))
+    other = features.fractal_relief(*args, np.random.default_rng(5))
+    again = features.fractal_relief(*args, np.random.default_rng(4))
+    assert features._spectral_amplitude.cache_info().hits == 2
+    assert np.array_equal(first, again) and not np.array_equal(first, other)
+    with pytest.raises(ValueError):
+        features._spectral_amplitude(96, 36, 0.25, 40.0, 3.2)[0, 0] = 1.0
