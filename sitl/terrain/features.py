@@ -9,6 +9,8 @@ from collections.abc import Callable
 import numpy as np
 import scipy.fft
 
+from sitl.terrain.bilinear_kernel import upsample_rows_then_columns
+
 # Stamp half-sizes (cells) are rounded up to these levels so that features are stamped in
 # few batches; each batch is one vectorised operation.
 _LEVELS = np.unique(np.round(1.3 ** np.arange(40)).astype(np.intp))
@@ -70,8 +72,6 @@ def _spectral_amplitude(
 def _upsample(coarse: np.ndarray, factor: int, shape: tuple[int, int]) -> np.ndarray:
     """Bilinear interpolation of ``coarse`` (cell i at fine index i * factor) to ``shape``,
     one separable axis at a time: along the rows, then along the columns."""
-    from sitl.terrain.bilinear_kernel import upsample_rows_then_columns
-
     lower, weight = [], []
     for axis, n in enumerate(shape):
         pos = np.arange(n, dtype=np.float64) / factor
