@@ -39,7 +39,7 @@ PARTS = (
     ("sitl.sensors.march", "march_rays"),
     ("sitl.sensors.raycast", "tiles_needed"),
     ("sitl.sensors.raycast", "pixels_needed"),
-    ("sitl.sensors.camera", "_error_bounds"),
+    ("sitl.sensors.camera", "_deviates"),
     ("sitl.sensors.camera", "_sigma_and_noise"),
 )
 BANDS = ("50 m AGL and above", "15 to 50 m AGL", "below 15 m AGL")

@@ -89,19 +89,12 @@ def depth_sigma(depth: np.ndarray, focal_px: float, baseline: float, disparity_s
 
 
 @njit(cache=True, nogil=True)
-def _error_bounds(bins, quantiles, scale, below, above, deviates):
-    """Each pixel's standard normal deviate ``quantiles[bins[pixel]]`` into ``deviates``,
-    and how far its measured depth can fall below and rise above the true one, per unit
-    t**2: ``max(-deviate, 0) * scale`` and ``max(deviate, 0) * scale`` (float32)."""
-    zero = np.float32(0.0)
-    width = below.shape[1]
-    for i in range(below.shape[0]):
+def _deviates(bins, quantiles, out):
+    """Each pixel's standard normal deviate ``quantiles[bins[pixel]]`` into ``out``."""
+    width = out.shape[1]
+    for i in range(out.shape[0]):
         for j in range(width):
-            d = quantiles[bins[i * width + j]]
-            deviates[i, j] = d
-            b, a = -d, d
-            below[i, j] = (b if b >= zero else zero) * scale
-            above[i, j] = (a if a >= zero else zero) * scale
+            out[i, j] = quantiles[bins[i * width + j]]
 
 
 @njit(cache=True, nogil=True)
@@ -301,22 +294,18 @@ class DepthCamera:
         # Refined to 0.5 mm at full resolution, coarser with the level of detail.
         rays = self._pinhole_rays(yaw, rotation)
         tolerance = 5e-4 * 2**level
-        rendered = bins = deviates = None
-        if s.noise:  # each pixel's standard normal deviate's bin (drawn first: see below)
-            bins = _noise_bins(self.rng, s.width * s.height)
+        rendered = deviates = None
+        if s.noise:  # each pixel's standard normal deviate (drawn first: see below)
+            deviates = np.empty((s.height, s.width), np.float32)
+            _deviates(_noise_bins(self.rng, s.width * s.height), _NORMAL_QUANTILES, deviates)
         if region is None or self.terrain.moving is not None:
-            if bins is not None:
-                deviates = _NORMAL_QUANTILES.take(bins).reshape(s.height, s.width)
             depth = rays.cast(bounds, p, t_max=max_range, step=s.march_step, tolerance=tolerance)
         else:
             # Knowing the deviates bounds every measured depth about the true one t:
             # t + deviate * sigma(t), sigma(t) = t^2 sigma_d / (f b).
-            error = (0.0, 0.0)
-            if bins is not None:
-                scale = np.float32(s.disparity_sigma_px / (s.focal_px * baseline))
-                deviates = np.empty((s.height, s.width), np.float32)
-                error = (np.empty_like(deviates), np.empty_like(deviates))
-                _error_bounds(bins, _NORMAL_QUANTILES, scale, *error, deviates)
+            error = (np.float32(0.0), np.float32(0.0))
+            if deviates is not None:
+                error = (np.float32(s.disparity_sigma_px / (s.focal_px * baseline)), deviates)
             depth, rendered = rays.cast_within(
                 bounds, p, region, error, t_max=max_range, step=s.march_step,
                 tolerance=tolerance,

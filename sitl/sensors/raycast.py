@@ -381,7 +381,7 @@ class PinholeRays:
         bounds: HeightBounds,
         origin: np.ndarray,
         region: GroundRegion,
-        depth_error: tuple = (0.0, 0.0),
+        depth_error: tuple = (np.float32(0.0), np.float32(0.0)),
         t_max: float = np.inf,
         step: float | None = None,
         tolerance: float = _CLOSE,

@@ -46,7 +46,8 @@ def tiles_needed(
     start: tuple[float, float],
     ground: tuple[float, float, float],
     tile: int,
-    depth_error: tuple[np.ndarray | float, np.ndarray | float] = (0.0, 0.0),
+    depth_error: tuple[np.float32, np.ndarray | np.float32] = (np.float32(0.0),
+                                                              np.float32(0.0)),
 ) -> np.ndarray:
     """(rows, cols) bool: the image tiles to render for ``region``.
 
@@ -58,9 +59,11 @@ def tiles_needed(
         start: (u, v) of the camera in cell-centre coordinates.
         ground: (origin x, origin y, cell size) of those coordinates.
         tile: tile side, pixels.
-        depth_error: (below, above): a measured depth lies in ``[t - below * t**2,
-            t + above * t**2]`` for the true one ``t`` (a noise deviate times sigma / t**2);
-            scalars or per-pixel (H, W) arrays (the extremes of each tile count).
+        depth_error: (scale, deviates): a pixel's measured depth is ``t + deviate * scale
+            * t**2`` for the true one ``t`` (sigma / t**2 = scale), so it lies in ``[t -
+            below * t**2, t + above * t**2]`` with ``below = max(-deviate, 0) * scale``
+            and ``above = max(deviate, 0) * scale`` (float32 products); ``deviates`` a
+            scalar or per pixel (H, W) float32 (the extremes of each tile count).
 
     A tile is needed when the ground its rays can reach, at any parameter that the
     measured depths of the pixels within ``reach`` can average to (the depths its points
@@ -75,14 +78,19 @@ def tiles_needed(
            (region.y_min - y0) / cell, (region.y_max - y0) / cell)
     # The whole view first: when all the ground it can reach lies in the region, every
     # tile is needed (a low camera).
+    scale, deviates = np.float32(depth_error[0]), np.asarray(depth_error[1], np.float32)
     far = float(hi.max())
-    far += max(float(np.max(depth_error[1])), 0.0) * far * far + 0.01 + 1e-4 * far
+    far += max(float(_bound(np.max(deviates), scale)), 0.0) * far * far + 0.01 + 1e-4 * far
     if (u_o + min(float(du_min.min()) * far, 0.0) >= box[0]
             and u_o + max(float(du_max.max()) * far, 0.0) <= box[1]
             and v_o + min(float(dv_min.min()) * far, 0.0) >= box[2]
             and v_o + max(float(dv_max.max()) * far, 0.0) <= box[3]):
         return np.ones(lo.shape, dtype=bool)
-    below, above = (_per_tile(e, tile, lo.shape) for e in depth_error)
+    below, above = np.empty(lo.shape), np.empty(lo.shape)
+    if deviates.ndim == 0:
+        below[:], above[:] = _bound(-deviates, scale), _bound(deviates, scale)
+    else:
+        _tile_bounds(deviates, scale, tile, below, above)
     need = np.empty(lo.shape, dtype=bool)
     _needed(box, (u_o, v_o), -(-max(region.reach, 0) // tile), max(region.block, 1) // tile,
             du_min, du_max, dv_min, dv_max, lo, hi, below, above, need)
@@ -100,30 +108,33 @@ def pixels_needed(region: GroundRegion, need: np.ndarray, tile: int,
     return pixels.view(bool)
 
 
-def _per_tile(error, tile: int, shape: tuple[int, int]) -> np.ndarray:
-    """Per tile (float64): a scalar everywhere, or of per-pixel values each tile's largest
-    (tiles cut by the image edge included)."""
-    if np.ndim(error) == 0:
-        return np.full(shape, float(error))
-    out = np.empty(shape)
-    _tile_maxima(np.asarray(error), tile, out)
-    return out
+def _bound(deviate: np.float32, scale: np.float32) -> np.float32:
+    """How far (per unit t**2) a depth with this deviate lies beyond the true one on the
+    side where the deviate is positive: ``max(deviate, 0) * scale`` in float32."""
+    return max(deviate, np.float32(0.0)) * scale
 
 
 @njit(cache=True, nogil=True)
-def _tile_maxima(a, tile, out):
-    """The largest value of ``a`` in each ``tile`` x ``tile`` block, into ``out``."""
-    ny, nx = a.shape
-    for i in range(out.shape[0]):
+def _tile_bounds(deviates, scale, tile, below, above):
+    """Per ``tile`` x ``tile`` block of ``deviates`` (tiles cut by the image edge
+    included), the largest error below and above of its pixels (float64 of float32
+    products): ``max(-lowest, 0) * scale`` and ``max(highest, 0) * scale``, which are the
+    largest of the pixels' own (the products round monotonically)."""
+    ny, nx = deviates.shape
+    zero = np.float32(0.0)
+    for i in range(below.shape[0]):
         r0, r1 = i * tile, min((i + 1) * tile, ny)
-        for j in range(out.shape[1]):
+        for j in range(below.shape[1]):
             c0, c1 = j * tile, min((j + 1) * tile, nx)
-            best = a[r0, c0]
+            low = high = deviates[r0, c0]
             for r in range(r0, r1):
                 for c in range(c0, c1):
-                    x = a[r, c]
-                    best = x if x > best else best
-            out[i, j] = best
+                    x = deviates[r, c]
+                    low = x if x < low else low
+                    high = x if x > high else high
+            b = -low
+            below[i, j] = (b if b >= zero else zero) * scale
+            above[i, j] = (high if high >= zero else zero) * scale
 
 
 @njit(cache=True, nogil=True)
