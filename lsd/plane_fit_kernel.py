@@ -67,24 +67,30 @@ def _row_sums(values: np.ndarray, size: int, channels: int, out: np.ndarray) -> 
             out[k] = (values[k] + values[k + c] + values[k + 2 * c] + values[k + 3 * c]
                       + values[k + 4 * c])
     else:
+        # Through 2-D views (a cell per row) the running sums, four channels at a time in
+        # registers (four chains overlap), compile to half the time of flat indexing.
+        cells = n // c
+        v = values.reshape((cells + size - 1, c))
+        o = out.reshape((cells, c))
         for ch in range(c):
             s = 0.0
             for t in range(size):
-                s += values[t * c + ch]
-            out[ch] = s
-        # The running sums, four channels at a time in registers (four chains overlap).
-        ahead = size * c
+                s += v[t, ch]
+            o[0, ch] = s
         for g in range(0, c, 4):
-            s0, s1, s2, s3 = out[g], out[g + 1], out[g + 2], out[g + 3]
-            for k in range(g, n - c, c):
-                s0 += values[k + ahead] - values[k]
-                s1 += values[k + ahead + 1] - values[k + 1]
-                s2 += values[k + ahead + 2] - values[k + 2]
-                s3 += values[k + ahead + 3] - values[k + 3]
-                out[k + c] = s0
-                out[k + c + 1] = s1
-                out[k + c + 2] = s2
-                out[k + c + 3] = s3
+            s0, s1, s2, s3 = o[0, g], o[0, g + 1], o[0, g + 2], o[0, g + 3]
+            for k in range(1, cells):
+                entering = v[k - 1 + size]
+                leaving = v[k - 1]
+                s0 += entering[g] - leaving[g]
+                s1 += entering[g + 1] - leaving[g + 1]
+                s2 += entering[g + 2] - leaving[g + 2]
+                s3 += entering[g + 3] - leaving[g + 3]
+                row = o[k]
+                row[g] = s0
+                row[g + 1] = s1
+                row[g + 2] = s2
+                row[g + 3] = s3
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
