@@ -11,6 +11,7 @@ window size. The moments and the fit run in one compiled pass:
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import cv2
 import numpy as np
@@ -44,7 +45,7 @@ class PlaneFit:
 
     Attributes:
         height: fitted plane height at the cell centre, ENU z metres (NaN if no fit).
-        slope: inclination of the plane, radians (NaN if no fit).
+        gradient: the plane's rise per metre, ``tan(slope)`` (NaN if no fit).
         slope_error: approximate 1-sigma error of ``slope`` from the measurement noise, rad.
         roughness: weighted RMS residual of the fit with the part that measurement noise
             explains removed, ``sqrt(max(0, residual_var - noise_var))`` where ``noise_var``
@@ -60,7 +61,7 @@ class PlaneFit:
     """
 
     height: np.ndarray
-    slope: np.ndarray
+    gradient: np.ndarray
     slope_error: np.ndarray
     roughness: np.ndarray
     roughness_error: np.ndarray
@@ -68,6 +69,13 @@ class PlaneFit:
     step_error: np.ndarray
     sigma: np.ndarray
     observed_fraction: np.ndarray
+
+    @cached_property
+    def slope(self) -> np.ndarray:
+        """Inclination of the plane, radians (NaN if no fit): computed when first asked for
+        (the safe mask takes the arctangent only of the cells its other tests pass)."""
+        with np.errstate(invalid="ignore"):
+            return np.arctan(self.gradient)
 
 
 def fit_planes(
@@ -119,17 +127,16 @@ def fit_planes(
         none if cell_variance is None else np.ascontiguousarray(cell_variance, np.float64),
         ref, float(resolution), half, float(tolerance), *out,
     )
-    # The gradient's magnitude and slope by OpenCV and numpy (their own approximations,
-    # which the kernel does not repeat).
+    # The gradient's magnitude by OpenCV (its own approximation, which the kernel does not
+    # repeat); the slope is numpy's arctangent of it (PlaneFit.slope).
     gradient = cv2.magnitude(b, c)
     with np.errstate(invalid="ignore"):
-        slope = np.arctan(gradient)
-        np.multiply(gradient, gradient, out=gradient)
-        gradient += f32(1.0)
-        slope_error /= gradient
+        np.multiply(gradient, gradient, out=b)
+        b += f32(1.0)
+        slope_error /= b
     return PlaneFit(
         height=plane,
-        slope=slope,
+        gradient=gradient,
         slope_error=slope_error,
         roughness=roughness,
         roughness_error=roughness_error,

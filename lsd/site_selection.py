@@ -84,11 +84,16 @@ def safe_mask(fit: PlaneFit, settings: DetectorSettings, hazard: np.ndarray) -> 
     with np.errstate(invalid="ignore"):
         safe = (
             (fit.observed_fraction >= settings.min_observed_fraction)
-            & (fit.slope - k * fit.slope_error <= settings.max_slope_rad)
             & (fit.roughness**2 - k * fit.roughness_error <= settings.max_roughness**2)
             & (fit.sigma <= settings.max_uncertainty)
             & ~hazard
         )
+        # The slope (an arctangent per cell, the dearest test) only where the rest pass:
+        # each cell's test is the same elementwise operations on its own values.
+        cells = np.flatnonzero(safe)
+        slope = np.arctan(np.take(fit.gradient, cells))
+        slope -= k * np.take(fit.slope_error, cells)
+        np.put(safe, cells, slope <= settings.max_slope_rad)
     safe[0, :] = safe[-1, :] = False
     safe[:, 0] = safe[:, -1] = False
     return safe

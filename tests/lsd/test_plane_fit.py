@@ -58,3 +58,30 @@ def test_window_sums_are_opencvs_box_filter_bit_for_bit(shape, radius):
     ok = np.isfinite(fit.sigma)
     assert ok.sum() > 0.5 * ok.size
     assert np.array_equal(fit.sigma[ok], expected_sigma[ok])
+
+
+def test_safe_mask_tests_the_slope_of_every_cell_the_other_limits_pass():
+    from lsd.elevation.settings import DetectorSettings
+    from lsd.site_selection import safe_mask
+
+    height, variance = _map((60, 50), 5)
+    height += np.random.default_rng(6).normal(0.0, 0.03, height.shape)  # some rough windows
+    fit = fit_planes(height, variance, 0.1, 0.5)
+    settings = DetectorSettings(max_slope=13.0, max_roughness=0.03, noise_tolerance=1.0)
+    hazard = np.zeros(height.shape, bool)
+    hazard[10:20, 10:30] = True
+    safe = safe_mask(fit, settings, hazard)
+    k = settings.noise_tolerance
+    with np.errstate(invalid="ignore"):
+        rest = (
+            (fit.observed_fraction >= settings.min_observed_fraction)
+            & (fit.roughness**2 - k * fit.roughness_error <= settings.max_roughness**2)
+            & (fit.sigma <= settings.max_uncertainty)
+            & ~hazard
+        )
+        gentle = np.arctan(fit.gradient) - k * fit.slope_error <= settings.max_slope_rad
+    rest[[0, -1], :] = rest[:, [0, -1]] = False
+    # The slope limit alone rules out many cells that pass every other test.
+    assert (rest & gentle).sum() > 50 and (rest & ~gentle).sum() > 50
+    assert np.array_equal(safe, rest & gentle)
+    assert np.array_equal(fit.slope, np.arctan(fit.gradient), equal_nan=True)
