@@ -16,7 +16,7 @@ from functools import cached_property
 import cv2
 import numpy as np
 
-from lsd.plane_fit_kernel import fit_rows
+from lsd.plane_fit_kernel import fit_rows, reference_height
 
 
 def copy_where(dst: np.ndarray, src: np.ndarray | float, mask: np.ndarray) -> np.ndarray:
@@ -112,12 +112,7 @@ def fit_planes(
     # Heights from a reference and coordinates from the grid centre keep the moments small
     # enough for single precision (the window sums are double). Any height near the data
     # will do as the reference: the median of an even subsample of the grid.
-    stride = max(1, int(np.sqrt(height.size / 4096)))
-    sample = height[::stride, ::stride]
-    sample = sample[np.isfinite(sample)]
-    if len(sample) == 0:
-        sample = height[np.isfinite(height)]
-    ref = float(np.median(sample)) if len(sample) else 0.0
+    ref = reference_height(height, max(1, int(np.sqrt(height.size / 4096))))
     none = np.zeros((0, 0))
     out = [np.empty(height.shape, f32) for _ in range(10)]
     b, c, plane, slope_error, roughness, roughness_error, step, step_error, sigma, frac = out

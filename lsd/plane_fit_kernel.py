@@ -155,6 +155,32 @@ def _load(height, variance, cell_variance, r, x_of, y_of, f_ref, half, size, pad
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
+def reference_height(height: np.ndarray, stride: int) -> float:
+    """The median of the finite heights of every ``stride``-th row and column (of all the
+    finite heights when none of those is; 0 when none is): numpy's median of the same values
+    (the middle one, or the mean of the middle two, which are the same order statistics
+    whichever way they are found)."""
+    n0, n1 = height.shape
+    sample = np.empty(((n0 + stride - 1) // stride) * ((n1 + stride - 1) // stride))
+    count = 0
+    for i in range(0, n0, stride):
+        for j in range(0, n1, stride):
+            if np.isfinite(height[i, j]):
+                sample[count] = height[i, j]
+                count += 1
+    if count == 0:
+        sample = np.empty(n0 * n1)
+        for i in range(n0):
+            for j in range(n1):
+                if np.isfinite(height[i, j]):
+                    sample[count] = height[i, j]
+                    count += 1
+        if count == 0:
+            return 0.0
+    return np.median(sample[:count])
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
 def fit_rows(
     height, variance, top, cell_variance, ref, resolution, half, tolerance,
     b_out, c_out, plane_out, slope_error_out, roughness_out, roughness_error_out,

@@ -85,3 +85,18 @@ def test_safe_mask_tests_the_slope_of_every_cell_the_other_limits_pass():
     assert (rest & gentle).sum() > 50 and (rest & ~gentle).sum() > 50
     assert np.array_equal(safe, rest & gentle)
     assert np.array_equal(fit.slope, np.arctan(fit.gradient), equal_nan=True)
+
+
+def test_reference_height_is_numpys_median_of_the_finite_subsample():
+    from lsd.plane_fit_kernel import reference_height
+
+    rng = np.random.default_rng(9)
+    for shape, stride, hidden in [((64, 61), 3, 0.4), ((20, 9), 2, 0.0), ((9, 9), 4, 0.97)]:
+        height = np.round(rng.normal(5.0, 2.0, shape), 1)  # ties among the middle values
+        height[rng.random(shape) < hidden] = np.nan
+        sample = height[::stride, ::stride]
+        sample = sample[np.isfinite(sample)]
+        if len(sample) == 0:
+            sample = height[np.isfinite(height)]
+        assert reference_height(height, stride) == np.median(sample)
+    assert reference_height(np.full((4, 4), np.nan), 2) == 0.0
