@@ -10,6 +10,7 @@ import numpy as np
 from numba import njit
 from scipy import ndimage
 
+from lsd.distance_transform import distance_to_outside
 from lsd.elevation.settings import DetectorSettings
 from lsd.plane_fit import PlaneFit
 
@@ -102,26 +103,16 @@ def safe_mask(fit: PlaneFit, settings: DetectorSettings, hazard: np.ndarray) -> 
 def site_size(safe: np.ndarray, resolution: float) -> np.ndarray:
     """(n, n) radius in metres of the largest circle of safe cells centred on each cell.
 
-    One exact Euclidean distance transform of the safe mask (:func:`cv2.distanceTransform`,
-    precise mask): distance from the cell centre to the nearest unsafe cell centre, less half
-    a cell (to that cell's near edge). 0 where unsafe. Cells beyond the grid count as unsafe
-    only through the grid's own border cells.
+    One exact Euclidean distance transform of the safe mask
+    (:func:`lsd.distance_transform.distance_to_outside`, in whole squared cells, so the same
+    on every call and ties between sites break the same way): distance from the cell centre
+    to the nearest unsafe cell centre, less half a cell (to that cell's near edge). 0 where
+    unsafe. Cells beyond the grid count as unsafe only through the grid's own border cells.
     """
     safe = np.asarray(safe, dtype=bool)
     if safe.all():  # no unsafe cell at all: as scipy's transform, distance to the border
         return np.asarray(ndimage.distance_transform_edt(safe) - 0.5, np.float64) * resolution
-    distance = cv2.distanceTransform(safe.view(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
-    # OpenCV's exact transform is not reproducible in its last bits from call to call,
-    # which can flip ties between sites; its squares are whole numbers (cells squared),
-    # so rounding them gives the same distances every time.
-    np.multiply(distance, distance, out=distance)
-    np.rint(distance, out=distance)
-    np.sqrt(distance, out=distance)
-    # Unsafe cells are at distance 0, so they come out as 0.
-    size = np.subtract(distance, np.float32(0.5), dtype=np.float64)
-    np.maximum(size, 0.0, out=size)
-    size *= resolution
-    return size
+    return distance_to_outside(safe, float(resolution))
 
 
 def obstacle_altitude(

@@ -36,3 +36,19 @@ def test_step_room_is_the_distance_to_the_nearest_step_beyond_max_step():
     i, j = np.indices(step.shape)
     exact = np.maximum(np.hypot(i - 20, j - 10) - 0.5, 0.0) * 0.1
     np.testing.assert_allclose(room, exact, atol=1e-5)
+
+
+def test_site_size_is_scipys_exact_distance_in_whole_squared_cells():
+    # Masks from scattered unsafe cells to a lone one, on grids of odd shapes.
+    rng = np.random.default_rng(8)
+    for shape, share in [((64, 45), 0.5), ((37, 80), 0.05), ((50, 50), 0.002), ((1, 30), 0.2)]:
+        safe = rng.random(shape) >= share
+        safe.flat[rng.integers(safe.size)] = False
+        resolution = 0.1
+        # scipy's nearest unsafe cell gives the squared distance as a whole number.
+        index = ndimage.distance_transform_edt(safe, return_distances=False, return_indices=True)
+        i, j = np.indices(shape)
+        squared = (index[0] - i) ** 2 + (index[1] - j) ** 2
+        root = np.sqrt(squared.astype(np.float32)).astype(np.float64)
+        expected = np.maximum(root - 0.5, 0.0) * resolution
+        assert np.array_equal(site_size(safe, resolution), expected)
