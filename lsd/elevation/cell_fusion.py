@@ -35,21 +35,37 @@ def _nan_min(a: float, b: float) -> float:
     return a if a <= b else b
 
 
+_KEEP = 8  # most values kept by _kth_smallest's list; beyond, a sort
+
+
 @njit(cache=True, nogil=True, error_model="numpy")
-def _kth_smallest(values: np.ndarray, a: int, b: int, k: int) -> int:
-    """The ``k``-th smallest (0-based) of ``values[a:b]``, which it reorders."""
-    if b - a <= 32:  # insertion sort: cells mostly hold a few points
-        for q in range(a + 1, b):
-            v = values[q]
-            r = q - 1
-            while r >= a and values[r] > v:
-                values[r + 1] = values[r]
-                r -= 1
-            values[r + 1] = v
-        return values[a + k]
-    part = values[a:b]
-    part.sort()
-    return part[k]
+def _kth_smallest(values: np.ndarray, a: int, b: int, k: int, largest: np.ndarray) -> int:
+    """The ``k``-th smallest (0-based) of ``values[a:b]``, which it may reorder.
+
+    A cell's top is near the largest of its points: the ``b - a - k`` largest are kept in a
+    short descending list as the points are read (one comparison for most), and the
+    smallest of them is the answer (the same order statistic as a sort gives). ``largest``:
+    work space of ``_KEEP`` values."""
+    keep = b - a - k
+    if keep > _KEEP:
+        part = values[a:b]
+        part.sort()
+        return part[k]
+    held = 0
+    for q in range(a, b):
+        v = values[q]
+        if held == keep:
+            if v <= largest[keep - 1]:
+                continue
+            r = keep - 1  # the smallest kept value leaves
+        else:
+            r = held
+            held += 1
+        while r > 0 and largest[r - 1] < v:
+            largest[r] = largest[r - 1]
+            r -= 1
+        largest[r] = v
+    return largest[keep - 1]
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -157,6 +173,7 @@ def fuse_cells(
         # No levels with a NaN height (its cells' heights are NaN anyway).
         levels[q] = 0 if z_nan else min(np.int64((z[k] - low_z) * inv_quantum), top_level)
 
+    largest = np.empty(_KEEP, np.int64)
     for c in range(span_cells):
         a, b = start[c], start[c + 1]
         if a == b:
@@ -171,7 +188,7 @@ def fuse_cells(
             v_cell += v_of[q]
         m = b - a
         pick = np.int64(TOP_QUANTILE * (m - 1))
-        percentile = z_lo + _kth_smallest(levels, a, b, pick) * quantum
+        percentile = z_lo + _kth_smallest(levels, a, b, pick, largest) * quantum
         meas = wz_cell / w_cell
         point_var = v_cell / m
         meas_top = _nan_max(percentile - TOP_NOISE_LIFT * np.sqrt(point_var), meas)
