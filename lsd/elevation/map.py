@@ -13,6 +13,7 @@ import math
 
 import cv2
 import numpy as np
+from numba import njit
 
 from lsd.elevation.cell_fusion import forget_cells, fuse_cells
 from lsd.elevation.settings import ElevationMapSettings
@@ -282,8 +283,9 @@ def pooled_level(
         empty = np.full((n0 // factor, n1 // factor), np.nan)
         inf = np.full_like(empty, np.inf)
         return empty, inf, empty.copy(), inf.copy(), np.zeros_like(empty)
-    # Heights from a reference keep the sums exact enough in single precision.
-    ref = float(mean[~hidden].flat[0])
+    # Heights from a reference keep the sums exact enough in single precision: the first
+    # observed cell's (row by row).
+    ref = float(mean.flat[int(np.argmin(hidden))])
     var = variance.astype(f32)
     weight = np.divide(f32(1.0), var)  # 0 where unobserved (infinite variance)
     copy_where(var, 0.0, hidden)
@@ -313,7 +315,26 @@ def pooled_level(
     copy_where(pooled_var, np.inf, empty)
     copy_where(cell_var, np.inf, empty)
     np.maximum(pooled_top, pooled_mean, out=pooled_top)
-    looks = closest.astype(f32)
-    copy_where(looks, 0.0, np.isinf(looks))
-    pooled_looks = looks.reshape(n0 // factor, factor, n1 // factor, factor).max(axis=(1, 3))
-    return pooled_mean, pooled_var, pooled_top, cell_var, pooled_looks.astype(np.float64)
+    return pooled_mean, pooled_var, pooled_top, cell_var, _block_looks(closest, factor)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _block_looks(closest: np.ndarray, factor: int) -> np.ndarray:
+    """(n / factor, m / factor) float64: each block's largest ``closest`` in single
+    precision, unobserved (infinite) cells counting as 0 and NaN winning (numpy's max)."""
+    n0, n1 = closest.shape
+    out = np.zeros((n0 // factor, n1 // factor))
+    for a in range(n0 // factor):
+        for b in range(n1 // factor):
+            best = np.float32(-np.inf)
+            for i in range(a * factor, (a + 1) * factor):
+                for j in range(b * factor, (b + 1) * factor):
+                    v = np.float32(closest[i, j])
+                    if np.isinf(v):
+                        v = np.float32(0.0)
+                    if v != v or best != best:
+                        best = np.float32(np.nan)
+                    elif v > best:
+                        best = v
+            out[a, b] = best
+    return out

@@ -41,6 +41,22 @@ def test_pooled_level_combines_blocks_by_inverse_variance():
     assert math.isnan(pooled_top[0, 1]) and looks[0, 1] == 0.0
 
 
+def test_pooled_looks_are_each_blocks_farthest_look_in_single_precision():
+    rng = np.random.default_rng(12)
+    shape = (24, 36)
+    mean = rng.normal(5.0, 1.0, shape)
+    closest = rng.uniform(1.0, 90.0, shape)
+    hidden = rng.random(shape) < 0.4
+    hidden[:4, :4] = True  # a block with no observed cell
+    mean[hidden] = np.nan
+    closest[hidden] = np.inf
+    variance = np.where(hidden, np.inf, 0.01)
+    looks = pooled_level(mean, variance, mean, closest, 4)[4]
+    single = np.where(np.isinf(closest), 0.0, closest).astype(np.float32)
+    expected = single.reshape(6, 4, 9, 4).max(axis=(1, 3)).astype(np.float64)
+    assert np.array_equal(looks, expected) and looks[0, 0] == 0.0
+
+
 def test_a_high_camera_analyses_coarser_cells_and_a_low_one_does_not():
     settings = DetectorSettings()
     detector = ElevationDetector(settings=settings)
