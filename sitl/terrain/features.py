@@ -136,12 +136,7 @@ def stamp(
         return
     ny, nx = layer.shape
     flat = layer.reshape(-1)
-    col = np.rint((centers[:, 0] - origin[0]) / cell_size).astype(np.intp)
-    row = np.rint((centers[:, 1] - origin[1]) / cell_size).astype(np.intp)
-    half = np.ceil(np.asarray(reach, dtype=np.float64) / cell_size).astype(np.intp)
-    half = _LEVELS[np.minimum(np.searchsorted(_LEVELS, half), len(_LEVELS) - 1)]
-    # Features wholly outside the grid are skipped.
-    touch = (col + half >= 0) & (col - half < nx) & (row + half >= 0) & (row - half < ny)
+    row, col, half, touch = stamp_boxes(layer.shape, origin, cell_size, centers, reach)
     for k in np.unique(half[touch]):
         members = np.flatnonzero(touch & (half == k))
         offsets = np.arange(-k, k + 1)
@@ -157,6 +152,26 @@ def stamp(
             keep = (rows >= 0) & (rows < ny) & (cols >= 0) & (cols < nx) & np.isfinite(values)
             rows, cols = np.broadcast_arrays(rows, cols)
             combine.at(flat, rows[keep] * nx + cols[keep], values[keep].astype(np.float32))
+
+
+def stamp_boxes(
+    shape: tuple[int, int],
+    origin: tuple[float, float],
+    cell_size: float,
+    centers: np.ndarray,
+    reach: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The square of cells :func:`stamp` evaluates each feature on: (row, col) of its
+    centre cell, its half-size in cells, and whether it touches the grid (all (n,))."""
+    ny, nx = shape
+    centers = np.asarray(centers, dtype=np.float64).reshape(-1, 2)
+    col = np.rint((centers[:, 0] - origin[0]) / cell_size).astype(np.intp)
+    row = np.rint((centers[:, 1] - origin[1]) / cell_size).astype(np.intp)
+    half = np.ceil(np.asarray(reach, dtype=np.float64) / cell_size).astype(np.intp)
+    half = _LEVELS[np.minimum(np.searchsorted(_LEVELS, half), len(_LEVELS) - 1)]
+    # Features wholly outside the grid are skipped.
+    touch = (col + half >= 0) & (col - half < nx) & (row + half >= 0) & (row - half < ny)
+    return row, col, half, touch
 
 
 def smoothstep_edge(u: np.ndarray, width: float) -> np.ndarray:

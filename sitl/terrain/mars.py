@@ -12,6 +12,7 @@ from sitl.terrain.features import (
     stamp,
 )
 from sitl.terrain.settings import MarsTerrainSettings
+from sitl.terrain.stamp_kernels import stamp_ellipses
 from sitl.terrain.terrace_kernel import add_terrace
 from sitl.terrain.worlds import home_keep_out, procedural_frame
 
@@ -99,18 +100,8 @@ def _add_rocks(grid, origin, cs, extent, settings: MarsTerrainSettings, rng) -> 
     a = diameter / 2
     b = a * rng.uniform(0.6, 1.0, len(centers))
     angle = rng.uniform(0, np.pi, len(centers))
-    cos, sin = np.cos(angle), np.sin(angle)
-
-    def profile(dx, dy, index):
-        c = cos[index, None, None]
-        s = sin[index, None, None]
-        u = (c * dx + s * dy) / a[index, None, None]
-        v = (-s * dx + c * dy) / b[index, None, None]
-        q = 1.0 - u * u - v * v
-        return np.where(q > 0, height[index, None, None] * np.sqrt(np.maximum(q, 0)), np.nan)
-
     rocks = np.zeros_like(grid)
-    stamp(rocks, origin, cs, centers, a, profile, combine=np.maximum)
+    stamp_ellipses(rocks, origin, cs, centers, np.cos(angle), np.sin(angle), a, b, height)
     grid += rocks
 
 

@@ -5,8 +5,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from sitl.terrain.features import fractal_relief, poisson_points, power_law_sizes, stamp
+from sitl.terrain.features import fractal_relief, poisson_points, power_law_sizes
 from sitl.terrain.settings import RubbleTerrainSettings
+from sitl.terrain.stamp_kernels import stamp_boxes_flat, stamp_mounds
 from sitl.terrain.worlds import home_keep_out, procedural_frame
 
 # Blocks away from piles, as a fraction of the density near them.
@@ -31,13 +32,9 @@ def generate(
     away = np.hypot(*piles.T) > keep_out + pile_r
     piles, pile_r, pile_h = piles[away], pile_r[away], pile_h[away]
 
-    def mound(dx, dy, index):
-        # (1 - r^2)^2: a rounded mound, flat-topped at its centre, meeting the ground level.
-        q = 1.0 - (dx * dx + dy * dy) / pile_r[index, None, None] ** 2
-        return np.where(q > 0, pile_h[index, None, None] * q * q, np.nan)
-
+    # (1 - r^2)^2: a rounded mound, flat-topped at its centre, meeting the ground level.
     pile_layer = np.zeros_like(grid)
-    stamp(pile_layer, origin, cs, piles, pile_r, mound, combine=np.maximum)
+    stamp_mounds(pile_layer, origin, cs, piles, pile_r, pile_h)
     # ... with a rough surface of broken material.
     texture = fractal_relief(shape, cs, 0.25, 6.0, 2.6, rng)
     grid += pile_layer + texture * np.clip(pile_layer / 0.3, 0.0, 1.0)
@@ -54,20 +51,9 @@ def generate(
     aspect = rng.uniform(0.4, 1.0, len(blocks))
     block_h = side * rng.uniform(0.3, 0.7, len(blocks))
     angle = rng.uniform(0, np.pi, len(blocks))
-    cos, sin = np.cos(angle), np.sin(angle)
     base = grid[row[keep], col[keep]]
-
-    def box(dx, dy, index):
-        c = cos[index, None, None]
-        s = sin[index, None, None]
-        u = np.abs(c * dx + s * dy)
-        v = np.abs(-s * dx + c * dy)
-        inside = (u <= side[index, None, None] / 2) & (
-            v <= aspect[index, None, None] * side[index, None, None] / 2
-        )
-        return np.where(inside, base[index, None, None] + block_h[index, None, None], np.nan)
-
-    stamp(grid, origin, cs, blocks, side / np.sqrt(2), box, combine=np.maximum)
+    stamp_boxes_flat(grid, origin, cs, blocks, side / np.sqrt(2), np.cos(angle), np.sin(angle),
+                     side / 2, aspect * side / 2, base + block_h)
 
     # Flat slabs: tilted planar rectangles laid over whatever is below them.
     slabs = poisson_points(settings.slab_density * 1e-4, extent, rng)

@@ -8,6 +8,7 @@ import pytest
 
 import sitl.terrain.features as features
 import sitl.terrain.mars as mars
+import sitl.terrain.rubble as rubble
 from sitl.terrain import make_terrain
 from sitl.terrain.terrace_kernel import add_terrace, terrace_heights
 
@@ -105,3 +106,51 @@ def test_fractal_relief_is_the_same_with_its_spectrum_kept_between_worlds():
     assert np.array_equal(first, again) and not np.array_equal(first, other)
     with pytest.raises(ValueError):
         features._spectral_amplitude(96, 36, 0.25, 40.0, 3.2)[0, 0] = 1.0
+
+
+# The array profiles the compiled stamps replace, stamped by features.stamp.
+def _ellipses_by_arrays(layer, origin, cs, centers, cos, sin, a, b, height):
+    def profile(dx, dy, index):
+        c = cos[index, None, None]
+        s = sin[index, None, None]
+        u = (c * dx + s * dy) / a[index, None, None]
+        v = (-s * dx + c * dy) / b[index, None, None]
+        q = 1.0 - u * u - v * v
+        return np.where(q > 0, height[index, None, None] * np.sqrt(np.maximum(q, 0)), np.nan)
+
+    features.stamp(layer, origin, cs, centers, a, profile, combine=np.maximum)
+
+
+def _mounds_by_arrays(layer, origin, cs, centers, radius, height):
+    def mound(dx, dy, index):
+        q = 1.0 - (dx * dx + dy * dy) / radius[index, None, None] ** 2
+        return np.where(q > 0, height[index, None, None] * q * q, np.nan)
+
+    features.stamp(layer, origin, cs, centers, radius, mound, combine=np.maximum)
+
+
+def _boxes_by_arrays(layer, origin, cs, centers, reach, cos, sin, length, width, top):
+    def box(dx, dy, index):
+        c = cos[index, None, None]
+        s = sin[index, None, None]
+        inside = (np.abs(c * dx + s * dy) <= length[index, None, None]) & (
+            np.abs(-s * dx + c * dy) <= width[index, None, None])
+        return np.where(inside, top[index, None, None], np.nan)
+
+    features.stamp(layer, origin, cs, centers, reach, box, combine=np.maximum)
+
+
+@pytest.mark.parametrize("world, seeds", [
+    ({"kind": "mars", "size": (200.0, 160.0), "cell_size": 0.2}, range(3)),
+    ({"kind": "mars", "size": (120.0, 100.0), "cell_size": 0.1, "rock_density": 0.2,
+      "rock_diameter": (0.2, 3.0)}, range(2)),
+    ({"kind": "rubble", "size": (160.0, 120.0), "cell_size": 0.2}, range(3)),
+    ({"kind": "rubble", "size": (100.0, 100.0), "cell_size": 0.35}, range(2)),
+])
+def test_compiled_stamps_are_the_array_profiles_bit_for_bit(world, seeds, monkeypatch):
+    fast = [make_terrain(world, seed=s) for s in seeds]
+    monkeypatch.setattr(mars, "stamp_ellipses", _ellipses_by_arrays)
+    monkeypatch.setattr(rubble, "stamp_mounds", _mounds_by_arrays)
+    monkeypatch.setattr(rubble, "stamp_boxes_flat", _boxes_by_arrays)
+    for seed, terrain in zip(seeds, fast, strict=True):
+        assert np.array_equal(_bits(terrain), _bits(make_terrain(world, seed=seed))), seed
