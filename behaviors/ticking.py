@@ -14,7 +14,8 @@ py_trees visitor, the flight's case; see :class:`behaviors.tree.MissionTree`) ne
 the nodes a tick yields, and a generator per node per tick was a third of the tick. ``run``
 makes the same calls in the same order as draining ``tick`` (tests/behaviors/test_ticking.py).
 ``stop`` no longer makes the fresh, never-started ``tick`` generator py_trees stores in
-``iterator`` on every stop (nothing reads it).
+``iterator`` on every stop (nothing reads it), and ``run`` and ``stop`` skip the calls of
+``initialise`` and ``terminate`` a class does not override (py_trees' own do nothing).
 """
 
 from __future__ import annotations
@@ -47,12 +48,20 @@ def _conclude(node: Behaviour, new_status: Status) -> None:
 
 class Direct:
     """What the classes here share: ``run``, their tick without yielding. A subclass that
-    writes its own ``tick`` (and no ``run``) is run through that ``tick``."""
+    writes its own ``tick`` (and no ``run``) is run through that ``tick``.
+
+    ``_initialises`` and ``_terminates`` say whether the class has an ``initialise`` or a
+    ``terminate`` of its own; py_trees' are empty, and calling them is skipped."""
+
+    _initialises = True
+    _terminates = True
 
     def __init_subclass__(cls, **kwargs) -> None:
         super().__init_subclass__(**kwargs)
         if "tick" in cls.__dict__ and "run" not in cls.__dict__:
             cls.run = _drain
+        cls._initialises = cls.initialise is not Behaviour.initialise
+        cls._terminates = cls.terminate is not Behaviour.terminate
 
     def run(self) -> None:  # pragma: no cover - every class here defines its own
         _drain(self)
@@ -82,12 +91,20 @@ class QuietBehaviour(Direct, Behaviour):
         yield self
 
     def run(self) -> None:
-        if self.status != _RUNNING:
+        if self.status is not _RUNNING and self._initialises:
             self.initialise()
-        _conclude(self, self.update())
+        status = self.update()
+        if status is _RUNNING:
+            self.status = status
+        elif status is _SUCCESS or status is _FAILURE:
+            self.stop(status)
+            self.status = status
+        else:
+            _conclude(self, status)
 
     def stop(self, new_status: Status) -> None:
-        self.terminate(new_status)
+        if self._terminates:
+            self.terminate(new_status)
         self.status = new_status
 
 
@@ -102,13 +119,18 @@ class QuietDecorator(Direct, py_trees.decorators.Decorator):
         yield self
 
     def run(self) -> None:
-        if self.status != _RUNNING:
+        if self.status is not _RUNNING and self._initialises:
             self.initialise()
-        run(self.decorated)
+        decorated = self.decorated
+        if isinstance(decorated, Direct):
+            decorated.run()
+        else:
+            _drain(decorated)
         _conclude(self, self.update())
 
     def stop(self, new_status: Status) -> None:
-        self.terminate(new_status)
+        if self._terminates:
+            self.terminate(new_status)
         if new_status == _INVALID:
             self.decorated.stop(new_status)
         if self.decorated.status == _RUNNING:
@@ -131,7 +153,8 @@ def _stop_composite(node: py_trees.composites.Composite, new_status: Status) -> 
         for child in node.children:
             if child.status != _INVALID:
                 child.stop(new_status)
-    node.terminate(new_status)
+    if node._terminates:
+        node.terminate(new_status)
     node.status = new_status
 
 
@@ -181,9 +204,10 @@ class Selector(Direct, py_trees.composites.Selector):
 
     def run(self) -> None:
         children = self.children
-        if self.status != _RUNNING:
+        if self.status is not _RUNNING:
             self.current_child = children[0] if children else None
-            self.initialise()
+            if self._initialises:
+                self.initialise()
         if not children:
             self.current_child = None
             self.stop(_FAILURE)
@@ -197,9 +221,12 @@ class Selector(Direct, py_trees.composites.Selector):
         else:
             index = 0
         previous = self.current_child
-        for child in itertools.islice(children, index, None):
-            run(child)
-            if child.status == _RUNNING or child.status == _SUCCESS:
+        for child in itertools.islice(children, index, None) if index else children:
+            if isinstance(child, Direct):
+                child.run()
+            else:
+                _drain(child)
+            if child.status is _RUNNING or child.status is _SUCCESS:
                 self.current_child = child
                 if previous is None or previous != self.current_child:
                     # Interrupted: invalidate everything at a lower priority.
@@ -265,12 +292,13 @@ class Sequence(Direct, py_trees.composites.Sequence):
     def run(self) -> None:
         children = self.children
         index = 0
-        if self.status != _RUNNING:
+        if self.status is not _RUNNING:
             self.current_child = children[0] if children else None
             for child in children:
-                if child.status != _INVALID:
+                if child.status is not _INVALID:
                     child.stop(_INVALID)
-            self.initialise()
+            if self._initialises:
+                self.initialise()
         elif self.memory and self.current_child is not None:
             index = children.index(self.current_child)
         else:
@@ -279,9 +307,12 @@ class Sequence(Direct, py_trees.composites.Sequence):
             self.current_child = None
             self.stop(_SUCCESS)
             return
-        for child in itertools.islice(children, index, None):
-            run(child)
-            if child.status != _SUCCESS:
+        for child in itertools.islice(children, index, None) if index else children:
+            if isinstance(child, Direct):
+                child.run()
+            else:
+                _drain(child)
+            if child.status is not _SUCCESS:
                 if not self.memory:
                     # Kill dangling runners after it.
                     for other in itertools.islice(children, index + 1, None):
