@@ -662,6 +662,9 @@ class LandingSiteManager:
             except Exception:
                 reasons[i] = "malformed"
                 rows.append((0.0,) * 9)
+        if n < _SMALL_BATCH and all(type(v) is float for row in rows for v in row):
+            return np.array(rows, dtype=np.float64).reshape(n, 9), self._small_reasons(
+                rows, reasons)
         try:
             vals = np.array(rows, dtype=np.float64).reshape(n, 9)
         except (TypeError, ValueError):
@@ -705,6 +708,38 @@ class LandingSiteManager:
                 if reasons[i] is None:
                     reasons[i] = "beyond_max_distance"
         return vals, reasons
+
+    def _small_reasons(self, rows: list[tuple], reasons: list[str | None]) -> list[str | None]:
+        """:meth:`_validate`'s verdicts for a few rows of Python floats, row by row: the
+        same checks in the same order on the same doubles (numpy's per-call cost is most
+        of the vectorised checks of a handful of rows)."""
+        finite = math.isfinite
+        bans = self._bans.tolist() if len(self._bans) else ()
+        drone = self._drone
+        limit = self.settings.max_distance
+        for i, row in enumerate(rows):
+            if reasons[i] is not None:
+                continue
+            x, y, z, rough, unc, size, _, obs_alt, _ = row
+            if not all(finite(v) for v in row):
+                reasons[i] = "non_finite"
+            elif abs(x) > _MAX_COORDINATE or abs(y) > _MAX_COORDINATE or abs(
+                    z) > _MAX_COORDINATE:
+                reasons[i] = "position_out_of_range"
+            elif rough < 0 or rough > 1:
+                reasons[i] = "roughness_out_of_range"
+            elif unc < 0 or unc > 1:
+                reasons[i] = "uncertainty_out_of_range"
+            elif size < 0:
+                reasons[i] = "negative_size"
+            elif obs_alt < 0:
+                reasons[i] = "negative_observation_altitude"
+            elif any((x - bx) * (x - bx) + (y - by) * (y - by) <= r * r for bx, by, r in bans):
+                reasons[i] = "banned_zone"
+            elif drone is not None and math.sqrt(
+                    (x - drone[0]) * (x - drone[0]) + (y - drone[1]) * (y - drone[1])) > limit:
+                reasons[i] = "beyond_max_distance"
+        return reasons
 
     def _process_batch(self, batch: list) -> None:
         vals, reasons = self._validate(batch)

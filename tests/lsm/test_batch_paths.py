@@ -28,3 +28,43 @@ def test_small_and_large_batches_hash_observations_alike():
     assert [k for k, ok in zip(whole, keep, strict=True) if ok] == [
         k for k, ok in zip(pieces, keep, strict=True) if ok]
     assert len(pieces) == n
+
+
+def test_small_batches_are_validated_as_large_ones(monkeypatch):
+    """The row-by-row checks of a small batch reject exactly what the vectorised ones do, for
+    the same reason: non-finite values, out-of-range fields, ban zones (their edge
+    included) and the distance from the drone (its edge included)."""
+    from lsm import SiteObservation
+    from lsm import manager as module
+
+    manager = LandingSiteManager(LsmSettings(max_distance=300.0, ban_radius=5.0), LossWeights())
+    manager.set_drone_position((10.0, -20.0, 30.0))
+    for x, y in ((40.0, 40.0), (-60.0, 10.0)):
+        manager.submit(SiteObservation(x, y, 0.0, 0.1, 0.1, 3.0, 0.0, 20.0))
+    manager.process_pending()
+    for site in list(manager.ranked()):
+        assert manager.ban(site.id)
+    rng = np.random.default_rng(8)
+    picks = [np.nan, np.inf, -np.inf, -0.5, 0.0, 1.0, 1.5, 2e7, -2e7]
+    batch = []
+    for _ in range(400):
+        v = [float(rng.uniform(-400, 400)), float(rng.uniform(-400, 400)),
+             float(rng.uniform(-5, 5)), float(rng.uniform(0, 1)), float(rng.uniform(0, 1)),
+             float(rng.uniform(0, 10)), 3.0, float(rng.uniform(0, 50)), 1.0]
+        if rng.random() < 0.5:
+            v[int(rng.integers(0, 9))] = float(picks[int(rng.integers(len(picks)))])
+        if rng.random() < 0.1:  # on a ban zone's edge, or at max_distance from the drone
+            angle = float(rng.uniform(0, 2 * np.pi))
+            centre, radius = ((40.0, 40.0), 5.0) if rng.random() < 0.5 else ((10.0, -20.0), 300.0)
+            v[0], v[1] = centre[0] + radius * np.cos(angle), centre[1] + radius * np.sin(angle)
+        batch.append(SiteObservation(*v))
+    small = [manager._validate(batch[i : i + 8]) for i in range(0, len(batch), 8)]
+    monkeypatch.setattr(module, "_SMALL_BATCH", 0)
+    large = [manager._validate(batch[i : i + 8]) for i in range(0, len(batch), 8)]
+    for (vals_s, reasons_s), (vals_l, reasons_l) in zip(small, large, strict=True):
+        assert reasons_s == reasons_l
+        np.testing.assert_array_equal(vals_s, vals_l)
+    found = {r for _, reasons in small for r in reasons}
+    assert {None, "non_finite", "position_out_of_range", "roughness_out_of_range",
+            "uncertainty_out_of_range", "negative_size", "negative_observation_altitude",
+            "banned_zone", "beyond_max_distance"} <= found
