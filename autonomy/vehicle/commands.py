@@ -233,6 +233,8 @@ class CommandTracker:
 
     def update(self, now: float) -> None:
         """Confirm, re-send and time out the commands in flight; start queued ones."""
+        if not self._in_flight and not self._waiting:
+            return  # nothing to follow (most ticks)
         s = self.settings
         for step in list(self._in_flight.values()):
             if step.done:

@@ -310,12 +310,15 @@ class FastMAVLink(mavlink.MAVLink):
         if plan is None:
             return None
         packet = bytes(buf[pos:stop])
-        if _crc16(plan.extra, _crc16(memoryview(packet)[1:-2], 0xFFFF)) != (
-                packet[-2] | packet[-1] << 8):
+        if _crc16(plan.extra, _crc16(packet[1:-2], 0xFFFF)) != packet[-2] | packet[-1] << 8:
             return None
         if plan.record is None:
             return self.decode(bytearray(packet)), stop
-        return plan.record((*plan.decoded(packet), packet[5], packet[6], packet)), stop
+        if plan.pick is not None and not plan.strings and stop - pos - 12 >= plan.size:
+            values = plan.pick(plan.unpacker.unpack_from(packet, 10))  # decoded(), inline
+        else:
+            values = plan.decoded(packet)
+        return plan.record((*values, packet[5], packet[6], packet)), stop
 
     def parse_records(self, data: bytes) -> list:
         """The messages of ``data`` as ``parse_buffer`` gives them (but a list, maybe
