@@ -5,11 +5,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from sitl.terrain.crater_kernel import add_craters
 from sitl.terrain.features import (
     fractal_relief,
     poisson_points,
     power_law_sizes,
-    stamp,
 )
 from sitl.terrain.settings import MarsTerrainSettings
 from sitl.terrain.stamp_kernels import stamp_ellipses
@@ -68,7 +68,7 @@ def _add_craters(grid, origin, cs, extent, settings: MarsTerrainSettings, rng) -
         h = np.where(r < 1.0, bowl, ejecta)
         return np.where(r <= _EJECTA_REACH, h, np.nan)
 
-    stamp(grid, origin, cs, centers, _EJECTA_REACH * radius, profile, combine=np.add)
+    add_craters(grid, origin, cs, centers, radius, depth, rim, tail, _EJECTA_REACH, profile)
 
 
 def _add_rocks(grid, origin, cs, extent, settings: MarsTerrainSettings, rng) -> None:
