@@ -311,17 +311,19 @@ def cruise_trajectory(
             v, total = gentle * ramp, 2.0 * ramp
         plans.append((a, b, d, v, ramp, total))
     piece = max(PIECE_TIME, sum(p[-1] for p in plans) / MAX_PIECES)
-    points, durations, legs = [waypoints[0]], [], []
-    for leg, (a, b, d, v, ramp, total) in enumerate(plans):
+    points, durations, counts = [waypoints[:1]], [], []
+    for a, b, d, v, ramp, total in plans:
         n = max(1, int(math.ceil(total / piece - 1e-9)))
-        t = np.linspace(0.0, total, n + 1)[1:]
-        s = np.where(t < ramp, 0.5 * gentle * t**2,
-                     np.where(t < total - ramp, 0.5 * gentle * ramp**2 + v * (t - ramp),
-                              d - 0.5 * gentle * (total - t) ** 2))
-        points.extend(a + np.clip(s, 0.0, d)[:, None] / d * (b - a))
-        durations.extend(np.diff(np.concatenate([[0.0], t])))
-        legs.extend([leg] * n)
+        t = np.linspace(0.0, total, n + 1)
+        s = t[1:]
+        s = np.where(s < ramp, 0.5 * gentle * s**2,
+                     np.where(s < total - ramp, 0.5 * gentle * ramp**2 + v * (s - ramp),
+                              d - 0.5 * gentle * (total - s) ** 2))
+        points.append(a + np.clip(s, 0.0, d)[:, None] / d * (b - a))
+        durations.append(np.diff(t))
+        counts.append(n)
+    points = np.concatenate(points)
     points[-1] = waypoints[-1]
-    trajectory = solve_min_snap(np.array(points), np.array(durations))
+    trajectory = solve_min_snap(points, np.concatenate(durations))
     return _within_limits(trajectory, max_speed, max_acceleration, max_climb, max_descent,
-                          legs=np.array(legs, dtype=np.int64))
+                          legs=np.repeat(np.arange(len(plans), dtype=np.int64), counts))
