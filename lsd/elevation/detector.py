@@ -41,6 +41,7 @@ import cv2
 import numpy as np
 
 from lsd.elevation.map import ElevationMap, pooled_level
+from lsd.elevation.projection import back_project
 from lsd.elevation.settings import DetectorSettings, ElevationMapSettings
 from lsd.frames import DepthFrame
 from lsd.plane_fit import PlaneFit, copy_where, fit_planes
@@ -203,25 +204,13 @@ class ElevationDetector:
         height, width = depth.shape
         # Back-projection of every pixel in single precision, offsets from the camera
         # (world offset = depth * R @ ray); bad pixels are dropped afterwards.
-        xn = ((np.arange(width) - k.cx) / k.fx).astype(f32)[None, :]
-        yn = ((np.arange(height) - k.cy) / k.fy).astype(f32)[:, None]
-        with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
-            ray = [f32(r[0]) * xn + (f32(r[1]) * yn + f32(r[2])) for r in rotation]
-            east = placement * ray[0]
-            north = placement * ray[1]
-            drop = depth * ray[2]  # vertical offset of the point below (or above) the camera
-            # The ray error sigma is along the optical axis; its vertical part scales the depth
-            # error by |dz| / depth (|dz| = height of the camera above the point).
-            along_axis = east * f32(rotation[0, 2])
-            along_axis += north * f32(rotation[1, 2])
-            along_axis += drop * f32(rotation[2, 2])
-            if frame.sigma is None:
-                variance = np.full(depth.shape, f32(self.map_settings.min_sigma**2))
-            else:
-                variance = np.asarray(frame.sigma, dtype=f32) * np.abs(drop)
-                variance /= along_axis
-                np.square(variance, out=variance)
-                variance += f32(self.map_settings.min_sigma**2)
+        xn = ((np.arange(width) - k.cx) / k.fx).astype(f32)
+        yn = ((np.arange(height) - k.cy) / k.fy).astype(f32)
+        # drop: the vertical offset of the point below (or above) the camera.
+        east, north, drop, variance = back_project(
+            depth, placement, _NO_SIGMA if frame.sigma is None else np.asarray(frame.sigma, f32),
+            rotation, xn, yn, f32(self.map_settings.min_sigma**2),
+        )
 
         now = float(frame.timestamp)
         self._last_skip = None
@@ -525,6 +514,7 @@ class ElevationDetector:
 
 # Largest side (px) of the pixel blocks fused as one point (see _pixel_block).
 _LARGEST_BLOCK = 8
+_NO_SIGMA = np.zeros((0, 0), np.float32)  # frames without a per-pixel depth error
 
 
 def _rendered_part(frame: DepthFrame, rendered: np.ndarray) -> DepthFrame | None:
