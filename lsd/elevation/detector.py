@@ -348,7 +348,7 @@ class ElevationDetector:
         # Low down, where sites are verified, a site also keeps as far as its block allows
         # from every step beyond max_step, forgiven by the noise tolerance or not: small
         # rocks read low in rendered, fused depth, so a forgiven step may be a rock.
-        room = step_room(fit, s, r) if m is self.fine_map else None
+        room = step_room(fit, s, r, size >= s.footprint_radius) if m is self.fine_map else None
         i, j = select_sites(size, quality, box_origin, r, s, room=room)
         if len(i) == 0:
             return []

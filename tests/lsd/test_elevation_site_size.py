@@ -52,3 +52,28 @@ def test_site_size_is_scipys_exact_distance_in_whole_squared_cells():
         root = np.sqrt(squared.astype(np.float32)).astype(np.float64)
         expected = np.maximum(root - 0.5, 0.0) * resolution
         assert np.array_equal(site_size(safe, resolution), expected)
+
+
+def test_step_room_at_wanted_cells_is_exact_as_far_as_the_selection_reads_it():
+    from lsd.site_selection import room_reach
+
+    settings = DetectorSettings(max_step=0.05, look_margin=0.5, site_spacing=4.0)
+    rng = np.random.default_rng(14)
+    reach = room_reach(settings, 0.1)
+    assert reach == 3.0  # the ranking's cap: footprint 1 m + half a 4 m block
+    counts = np.zeros(2, int)
+    for share in (0.6, 0.01, 0.0005):  # dense steps to a few
+        step = np.where(rng.random((90, 70)) < share, 0.2, 0.0).astype(np.float32)
+        step[0, 0] = 0.2
+        fit = dataclasses.replace(PlaneFit(*(np.zeros_like(step) for _ in range(9))), step=step)
+        wanted = rng.random(step.shape) < 0.5
+        full = step_room(fit, settings, 0.1)
+        room = step_room(fit, settings, 0.1, wanted)
+        near = wanted & (full < reach)
+        counts += near.sum(), (wanted & ~near).sum()
+        assert np.array_equal(room[near], full[near])
+        # Beyond the reach: exact, or inf (either ranks and doubts alike); unwanted: inf.
+        far = wanted & ~near
+        assert ((room[far] == full[far]) | np.isinf(room[far])).all()
+        assert np.isinf(room[~wanted]).all()
+    assert (counts > 300).all()  # both within and beyond the reach, many times
