@@ -113,7 +113,7 @@ class MissionTree(py_trees.trees.BehaviourTree):
     """
 
     def tick(self, pre_tick_handler=None, post_tick_handler=None) -> None:
-        if any(visitor.full for visitor in self.visitors):
+        if self.visitors and any(visitor.full for visitor in self.visitors):
             super().tick(pre_tick_handler, post_tick_handler)
             return
         if pre_tick_handler is not None:

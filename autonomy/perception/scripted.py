@@ -106,6 +106,7 @@ class ScriptedSiteSource:
             ground = np.asarray(height(xy[:, 0], xy[:, 1]), dtype=np.float64).reshape(n)
         z = np.array([ground[i] if s.z is None else s.z for i, s in enumerate(sites)])
         self._xy = xy
+        self._x, self._y = xy[:, 0].copy(), xy[:, 1].copy()  # contiguous columns
         self._z = z.reshape(n)
         self._obstacle = np.array(
             [z[i] if s.obstacle_altitude is None else s.obstacle_altitude
@@ -148,7 +149,7 @@ class ScriptedSiteSource:
             return []
         s = self.settings
         height = pos[2] - self._z
-        horizontal = np.hypot(self._xy[:, 0] - pos[0], self._xy[:, 1] - pos[1])
+        horizontal = np.hypot(self._x - pos[0], self._y - pos[1])
         slant = np.hypot(horizontal, height)
         in_view = (
             (height > 0)
@@ -156,7 +157,7 @@ class ScriptedSiteSource:
             & (slant <= s.max_range)
             & (self._verifies | (height >= s.low_altitude))
         )
-        idx = np.flatnonzero(in_view)
+        idx = in_view.nonzero()[0]  # np.flatnonzero of a 1-D array, in one call
         if idx.size == 0:
             return []
         sigma = s.noise_base + s.noise_per_metre * height[idx]

@@ -516,6 +516,7 @@ class MavlinkVehicle:
         stats = self.stats
         backlog = self._backlog
         read_record = mav.read_record
+        tlog = self._tlog
         while budget > 0:
             found = None
             if mav.buf_index == len(mav.buf) and self._backlog_pos < len(backlog):
@@ -549,12 +550,13 @@ class MavlinkVehicle:
                     continue
                 src, component = msg.get_srcSystem(), msg.get_srcComponent()
             stats.messages += 1
-            if self._tlog is not None:
-                self._tlog.write(msg.get_msgbuf(), now)
-            if src == 0 or (self._target_system is not None and src != self._target_system):
-                stats.ignored += 1
-                continue
-            if self._target_system is None:
+            if tlog is not None:
+                tlog.write(msg.get_msgbuf(), now)
+            target = self._target_system
+            if src != target:
+                if src == 0 or target is not None:
+                    stats.ignored += 1
+                    continue
                 if mtype != "HEARTBEAT" or not self._adopt(msg):
                     stats.ignored += 1
                     continue

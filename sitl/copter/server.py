@@ -229,7 +229,10 @@ class MavlinkServer:
     # ---------------------------------------------------------------- receive
     def receive(self) -> None:
         """Read and handle everything that arrived on every link."""
-        self.links = [link for link in self.links if not link.closed]
+        for link in self.links:
+            if link.closed:  # rare: rebuild the list only then
+                self.links = [link for link in self.links if not link.closed]
+                break
         for link in self.links:
             data = link.endpoint.read()
             if not data:
@@ -491,8 +494,9 @@ class MavlinkServer:
                 link.mav.send(build[msgid]())
             once.clear()
             due = link.next_due
+            limit = now + 1e-9
             for msgid, when in due.items():
-                if now + 1e-9 >= when:
+                if limit >= when:
                     if msgid == home_msg and not ap.position_known:
                         continue
                     msg = cache.get(msgid)
