@@ -9,7 +9,7 @@ Each figure is wall time / process CPU time in milliseconds (CPU time sums all t
 loaded machine it is the steadier figure).
 OpenCV and BLAS run on one thread, as in ``bench_lsd.py``.
 
-    .venv/bin/python benchmarks/bench_terrain.py [--repeats N]
+    .venv/bin/python benchmarks/bench_terrain.py [--repeats N] [--generate-only]
 """
 
 from __future__ import annotations
@@ -64,8 +64,20 @@ def render_times(terrain: Terrain, altitude: float, repeats: int) -> tuple[float
 def main() -> None:
     parser = argparse.ArgumentParser(description="terrain and depth camera benchmark")
     parser.add_argument("--repeats", type=int, default=5, help="runs per figure")
+    parser.add_argument("--generate-only", action="store_true",
+                        help="only the generation column (world generation before/after)")
     args = parser.parse_args()
     cv2.setNumThreads(1)
+    if args.generate_only:
+        print(f"world generation, 400 m x 400 m at 0.2 m cells: wall/CPU ms, median of "
+              f"{args.repeats} seeds after a first world")
+        for kind in KINDS:
+            make_terrain({"kind": kind}, seed=99)  # compiled kernels loaded, caches filled
+            generate = median_ms(
+                lambda k, kind=kind: make_terrain({"kind": kind}, seed=k), args.repeats
+            )
+            print(f"{kind:>10s} {fmt(generate):>12s}")
+        return
     print(
         "400 m x 400 m worlds at 0.2 m cells (2001 x 2001); figures are wall/CPU ms, "
         f"median of {args.repeats}"

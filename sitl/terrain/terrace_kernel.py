@@ -40,6 +40,9 @@ from sitl.terrain.features import smoothstep_edge
 TOLERANCE = 1e-12
 # Largest |exponent| of a row's or a column's factor that the factored form uses.
 _SEPARABLE = 300.0
+# |x| beyond which the steep face's smoothstep is 0 or 1 to within e^-40 (4e-18, far below
+# TOLERANCE): the kernel does not evaluate it there.
+_SATURATED = 20.0
 
 
 @njit(cache=True, inline="always")
@@ -82,13 +85,18 @@ def _add_bracketed(patch, dx, dy, cos, sin, steep, gentle, depth, half_length, h
             x1 = across * inv_steep
             x2 = (depth - across) * inv_gentle
             x3 = (half_length - abs(along)) * inv_gentle
-            e1 = _factor(x1, col_exponent[0, j], r0, col_factor[0, j], f0, separable)
-            e2 = _factor(x2, col_exponent[1, j], r1, col_factor[1, j], f1, separable)
-            if along >= 0.0:
-                e3 = _factor(x3, col_exponent[2, j], r2, col_factor[2, j], f2, separable)
+            if x1 < -_SATURATED:  # in front of the face: s1 < e^-40, so h is 0 to 1e-17
+                h = 0.0
             else:
-                e3 = _factor(x3, col_exponent[3, j], r3, col_factor[3, j], f3, separable)
-            h = 1.0 / ((1.0 + e1) * (1.0 + e2) * (1.0 + e3))
+                # behind it s1 is 1 to 1e-17: E1 is left out
+                e1 = 0.0 if x1 > _SATURATED else _factor(
+                    x1, col_exponent[0, j], r0, col_factor[0, j], f0, separable)
+                e2 = _factor(x2, col_exponent[1, j], r1, col_factor[1, j], f1, separable)
+                if along >= 0.0:
+                    e3 = _factor(x3, col_exponent[2, j], r2, col_factor[2, j], f2, separable)
+                else:
+                    e3 = _factor(x3, col_exponent[3, j], r3, col_factor[3, j], f3, separable)
+                h = 1.0 / ((1.0 + e1) * (1.0 + e2) * (1.0 + e3))
             g = patch[i, j]
             low_sum = g + np.float32(height * (h - 2.0 * TOLERANCE))
             high_sum = g + np.float32(height * (h + 2.0 * TOLERANCE))
