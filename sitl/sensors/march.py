@@ -311,15 +311,15 @@ def _march_on(grid, pyramid, start, nadir, a, b, fa, fb, hi, du, dv, dz, step):
 @njit(cache=True, nogil=True)
 def march_rays(grid, pyramid, start, nadir, close, lo_tiles, hi_tiles, tile_of, pick, du, dv,
                dz, step, out):
-    """Depth parameter of the rays of pixels ``pick`` (flat indices, ascending) into
-    ``out`` (flat float32): each ray bracketed by its tile's ``[lo, hi]`` (flat float32
-    tile arrays; ``tile_of``: the tile of each pixel) and marched, then refined by regula
+    """Depth parameter of the rays of the pixels ``pick`` marks (flat bool) into ``out``
+    (flat float32): each ray bracketed by its tile's ``[lo, hi]`` (flat float32 tile
+    arrays; ``tile_of``: the tile of each pixel) and marched, then refined by regula
     falsi (Illinois) until the ray point is within ``close`` of the ground. The refinement
     runs on the rays not yet close together, and drops the close ones only when more than
     a quarter of them are (the array version's schedule, which decides how far each ray is
     refined)."""
     n = pick.size
-    # The rays still refining, in pick order: pixel, bracket, last point.
+    # The rays still refining, in pixel order: pixel, bracket, last point.
     live = np.empty(n, np.int64)
     a = np.empty(n, np.float32)
     b = np.empty(n, np.float32)
@@ -328,8 +328,9 @@ def march_rays(grid, pyramid, start, nadir, close, lo_tiles, hi_tiles, tile_of, 
     c = np.empty(n, np.float32)
     fc = np.empty(n, np.float32)
     m = 0
-    for k in range(n):
-        p = pick[k]
+    for p in range(n):
+        if not pick[p]:
+            continue
         q = tile_of[p]
         lo = lo_tiles[q]
         hi = hi_tiles[q]

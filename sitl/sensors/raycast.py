@@ -353,7 +353,7 @@ class PinholeRays:
             "dz": dz.ravel(),
             "inv_hor": np.divide(np.float32(1.0), hor.ravel()),
             "nadir": bool(np.all(dz == -1.0)),  # ray height oz - t: one product less
-            "all": np.arange(height * width),
+            "all": np.ones(height * width, dtype=bool),
             # The finest tile of each pixel (flat indices; the march reads its bracket).
             "tile_of": ((np.arange(height) // finest)[:, None] * (-(-width // finest))
                         + np.arange(width) // finest).ravel(),
@@ -456,7 +456,7 @@ def _cast(bounds, rays: PinholeRays, origin, t_max, step, close, region=None):
                             (bounds.origin[0], bounds.origin[1], cs), tile_prev, region[1])
         if not need.all():
             rendered = pixels_needed(region[0], need, tile_prev, (height, width))
-            pick = np.flatnonzero(rendered)
+            pick = rendered.reshape(-1)
     t = np.full(height * width, np.nan, dtype=np.float32)
     march.march_rays(bounds.grid, bounds.pyramid,
                      (np.float32(u_o), np.float32(v_o), np.float32(oz)), per["nadir"], close,
