@@ -28,7 +28,7 @@ def _clean(value: Any) -> Any:
     if kind is str or kind is int or kind is bool or value is None:
         return value
     if kind is dict:
-        return {str(k): _clean(v) for k, v in value.items()}
+        return _clean_dict(value)
     if kind is tuple or kind is list:
         return [_clean(v) for v in value]
     if isinstance(value, (bool, np.bool_)):
@@ -39,12 +39,26 @@ def _clean(value: Any) -> Any:
         value = float(value)
         return round(value, 4) if math.isfinite(value) else None
     if isinstance(value, dict):
-        return {str(k): _clean(v) for k, v in value.items()}
+        return _clean_dict(value)
     if isinstance(value, (list, tuple, np.ndarray)):
         return [_clean(v) for v in value]
     if value is None or isinstance(value, str):
         return value
     return str(value)
+
+
+def _clean_dict(value: dict) -> dict[str, Any]:
+    """``{str(k): _clean(v)}``, the plain values of an event cleaned in line (an event is a
+    dict of a few floats, strings and ints)."""
+    out = {}
+    for key, item in value.items():
+        kind = type(item)
+        if kind is float:
+            item = round(item, 4) if math.isfinite(item) else None
+        elif not (kind is str or kind is int or kind is bool or item is None):
+            item = _clean(item)
+        out[key if type(key) is str else str(key)] = item
+    return out
 
 
 class EventLog:
@@ -64,7 +78,7 @@ class EventLog:
 
     def add(self, kind: str, **fields: Any) -> dict[str, Any]:
         """Record one event of ``kind`` now; returns it."""
-        event = _clean({"t": self._now(), "kind": kind, **fields})
+        event = _clean_dict({"t": self._now(), "kind": kind, **fields})
         with self._lock:
             self.events.append(event)
             if self._path is not None:

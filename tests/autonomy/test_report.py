@@ -36,6 +36,49 @@ def test_event_log_streams_json_lines_stamped_with_the_clock(tmp_path):
     assert events[1]["t"] == 1.5
 
 
+def _reference_clean(value):
+    """The event log's cleaning as first written: one isinstance chain for every value."""
+    import numpy as np
+
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    if isinstance(value, (int, np.integer)):
+        return int(value)
+    if isinstance(value, (float, np.floating)):
+        value = float(value)
+        return round(value, 4) if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {str(k): _reference_clean(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple, np.ndarray)):
+        return [_reference_clean(v) for v in value]
+    if value is None or isinstance(value, str):
+        return value
+    return str(value)
+
+
+def test_events_are_cleaned_as_by_the_plain_isinstance_chain():
+    """The log's type-first fast path gives what the plain chain gives, for plain values,
+    numpy scalars and arrays, bool subclasses of int, nested dicts with non-string keys,
+    non-finite floats and objects shown by their text."""
+    import numpy as np
+
+    class Text(str):
+        pass
+
+    fields = {
+        "f": 1.234567, "nan": math.nan, "inf": -math.inf, "i": 7, "b": True, "n": None,
+        "s": "x", "sub": Text("y"), "f32": np.float32(0.1), "f64": np.float64(2.00004),
+        "i64": np.int64(3), "nb": np.bool_(False), "arr": np.array([1.5, np.nan]),
+        "tuple": (1.23456, (2, "z")), "nested": {1: 0.12345, "k": [np.int32(4), {2.5: "w"}]},
+        "obj": object.__new__(type("Thing", (), {"__str__": lambda self: "thing"})),
+    }
+    log = EventLog(lambda: 0.25)
+    event = log.add("flight", **fields)
+    assert event == _reference_clean({"t": 0.25, "kind": "flight", **fields})
+    assert json.dumps(event) == json.dumps(_reference_clean({"t": 0.25, "kind": "flight",
+                                                             **fields}))
+
+
 def test_tree_recorder_logs_every_status_change_with_its_path():
     root = py_trees.composites.Sequence("Root", memory=True, children=[
         py_trees.behaviours.Success("A"),
