@@ -115,8 +115,7 @@ class _Plan:
         if len(msgbuf) - 12 >= self.size:
             wire = self.unpacker.unpack_from(msgbuf, 10)
         else:  # MAVLink 2 cut the payload's trailing zeros: put them back
-            payload = bytes(msgbuf[10:-2])
-            wire = self.unpacker.unpack(payload + bytes(self.size - len(payload)))
+            wire = self.unpacker.unpack(msgbuf[10:-2].ljust(self.size, b"\x00"))
         values = self.pick(wire) if self.pick is not None else self.gather(wire)
         if self.strings:
             values = list(values)
@@ -314,8 +313,11 @@ class FastMAVLink(mavlink.MAVLink):
             return None
         if plan.record is None:
             return self.decode(bytearray(packet)), stop
-        if plan.pick is not None and not plan.strings and stop - pos - 12 >= plan.size:
-            values = plan.pick(plan.unpacker.unpack_from(packet, 10))  # decoded(), inline
+        if plan.pick is not None and not plan.strings:  # decoded(), inline
+            if stop - pos - 12 >= plan.size:
+                values = plan.pick(plan.unpacker.unpack_from(packet, 10))
+            else:  # trailing zeros cut: put them back
+                values = plan.pick(plan.unpacker.unpack(packet[10:-2].ljust(plan.size, b"\x00")))
         else:
             values = plan.decoded(packet)
         return plan.record((*values, packet[5], packet[6], packet)), stop

@@ -474,7 +474,8 @@ class MavlinkServer:
         """Send the STATUSTEXTs and every telemetry message due at ``now``; flush links."""
         self.time = now
         ap = self.autopilot
-        self._send_texts()
+        if ap.texts:
+            self._send_texts()
         self._mission_events()
         cache = self._cache
         cache.clear()
@@ -505,8 +506,10 @@ class MavlinkServer:
                     link.mav.send(msg)
                     nxt = when + link.intervals[msgid]
                     due[msgid] = nxt if nxt > now else now + link.intervals[msgid]
-            self.params.emit(link)
-            self.missions.emit(link)
+            if link.param_queue:  # a parameter list being sent
+                self.params.emit(link)
+            if link.upload is not None:  # a mission upload in progress
+                self.missions.emit(link)
             link.flush()
         if ap.position_known:
             ap.home_changed = False
