@@ -275,7 +275,6 @@ def pooled_level(
         mean, variance, top, cell_variance, closest: (n / factor, m / factor) float64
         (NaN, inf, NaN, inf and 0 where the block holds no observed cell).
     """
-    f32 = np.float32
     n0, n1 = mean.shape
     shape = (n1 // factor, n0 // factor)  # OpenCV's (width, height)
     hidden = np.isnan(mean)
@@ -286,22 +285,14 @@ def pooled_level(
     # Heights from a reference keep the sums exact enough in single precision: the first
     # observed cell's (row by row).
     ref = float(mean.flat[int(np.argmin(hidden))])
-    var = variance.astype(f32)
-    weight = np.divide(f32(1.0), var)  # 0 where unobserved (infinite variance)
-    copy_where(var, 0.0, hidden)
-    z = np.subtract(mean, ref, dtype=f32)
-    t = np.subtract(top, ref, dtype=f32)
-    cv2.patchNaNs(z, 0.0)
-    cv2.patchNaNs(t, 0.0)
-    z *= weight
-    t *= weight
+    weight, z, t, var, unseen = _weighted_terms(mean, variance, top, ref)
 
     def block_mean(grid: np.ndarray) -> np.ndarray:
         # INTER_AREA with a whole-number factor is exactly the block mean.
         return cv2.resize(grid, shape, interpolation=cv2.INTER_AREA).astype(np.float64)
 
     sum_w = block_mean(weight)
-    count = 1.0 - block_mean(hidden.view(np.uint8).astype(f32))
+    count = 1.0 - block_mean(unseen)
     with np.errstate(divide="ignore", invalid="ignore"):
         pooled_mean = block_mean(z) / sum_w
         pooled_top = block_mean(t) / sum_w
@@ -316,6 +307,32 @@ def pooled_level(
     copy_where(cell_var, np.inf, empty)
     np.maximum(pooled_top, pooled_mean, out=pooled_top)
     return pooled_mean, pooled_var, pooled_top, cell_var, _block_looks(closest, factor)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _weighted_terms(mean, variance, top, ref):
+    """The single-precision grids :func:`pooled_level` averages over blocks, in one pass
+    with numpy's operations: the weight ``1 / variance``, the weighted heights and tops from
+    ``ref`` (0 where NaN before weighting), the variance (0 where unobserved) and the
+    unobserved flag."""
+    n0, n1 = mean.shape
+    f32 = np.float32
+    out = np.empty((5, n0, n1), f32)
+    f_ref = f32(ref)
+    zero = f32(0.0)
+    for i in range(n0):
+        for j in range(n1):
+            v = f32(variance[i, j])
+            w = f32(1.0) / v
+            z = f32(mean[i, j]) - f_ref
+            t = f32(top[i, j]) - f_ref
+            hidden = np.isnan(mean[i, j])
+            out[0, i, j] = w
+            out[1, i, j] = (zero if z != z else z) * w
+            out[2, i, j] = (zero if t != t else t) * w
+            out[3, i, j] = zero if hidden else v
+            out[4, i, j] = f32(1.0) if hidden else zero
+    return out[0], out[1], out[2], out[3], out[4]
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
