@@ -107,29 +107,48 @@ def safe_mask(fit: PlaneFit, settings: DetectorSettings, hazard: np.ndarray) -> 
     is never safe (beyond it the terrain is unknown).
     """
     k = settings.noise_tolerance
-    with np.errstate(invalid="ignore"):
-        safe = (
-            (fit.observed_fraction >= settings.min_observed_fraction)
-            & (fit.roughness**2 - k * fit.roughness_error <= settings.max_roughness**2)
-            & (fit.sigma <= settings.max_uncertainty)
-            & ~hazard
-        )
-        # The slope (an arctangent per cell, the dearest test) only where the rest pass,
-        # and not where the gradient is so gentle that any arctangent accurate to 0.1 %
-        # passes it (slope - k * error <= slope for an error >= 0): each cell's test is
-        # the same elementwise operations on its own values.
-        cells = np.flatnonzero(safe)
-        gradient = np.take(fit.gradient, cells)
-        error = np.take(fit.slope_error, cells)
-        gentle = gradient <= np.float32(np.tan(settings.max_slope_rad) * 0.999)
-        gentle &= error >= 0
-        tested = ~gentle
-        slope = np.arctan(gradient[tested])
-        slope -= k * error[tested]
-        np.put(safe, cells[tested], slope <= settings.max_slope_rad)
-    safe[0, :] = safe[-1, :] = False
-    safe[:, 0] = safe[:, -1] = False
+    f32 = np.float32
+    # One compiled pass for the other limits (numpy compares float32 grids with Python
+    # floats in single precision, and so does it); the slope's arctangent (numpy's) only
+    # where they pass and the gradient is not so gentle that any arctangent accurate to
+    # 0.1 % passes (slope - k * error <= slope for an error >= 0): each cell's test is the
+    # same elementwise operations on its own values.
+    safe, steep = _safe_but_slope(
+        fit.observed_fraction, fit.roughness, fit.roughness_error, fit.sigma, fit.gradient,
+        fit.slope_error, np.asarray(hazard, dtype=bool), f32(settings.min_observed_fraction),
+        f32(k), f32(settings.max_roughness**2), f32(settings.max_uncertainty),
+        f32(np.tan(settings.max_slope_rad) * 0.999),
+    )
+    if len(steep):
+        with np.errstate(invalid="ignore"):
+            slope = np.arctan(np.take(fit.gradient, steep))
+            slope -= k * np.take(fit.slope_error, steep)
+            np.put(safe, steep, slope <= settings.max_slope_rad)
     return safe
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _safe_but_slope(fraction, roughness, roughness_error, sigma, gradient, slope_error,
+                    hazard, least_fraction, k, roughest, most_uncertain, gentle):
+    """:func:`safe_mask` but for the slope limit of the cells whose gradient is not gentle:
+    the mask (the grid's outermost ring never safe) and the flat indices of those cells,
+    left False for the caller to test."""
+    n0, n1 = fraction.shape
+    safe = np.zeros((n0, n1), np.bool_)
+    steep = np.empty(n0 * n1, np.int64)
+    count = 0
+    for i in range(1, n0 - 1):
+        for j in range(1, n1 - 1):
+            r = roughness[i, j]
+            if not (fraction[i, j] >= least_fraction and r * r - k * roughness_error[i, j]
+                    <= roughest and sigma[i, j] <= most_uncertain and not hazard[i, j]):
+                continue
+            if gradient[i, j] <= gentle and slope_error[i, j] >= 0:
+                safe[i, j] = True
+            else:
+                steep[count] = i * n1 + j
+                count += 1
+    return safe, steep[:count]
 
 
 def site_size(safe: np.ndarray, resolution: float) -> np.ndarray:
