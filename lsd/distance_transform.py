@@ -16,16 +16,11 @@ from numba import njit
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def distance_to_outside(inside: np.ndarray, resolution: float) -> np.ndarray:
-    """(n0, n1) float64 metres from each cell centre to the near edge of the nearest cell
-    where ``inside`` is False, never below 0: ``max(sqrt(d2) - 0.5, 0) * resolution`` with
-    ``d2`` the squared distance in cells (0 outside) and the root taken in single precision.
-    Cells beyond the grid do not count; some cell must be outside."""
+def _column_distances(inside: np.ndarray, far: int) -> np.ndarray:
+    """(n0, n1) int64: each cell's distance (in cells) to the nearest outside cell of its
+    column, at most ``far``; downwards then upwards, row by row (memory read in order)."""
     n0, n1 = inside.shape
-    far = n0 + n1  # farther than any distance within the grid
-    column = np.empty((n0, n1), np.int32)
-    # Each cell's distance to the nearest outside cell of its column, downwards then
-    # upwards, row by row (so that memory is read in order).
+    column = np.empty((n0, n1), np.int64)
     for j in range(n1):
         column[0, j] = far if inside[0, j] else 0
     for i in range(1, n0):
@@ -34,6 +29,17 @@ def distance_to_outside(inside: np.ndarray, resolution: float) -> np.ndarray:
     for i in range(n0 - 2, -1, -1):
         for j in range(n1):
             column[i, j] = min(column[i, j], column[i + 1, j] + 1)
+    return column
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def distance_to_outside(inside: np.ndarray, resolution: float) -> np.ndarray:
+    """(n0, n1) float64 metres from each cell centre to the near edge of the nearest cell
+    where ``inside`` is False, never below 0: ``max(sqrt(d2) - 0.5, 0) * resolution`` with
+    ``d2`` the squared distance in cells (0 outside) and the root taken in single precision.
+    Cells beyond the grid do not count; some cell must be outside."""
+    n0, n1 = inside.shape
+    column = _column_distances(inside, n0 + n1)  # n0 + n1: farther than any in the grid
     out = np.empty((n0, n1))
     apex = np.empty(n1, np.int64)  # the envelope's parabolas: their apex columns
     first = np.empty(n1, np.int64)  # and the first column where each is the lowest
@@ -79,16 +85,7 @@ def distance_within(inside: np.ndarray, wanted: np.ndarray, resolution: float,
     along its row at the columns' distances, outwards until no nearer cell can be left:
     cheap where outside cells are near, which is where a short reach matters."""
     n0, n1 = inside.shape
-    far = reach + 1  # column distances are only needed up to the reach
-    column = np.empty((n0, n1), np.int64)
-    for j in range(n1):
-        column[0, j] = far if inside[0, j] else 0
-    for i in range(1, n0):
-        for j in range(n1):
-            column[i, j] = min(column[i - 1, j] + 1, far) if inside[i, j] else 0
-    for i in range(n0 - 2, -1, -1):
-        for j in range(n1):
-            column[i, j] = min(column[i, j], column[i + 1, j] + 1)
+    column = _column_distances(inside, reach + 1)  # only needed up to the reach
     limit = reach * reach
     out = np.full((n0, n1), np.inf)
     for i in range(n0):
