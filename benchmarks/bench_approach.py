@@ -17,6 +17,7 @@ unsafe touchdowns judged by the simulator's ground truth.
     .venv/bin/python benchmarks/bench_approach.py                       # mars_demo, 8 seeds
     .venv/bin/python benchmarks/bench_approach.py --seeds 20 --mission missions/mars_science.yaml
     .venv/bin/python benchmarks/bench_approach.py --campaign watch --seeds 8 [--spare-site]
+    .venv/bin/python benchmarks/bench_approach.py --campaign generation   # trajectories alone
 """
 
 from __future__ import annotations
@@ -463,6 +464,47 @@ def watch_campaign(args) -> None:
               f"{on['collisions']} {on['touchdown_safe']!s:<5} {on['flagged']:>3}")
 
 
+def generation_benchmark(args) -> None:
+    """CPU time of planning.min_snap.cruise_trajectory alone, over seeded approaches shaped
+    like the campaign's (from a low hover or the cruise, 1 to 4 legs through a path's
+    corners), within the default limits; each timed 15 times, the median kept."""
+    from behaviors.settings import ApproachSettings
+
+    limits = ApproachSettings()
+    rng = np.random.default_rng(0)
+    cases = []
+    for _ in range(200):
+        legs = int(rng.integers(1, 5))
+        corners = np.cumsum(rng.uniform(-40.0, 40.0, (legs + 1, 3)), axis=0)
+        corners[:, 2] = rng.uniform(5.0, 40.0, legs + 1)
+        corners[0, 2] = rng.choice([2.5, 30.0])
+        cases.append(corners)
+    def generate(w):
+        return planning_approach.cruise_trajectory(
+            w, limits.max_speed, limits.max_acceleration, limits.max_climb_speed,
+            limits.max_descent_speed)
+
+    for w in cases[:20]:
+        generate(w)  # warm the caches and imports
+    per_case, pieces = [], []
+    for w in cases:
+        runs = []
+        for _ in range(15):
+            t0 = time.process_time()
+            trajectory = generate(w)
+            runs.append(time.process_time() - t0)
+        per_case.append(statistics.median(runs))
+        pieces.append(len(trajectory.durations))
+    pieces = np.array(pieces)
+    print(f"minimum-snap generation (cruise_trajectory), {len(cases)} approaches of 1 to 4 legs"
+          f": {_percentiles(per_case)}")
+    for low, high in ((1, 4), (5, 8), (9, 12), (13, 16), (17, 99)):
+        inside = [c for c, n in zip(per_case, pieces, strict=True) if low <= n <= high]
+        if inside:
+            print(f"  {low:>2}-{high:<2} pieces: {len(inside):>3} approaches, median "
+                  f"{np.median(inside) * 1e3:.3f} ms CPU")
+
+
 def _override(text: str) -> tuple[str, object]:
     key, _, value = text.partition("=")
     try:
@@ -474,7 +516,8 @@ def _override(text: str) -> tuple[str, object]:
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--campaign", choices=("approach", "watch"), default="approach")
+    parser.add_argument("--campaign", choices=("approach", "watch", "generation"),
+                        default="approach")
     parser.add_argument("--mission", default=str(ROOT / "missions" / "mars_demo.yaml"),
                         help="the approach campaign's mission")
     parser.add_argument("--seeds", type=int, default=8)
@@ -491,6 +534,8 @@ def main() -> int:
     args.override = dict(args.override)
     if args.campaign == "approach":
         approach_campaign(args)
+    elif args.campaign == "generation":
+        generation_benchmark(args)
     else:
         watch_campaign(args)
     return 0
