@@ -110,23 +110,28 @@ class Trajectory:
     def peaks(self) -> tuple[float, float]:
         """(highest speed m/s, highest acceleration m/s^2), sampled at
         ``SAMPLES_PER_SEGMENT + 1`` evenly spaced times of every segment."""
-        velocity, acceleration = self._sampled_derivatives()
-        speed = np.sqrt((velocity**2).sum(axis=2)).max()
-        accel = np.sqrt((acceleration**2).sum(axis=2)).max()
-        return float(speed), float(accel)
+        return _peaks(*self._sampled_derivatives())[:2]
 
     def vertical_peaks(self) -> tuple[float, float]:
         """(highest climb rate, highest descent rate), m/s, both >= 0, of the last axis (up),
         sampled as :meth:`peaks` samples."""
-        velocity, _ = self._sampled_derivatives()
-        up = velocity[:, :, -1]
-        return float(max(up.max(), 0.0)), float(max(-up.min(), 0.0))
+        return _peaks(*self._sampled_derivatives())[2:]
 
     def _sampled_derivatives(self) -> tuple[np.ndarray, np.ndarray]:
         T = self.durations[:, None, None]
         velocity = (_VELOCITY_BASIS @ self.coefficients) / T
         acceleration = (_ACCELERATION_BASIS @ self.coefficients) / T**2
         return velocity, acceleration
+
+
+def _peaks(velocity: np.ndarray, acceleration: np.ndarray) -> tuple[float, float, float,
+                                                                     float]:
+    """(speed, acceleration, climb rate, descent rate) peaks of sampled derivatives (M, S, D);
+    the vertical two are of the last axis (up), both >= 0."""
+    up = velocity[:, :, -1]
+    return (float(np.sqrt((velocity**2).sum(axis=2)).max()),
+            float(np.sqrt((acceleration**2).sum(axis=2)).max()),
+            float(max(up.max(), 0.0)), float(max(-up.min(), 0.0)))
 
 
 def solve_min_snap(waypoints: np.ndarray, durations: np.ndarray) -> Trajectory:
@@ -240,10 +245,9 @@ def _within_limits(trajectory: Trajectory, max_speed, max_acceleration, max_clim
                    max_descent, legs: np.ndarray | None = None) -> Trajectory:
     """``trajectory`` stretched in time until its peak speed, acceleration, climb or descent
     rate (whichever binds first) just meets its limit."""
-    speed, accel = trajectory.peaks()
+    speed, accel, climb, descent = _peaks(*trajectory._sampled_derivatives())
     ratios = [speed / max_speed, math.sqrt(accel / max_acceleration), 1e-6]
     if trajectory.coefficients.shape[2] == 3:
-        climb, descent = trajectory.vertical_peaks()
         ratios += [climb / max_climb if max_climb else 0.0,
                    descent / max_descent if max_descent else 0.0]
     # Stretching every duration by one factor keeps the ratios the joints' rows depend on,
@@ -311,19 +315,28 @@ def cruise_trajectory(
             v, total = gentle * ramp, 2.0 * ramp
         plans.append((a, b, d, v, ramp, total))
     piece = max(PIECE_TIME, sum(p[-1] for p in plans) / MAX_PIECES)
-    points, durations, counts = [waypoints[:1]], [], []
-    for a, b, d, v, ramp, total in plans:
-        n = max(1, int(math.ceil(total / piece - 1e-9)))
-        t = np.linspace(0.0, total, n + 1)
-        s = t[1:]
-        s = np.where(s < ramp, 0.5 * gentle * s**2,
-                     np.where(s < total - ramp, 0.5 * gentle * ramp**2 + v * (s - ramp),
-                              d - 0.5 * gentle * (total - s) ** 2))
-        points.append(a + np.clip(s, 0.0, d)[:, None] / d * (b - a))
-        durations.append(np.diff(t))
-        counts.append(n)
-    points = np.concatenate(points)
+    # Every leg's pieces at once: per leg, the times np.linspace(0, total, n + 1) would give
+    # (index * step, the last exactly total) and the trapezoid's distance at each, with the
+    # same float operations as one leg at a time.
+    a, b, d, v, ramp, total = (np.array(column) for column in zip(*plans, strict=True))
+    n = np.array([max(1, int(math.ceil(p[-1] / piece - 1e-9))) for p in plans])
+    cruise_start = [0.5 * gentle * p[4] ** 2 for p in plans]
+    leg = np.repeat(np.arange(len(plans)), n)
+    first = np.concatenate([[0], np.cumsum(n)[:-1]])
+    index = np.arange(leg.size) - first[leg] + 1  # 1 .. n within each leg
+    t = index * (total / n)[leg]
+    last = index == n[leg]
+    t[last] = total
+    before = np.where(index == 1, 0.0, np.concatenate([[0.0], t[:-1]]))
+    durations = t - before
+    d_, v_, ramp_, total_ = d[leg], v[leg], ramp[leg], total[leg]
+    c = 0.5 * gentle
+    s = np.where(t < ramp_, c * t**2,
+                 np.where(t < total_ - ramp_, np.array(cruise_start)[leg] + v_ * (t - ramp_),
+                          d_ - c * (total_ - t) ** 2))
+    points = np.concatenate([waypoints[:1],
+                             a[leg] + np.clip(s, 0.0, d_)[:, None] / d_[:, None] * (b - a)[leg]])
     points[-1] = waypoints[-1]
-    trajectory = solve_min_snap(points, np.concatenate(durations))
+    trajectory = solve_min_snap(points, durations)
     return _within_limits(trajectory, max_speed, max_acceleration, max_climb, max_descent,
-                          legs=np.repeat(np.arange(len(plans), dtype=np.int64), counts))
+                          legs=leg.astype(np.int64))
