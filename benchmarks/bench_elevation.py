@@ -23,12 +23,13 @@ import hashlib
 import json
 import os
 import pickle
-import subprocess
 import sys
 import tempfile
 import time
 from collections import defaultdict
 from pathlib import Path
+
+from replay_compare import print_header, print_row, replay_alternately
 
 ROOT = Path(__file__).resolve().parents[1]
 PARTS = ("fit_planes", "step_hazards", "safe_mask", "site_size", "step_room", "select_sites",
@@ -154,31 +155,15 @@ def main(argv: list[str] | None = None) -> int:
     with tempfile.TemporaryDirectory() as tmp:
         frames_file = Path(tmp) / "frames.pkl"
         n = record(args.mission, args.seed, frames_file)
-        trees = {"after": ROOT} if args.before is None else {
-            "before": args.before.resolve(), "after": ROOT}
-        results: dict[str, list[dict]] = defaultdict(list)
-        for _ in range(args.rounds):
-            for name, tree in trees.items():
-                env = dict(os.environ, PYTHONPATH=str(tree))
-                out = subprocess.run(
-                    [sys.executable, str(Path(__file__).resolve()), "--replay", str(frames_file)],
-                    env=env, cwd=tree, capture_output=True, text=True, check=True)
-                results[name].append(json.loads(out.stdout.strip().splitlines()[-1]))
+        results = replay_alternately(__file__, frames_file, args.before, args.rounds)
     load = os.getloadavg()[0]
     print(f"== {args.mission.name} seed {args.seed}: {n} frames, {args.rounds} rounds, "
           f"load average {load:.2f}")
-    names = list(trees)
+    names = list(results)
     digests = {r["sites_sha256"] for name in names for r in results[name]}
     print(f"sites per frame: {'the same' if len(digests) == 1 else 'DIFFERENT'} in every replay")
-    header = "".join(f"{name:>10s}" for name in names)
-    print(f"  {'CPU ms per frame':46s} {header}"
-          + ("   speed-up" if len(names) == 2 else ""))
-
-    def row(label, values):
-        cells = "".join(f"{v:10.2f}" for v in values)
-        ratio = f"{values[0] / values[1]:10.2f}x" if len(values) == 2 and values[1] else ""
-        print(f"  {label:46s} {cells} {ratio}")
-
+    print_header("CPU ms per frame", names)
+    row = print_row
     bands = sorted(results[names[0]][0]["bands"])
     for band in bands:
         count = results[names[0]][0]["bands"][band][0]

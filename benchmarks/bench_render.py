@@ -25,12 +25,13 @@ import hashlib
 import json
 import os
 import pickle
-import subprocess
 import sys
 import tempfile
 import time
 from collections import defaultdict
 from pathlib import Path
+
+from replay_compare import print_header, print_row, replay_alternately
 
 ROOT = Path(__file__).resolve().parents[1]
 # (module, attribute) of the parts of a render timed in the second replay.
@@ -166,31 +167,15 @@ def main(argv: list[str] | None = None) -> int:
             n = len(pickle.loads(calls_file.read_bytes())[1])
         else:
             n = record(args.mission, args.seed, calls_file)
-        trees = {"after": ROOT} if args.before is None else {
-            "before": args.before.resolve(), "after": ROOT}
-        results: dict[str, list[dict]] = defaultdict(list)
-        for _ in range(args.rounds):
-            for name, tree in trees.items():
-                env = dict(os.environ, PYTHONPATH=str(tree))
-                out = subprocess.run(
-                    [sys.executable, str(Path(__file__).resolve()), "--replay", str(calls_file)],
-                    env=env, cwd=tree, capture_output=True, text=True, check=True)
-                results[name].append(json.loads(out.stdout.strip().splitlines()[-1]))
+        results = replay_alternately(__file__, calls_file, args.before, args.rounds)
     load = os.getloadavg()[0]
     print(f"== {args.mission.name} seed {args.seed}: {n} renders, {args.rounds} rounds, "
           f"load average {load:.2f}")
-    names = list(trees)
+    names = list(results)
     digests = {r["frames_sha256"] for name in names for r in results[name]}
     print(f"frames: {'the same' if len(digests) == 1 else 'DIFFERENT'} in every replay")
-    header = "".join(f"{name:>10s}" for name in names)
-    print(f"  {'CPU ms per render (min over rounds)':46s} {header}"
-          + ("   speed-up" if len(names) == 2 else ""))
-
-    def row(label, values):
-        cells = "".join(f"{v:10.2f}" for v in values)
-        ratio = f"{values[0] / values[1]:10.2f}x" if len(values) == 2 and values[1] else ""
-        print(f"  {label:46s} {cells} {ratio}")
-
+    print_header("CPU ms per render (min over rounds)", names)
+    row = print_row
     first = results[names[0]][0]["bands"]
     for band in (b for b in BANDS if b in first):
         count, _, share = first[band]
