@@ -18,7 +18,6 @@ Run: .venv/bin/python benchmarks/bench_elevation.py [--mission missions/mars_sci
 
 from __future__ import annotations
 
-import argparse
 import hashlib
 import json
 import os
@@ -29,7 +28,13 @@ import time
 from collections import defaultdict
 from pathlib import Path
 
-from replay_compare import print_header, print_row, replay_alternately
+from replay_compare import (
+    print_header,
+    print_row,
+    replay_alternately,
+    replay_arguments,
+    timed,
+)
 
 ROOT = Path(__file__).resolve().parents[1]
 PARTS = ("fit_planes", "step_hazards", "safe_mask", "site_size", "step_room", "select_sites",
@@ -102,18 +107,14 @@ def replay(frames_file: Path, warm: int = 8) -> dict:
     low_parts: dict[str, float] = defaultdict(float)
     low_frames = [0]
 
-    def timed(name, fn):
-        def call(*args, **kwargs):
-            start = time.thread_time()
-            try:
-                return fn(*args, **kwargs)
-            finally:
-                spent[name] += 1e3 * (time.thread_time() - start)
-        return call
+    def timed_part(name, fn):
+        def add(ms, name=name):
+            spent[name] += ms
+        return timed(fn, add)
 
     for name in PARTS:
         if hasattr(detector_module, name):
-            setattr(detector_module, name, timed(name, getattr(detector_module, name)))
+            setattr(detector_module, name, timed_part(name, getattr(detector_module, name)))
 
     def on_detect(low):
         if low:
@@ -142,12 +143,7 @@ def replay(frames_file: Path, warm: int = 8) -> dict:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--mission", type=Path, default=ROOT / "missions" / "mars_science.yaml")
-    parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--rounds", type=int, default=2)
-    parser.add_argument("--before", type=Path, default=None, help="an older checkout")
-    parser.add_argument("--replay", type=Path, default=None, help=argparse.SUPPRESS)
+    parser = replay_arguments(__doc__.splitlines()[0])
     args = parser.parse_args(argv)
     if args.replay is not None:  # the child process of a comparison
         print(json.dumps(replay(args.replay)))

@@ -19,7 +19,6 @@ Run: .venv/bin/python benchmarks/bench_render.py [--mission missions/mars_scienc
 
 from __future__ import annotations
 
-import argparse
 import copy
 import hashlib
 import json
@@ -31,7 +30,13 @@ import time
 from collections import defaultdict
 from pathlib import Path
 
-from replay_compare import print_header, print_row, replay_alternately
+from replay_compare import (
+    print_header,
+    print_row,
+    replay_alternately,
+    replay_arguments,
+    timed,
+)
 
 ROOT = Path(__file__).resolve().parents[1]
 # (module, attribute) of the parts of a render timed in the second replay.
@@ -121,19 +126,15 @@ def replay(calls_file: Path) -> dict:
 
     spent: dict[str, dict[str, float]] = defaultdict(lambda: defaultdict(float))
 
-    def timed(name, fn):
-        def call(*args, **kwargs):
-            start = time.thread_time()
-            try:
-                return fn(*args, **kwargs)
-            finally:
-                spent[current[0]][name] += 1e3 * (time.thread_time() - start)
-        return call
+    def timed_part(name, fn):
+        def add(ms, name=name):
+            spent[current[0]][name] += ms
+        return timed(fn, add)
 
     for module, name in PARTS:
         owner = importlib.import_module(module)
         if hasattr(owner, name):
-            setattr(owner, name, timed(name, getattr(owner, name)))
+            setattr(owner, name, timed_part(name, getattr(owner, name)))
     parts_cost, _ = run(calls, camera)
     parts = {}
     for band, (n, total, _) in parts_cost.items():
@@ -149,14 +150,9 @@ def replay(calls_file: Path) -> dict:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--mission", type=Path, default=ROOT / "missions" / "mars_science.yaml")
-    parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--rounds", type=int, default=2)
-    parser.add_argument("--before", type=Path, default=None, help="an older checkout")
+    parser = replay_arguments(__doc__.splitlines()[0])
     parser.add_argument("--calls", type=Path, default=None,
                         help="replay these recorded renders (written there if missing)")
-    parser.add_argument("--replay", type=Path, default=None, help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     if args.replay is not None:  # the child process of a comparison
         print(json.dumps(replay(args.replay)))

@@ -4,14 +4,41 @@ a figure per checkout side by side with the speed-up."""
 
 from __future__ import annotations
 
+import argparse
 import json
 import os
 import subprocess
 import sys
+import time
 from collections import defaultdict
+from collections.abc import Callable
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
+
+
+def replay_arguments(description: str) -> argparse.ArgumentParser:
+    """The options every replay benchmark takes: mission, seed, rounds, the older checkout,
+    and the hidden ``--replay FILE`` of the child process."""
+    parser = argparse.ArgumentParser(description=description)
+    parser.add_argument("--mission", type=Path, default=ROOT / "missions" / "mars_science.yaml")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--rounds", type=int, default=2)
+    parser.add_argument("--before", type=Path, default=None, help="an older checkout")
+    parser.add_argument("--replay", type=Path, default=None, help=argparse.SUPPRESS)
+    return parser
+
+
+def timed(fn: Callable, spent: Callable[[float], None]) -> Callable:
+    """``fn`` reporting the CPU milliseconds of the calling thread each call took to
+    ``spent``."""
+    def call(*args, **kwargs):
+        start = time.thread_time()
+        try:
+            return fn(*args, **kwargs)
+        finally:
+            spent(1e3 * (time.thread_time() - start))
+    return call
 
 
 def replay_alternately(script: str, data: Path, before: Path | None,
