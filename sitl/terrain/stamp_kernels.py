@@ -16,80 +16,62 @@ from numba import njit
 
 from sitl.terrain.features import stamp_boxes
 
+_ELLIPSE, _MOUND, _BOX = 0, 1, 2
+
+
+@njit(cache=True, inline="always")
+def _height(shape, dx, dy, p):
+    """A feature's height at offset (dx, dy) from its centre, NaN where it has none; ``p``
+    holds its parameters (see the stamp_* functions)."""
+    if shape == _ELLIPSE:  # cos, sin, a, b, height
+        u = (p[0] * dx + p[1] * dy) / p[2]
+        v = (-p[1] * dx + p[0] * dy) / p[3]
+        q = 1.0 - u * u - v * v
+        return p[4] * math.sqrt(q) if q > 0 else np.nan
+    if shape == _MOUND:  # radius, height
+        q = 1.0 - (dx * dx + dy * dy) / (p[0] * p[0])
+        return p[1] * q * q if q > 0 else np.nan
+    # box: cos, sin, half-length, half-width, top
+    inside = abs(p[0] * dx + p[1] * dy) <= p[2] and abs(-p[1] * dx + p[0] * dy) <= p[3]
+    return p[4] if inside else np.nan
+
 
 @njit(cache=True)
-def _ellipses(layer, x0, y0, cs, row, col, half, cx, cy, cos, sin, a, b, height):
+def _stamp_max(layer, x0, y0, cs, row, col, half, cx, cy, shape, params):
     ny, nx = layer.shape
     for f in range(len(row)):
-        c, s = cos[f], sin[f]
         for i in range(max(row[f] - half[f], 0), min(row[f] + half[f] + 1, ny)):
             dy = y0 + i * cs - cy[f]
             for j in range(max(col[f] - half[f], 0), min(col[f] + half[f] + 1, nx)):
-                dx = x0 + j * cs - cx[f]
-                u = (c * dx + s * dy) / a[f]
-                v = (-s * dx + c * dy) / b[f]
-                q = 1.0 - u * u - v * v
-                if q > 0:
-                    value = np.float32(height[f] * math.sqrt(q))
+                height = _height(shape, x0 + j * cs - cx[f], dy, params[f])
+                if not math.isnan(height):
+                    value = np.float32(height)
                     if value > layer[i, j]:
                         layer[i, j] = value
 
 
-@njit(cache=True)
-def _mounds(layer, x0, y0, cs, row, col, half, cx, cy, radius, height):
-    ny, nx = layer.shape
-    for f in range(len(row)):
-        r2 = radius[f] * radius[f]
-        for i in range(max(row[f] - half[f], 0), min(row[f] + half[f] + 1, ny)):
-            dy = y0 + i * cs - cy[f]
-            for j in range(max(col[f] - half[f], 0), min(col[f] + half[f] + 1, nx)):
-                dx = x0 + j * cs - cx[f]
-                q = 1.0 - (dx * dx + dy * dy) / r2
-                if q > 0:
-                    value = np.float32(height[f] * q * q)
-                    if value > layer[i, j]:
-                        layer[i, j] = value
-
-
-@njit(cache=True)
-def _boxes(layer, x0, y0, cs, row, col, half, cx, cy, cos, sin, length, width, top):
-    ny, nx = layer.shape
-    for f in range(len(row)):
-        c, s = cos[f], sin[f]
-        for i in range(max(row[f] - half[f], 0), min(row[f] + half[f] + 1, ny)):
-            dy = y0 + i * cs - cy[f]
-            for j in range(max(col[f] - half[f], 0), min(col[f] + half[f] + 1, nx)):
-                dx = x0 + j * cs - cx[f]
-                if abs(c * dx + s * dy) <= length[f] and abs(-s * dx + c * dy) <= width[f]:
-                    value = np.float32(top[f])
-                    if value > layer[i, j]:
-                        layer[i, j] = value
-
-
-def _touching(layer, origin, cell_size, centers, reach):
+def _stamp(layer, origin, cell_size, centers, reach, shape, *params) -> None:
     centers = np.asarray(centers, dtype=np.float64).reshape(-1, 2)
     row, col, half, touch = stamp_boxes(layer.shape, origin, cell_size, centers, reach)
-    keep = np.flatnonzero(touch)
-    return (float(origin[0]), float(origin[1]), float(cell_size), row[keep], col[keep],
-            half[keep], centers[keep, 0], centers[keep, 1]), keep
+    k = np.flatnonzero(touch)
+    _stamp_max(layer, float(origin[0]), float(origin[1]), float(cell_size), row[k], col[k],
+               half[k], centers[k, 0], centers[k, 1], shape,
+               np.column_stack([np.asarray(p, dtype=np.float64)[k] for p in params]))
 
 
 def stamp_ellipses(layer, origin, cell_size, centers, cos, sin, a, b, height) -> None:
     """Elliptic domes ``height sqrt(1 - u^2 - v^2)`` (semi-axes ``a`` >= ``b`` along the
     direction (cos, sin)), kept where higher than ``layer``; all per-feature arrays (n,)."""
-    frame, k = _touching(layer, origin, cell_size, centers, a)
-    _ellipses(layer, *frame, cos[k], sin[k], a[k], b[k], height[k])
+    _stamp(layer, origin, cell_size, centers, a, _ELLIPSE, cos, sin, a, b, height)
 
 
 def stamp_mounds(layer, origin, cell_size, centers, radius, height) -> None:
     """Rounded mounds ``height (1 - r^2 / radius^2)^2``, kept where higher than ``layer``."""
-    frame, k = _touching(layer, origin, cell_size, centers, radius)
-    _mounds(layer, *frame, radius[k], height[k])
+    _stamp(layer, origin, cell_size, centers, radius, _MOUND, radius, height)
 
 
 def stamp_boxes_flat(layer, origin, cell_size, centers, reach, cos, sin, length, width,
                      top) -> None:
     """Flat-topped boxes at height ``top``: cells within ``length`` along (cos, sin) and
     ``width`` across it (half-extents), kept where higher than ``layer``."""
-    frame, k = _touching(layer, origin, cell_size, centers, reach)
-    _boxes(layer, *frame, cos[k], sin[k], length[k], width[k], top[k])
+    _stamp(layer, origin, cell_size, centers, reach, _BOX, cos, sin, length, width, top)
