@@ -24,9 +24,10 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
-from scipy.linalg import solve_banded
+from scipy.linalg.lapack import dgbsv as _gbsv
 
 DEGREE = 7
 N_COEFF = DEGREE + 1
@@ -185,16 +186,12 @@ def _first_unknowns(m: int) -> np.ndarray:
     return np.concatenate([waypoint_rows, end_rows, joint_rows])
 
 
-def _solve_block_banded(A: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """``A x = b`` for :func:`solve_min_snap`'s system: each row touches at most two
-    neighbouring segments' coefficients, so with its rows sorted by their first unknown the
-    matrix is banded, and a banded LU (LAPACK gbsv) solves it in time linear in the segments,
-    without the dense solver's threads (which on a busy machine cost tens of milliseconds for
-    32 segments)."""
-    n = len(A)
-    m = n // N_COEFF
-    if m <= 4:
-        return np.linalg.solve(A, b)
+@lru_cache(maxsize=64)
+def _band_layout(m: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, int, int]:
+    """Where :func:`solve_min_snap`'s system of ``m`` segments goes in LAPACK's band storage,
+    which depends on ``m`` alone: (row order, source rows, columns, band rows, lower and
+    upper bandwidths), the band rows offset by ``lower`` for gbsv's working space."""
+    n = N_COEFF * m
     first = _first_unknowns(m)
     order = np.argsort(first, kind="stable")
     first = first[order]
@@ -202,11 +199,27 @@ def _solve_block_banded(A: np.ndarray, b: np.ndarray) -> np.ndarray:
     cols = (first[:, None] + np.arange(2 * N_COEFF)[None, :]).ravel()
     inside = cols < n
     rows, cols = rows[inside], cols[inside]
-    values = A[order][rows, cols]
     lower, upper = int(max(0, (rows - cols).max())), int(max(0, (cols - rows).max()))
-    bands = np.zeros((lower + upper + 1, n))
-    bands[upper + rows - cols, cols] = values
-    return solve_banded((lower, upper), bands, b[order], check_finite=False)
+    return order, order[rows], cols, lower + upper + rows - cols, lower, upper
+
+
+def _solve_block_banded(A: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``A x = b`` for :func:`solve_min_snap`'s system: each row touches at most two
+    neighbouring segments' coefficients, so with its rows sorted by their first unknown the
+    matrix is banded, and a banded LU (LAPACK gbsv, as scipy's solve_banded calls it) solves
+    it in time linear in the segments, without the dense solver's threads (which on a busy
+    machine cost tens of milliseconds for 32 segments)."""
+    n = len(A)
+    m = n // N_COEFF
+    if m <= 4:
+        return np.linalg.solve(A, b)
+    order, source, cols, band_rows, lower, upper = _band_layout(m)
+    bands = np.zeros((2 * lower + upper + 1, n))
+    bands[band_rows, cols] = A[source, cols]
+    _, _, x, info = _gbsv(lower, upper, bands, b[order], overwrite_ab=True, overwrite_b=True)
+    if info != 0:
+        raise np.linalg.LinAlgError(f"singular minimum-snap system (gbsv info {info})")
+    return x
 
 
 def trapezoid_durations(waypoints: np.ndarray, max_speed: float, max_acceleration: float):
