@@ -146,6 +146,36 @@ class Inverter(QuietDecorator, py_trees.decorators.Inverter):
     """:class:`py_trees.decorators.Inverter`."""
 
 
+def _invalidate_from(children: list[Behaviour], start: int) -> None:
+    """Stop (INVALID) every child from index ``start`` on that is not INVALID already."""
+    for other in itertools.islice(children, start, None):
+        if other.status != _INVALID:
+            other.stop(_INVALID)
+
+
+def _invalidate_after(children: list[Behaviour], current: Behaviour) -> None:
+    """A selector interrupted by ``current``: stop everything at a lower priority (after it),
+    as py_trees' Selector does."""
+    passed = False
+    for other in children:
+        if passed and other.status != _INVALID:
+            other.stop(_INVALID)
+        passed = True if other == current else passed
+
+
+def _resume_index(selector, children: list[Behaviour]) -> int:
+    """Where a selector's tick starts: with memory, at its current child (those before it
+    invalidated); else at the first."""
+    if not selector.memory:
+        return 0
+    assert selector.current_child is not None
+    index = children.index(selector.current_child)
+    for child in itertools.islice(children, None, index):
+        if child.status != _INVALID:
+            child.stop(_INVALID)
+    return index
+
+
 def _stop_composite(node: py_trees.composites.Composite, new_status: Status) -> None:
     """py_trees' ``Composite.stop``."""
     if new_status == _INVALID:
@@ -171,14 +201,7 @@ class Selector(Direct, py_trees.composites.Selector):
             self.stop(_FAILURE)
             yield self
             return
-        if self.memory:
-            assert self.current_child is not None
-            index = children.index(self.current_child)
-            for child in itertools.islice(children, None, index):
-                if child.status != _INVALID:
-                    child.stop(_INVALID)
-        else:
-            index = 0
+        index = _resume_index(self, children)
         previous = self.current_child
         for child in itertools.islice(children, index, None):
             for node in child.tick():
@@ -186,12 +209,7 @@ class Selector(Direct, py_trees.composites.Selector):
                 if node is child and (node.status == _RUNNING or node.status == _SUCCESS):
                     self.current_child = child
                     if previous is None or previous != self.current_child:
-                        # Interrupted: invalidate everything at a lower priority.
-                        passed = False
-                        for other in children:
-                            if passed and other.status != _INVALID:
-                                other.stop(_INVALID)
-                            passed = True if other == self.current_child else passed
+                        _invalidate_after(children, self.current_child)
                     if node.status == _SUCCESS:
                         self.stop(node.status)
                     else:
@@ -212,14 +230,7 @@ class Selector(Direct, py_trees.composites.Selector):
             self.current_child = None
             self.stop(_FAILURE)
             return
-        if self.memory:
-            assert self.current_child is not None
-            index = children.index(self.current_child)
-            for child in itertools.islice(children, None, index):
-                if child.status != _INVALID:
-                    child.stop(_INVALID)
-        else:
-            index = 0
+        index = _resume_index(self, children)
         previous = self.current_child
         for child in itertools.islice(children, index, None) if index else children:
             if isinstance(child, Direct):
@@ -229,12 +240,7 @@ class Selector(Direct, py_trees.composites.Selector):
             if child.status is _RUNNING or child.status is _SUCCESS:
                 self.current_child = child
                 if previous is None or previous != self.current_child:
-                    # Interrupted: invalidate everything at a lower priority.
-                    passed = False
-                    for other in children:
-                        if passed and other.status != _INVALID:
-                            other.stop(_INVALID)
-                        passed = True if other == self.current_child else passed
+                    _invalidate_after(children, self.current_child)
                 if child.status == _SUCCESS:
                     self.stop(child.status)
                 else:
@@ -273,10 +279,7 @@ class Sequence(Direct, py_trees.composites.Sequence):
                 yield node
                 if node is child and node.status != _SUCCESS:
                     if not self.memory:
-                        # Kill dangling runners after it.
-                        for other in itertools.islice(children, index + 1, None):
-                            if other.status != _INVALID:
-                                other.stop(_INVALID)
+                        _invalidate_from(children, index + 1)  # dangling runners after it
                     if node.status != _RUNNING:
                         self.stop(node.status)
                     else:
@@ -314,10 +317,7 @@ class Sequence(Direct, py_trees.composites.Sequence):
                 _drain(child)
             if child.status is not _SUCCESS:
                 if not self.memory:
-                    # Kill dangling runners after it.
-                    for other in itertools.islice(children, index + 1, None):
-                        if other.status != _INVALID:
-                            other.stop(_INVALID)
+                    _invalidate_from(children, index + 1)  # dangling runners after it
                 if child.status != _RUNNING:
                     self.stop(child.status)
                 else:
