@@ -13,6 +13,9 @@ Each class also has ``run``, the same tick as a plain call: a tree nobody visits
 py_trees visitor, the flight's case; see :class:`behaviors.tree.MissionTree`) needs none of
 the nodes a tick yields, and a generator per node per tick was a third of the tick. ``run``
 makes the same calls in the same order as draining ``tick`` (tests/behaviors/test_ticking.py).
+:func:`run_observed` is ``run`` for a tree that py_trees visitors watch (the flight's
+``.btlog``): it shows an observer every node where draining ``tick`` would yield it, in the
+same order and state.
 ``stop`` no longer makes the fresh, never-started ``tick`` generator py_trees stores in
 ``iterator`` on every stop (nothing reads it), and ``run`` and ``stop`` skip the calls of
 ``initialise`` and ``terminate`` a class does not override (py_trees' own do nothing).
@@ -21,7 +24,7 @@ makes the same calls in the same order as draining ``tick`` (tests/behaviors/tes
 from __future__ import annotations
 
 import itertools
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 
 import py_trees
 from py_trees.behaviour import Behaviour
@@ -32,6 +35,9 @@ _RUNNING = Status.RUNNING
 _SUCCESS = Status.SUCCESS
 _FAILURE = Status.FAILURE
 _INVALID = Status.INVALID
+
+# Shown every node where its tick would yield it, while run_observed runs (else None).
+_observer: Callable[[Behaviour], None] | None = None
 
 
 def _conclude(node: Behaviour, new_status: Status) -> None:
@@ -69,8 +75,12 @@ class Direct:
 
 def _drain(node: Behaviour) -> None:
     """Tick ``node`` through its generator (a node from elsewhere, e.g. py_trees' Parallel)."""
-    for _ in node.tick():
-        pass
+    if _observer is None:
+        for _ in node.tick():
+            pass
+    else:
+        for yielded in node.tick():
+            _observer(yielded)
 
 
 def run(node: Behaviour) -> None:
@@ -79,6 +89,18 @@ def run(node: Behaviour) -> None:
         node.run()
     else:
         _drain(node)
+
+
+def run_observed(node: Behaviour, observer: Callable[[Behaviour], None]) -> None:
+    """Tick ``node`` once as :func:`run` does, calling ``observer(n)`` for every node ``n``
+    that draining ``node.tick()`` would yield, at the moment it would yield it (what a
+    py_trees visitor sees)."""
+    global _observer
+    _observer = observer
+    try:
+        run(node)
+    finally:
+        _observer = None
 
 
 class QuietBehaviour(Direct, Behaviour):
@@ -101,6 +123,8 @@ class QuietBehaviour(Direct, Behaviour):
             self.status = status
         else:
             _conclude(self, status)
+        if _observer is not None:
+            _observer(self)
 
     def stop(self, new_status: Status) -> None:
         if self._terminates:
@@ -127,6 +151,8 @@ class QuietDecorator(Direct, py_trees.decorators.Decorator):
         else:
             _drain(decorated)
         _conclude(self, self.update())
+        if _observer is not None:
+            _observer(self)
 
     def stop(self, new_status: Status) -> None:
         if self._terminates:
@@ -229,6 +255,8 @@ class Selector(Direct, py_trees.composites.Selector):
         if not children:
             self.current_child = None
             self.stop(_FAILURE)
+            if _observer is not None:
+                _observer(self)
             return
         index = _resume_index(self, children)
         previous = self.current_child
@@ -245,9 +273,13 @@ class Selector(Direct, py_trees.composites.Selector):
                     self.stop(child.status)
                 else:
                     self.status = child.status
+                if _observer is not None:
+                    _observer(self)
                 return
         self.stop(_FAILURE)
         self.current_child = children[-1] if children else None
+        if _observer is not None:
+            _observer(self)
 
     def stop(self, new_status: Status = _INVALID) -> None:
         _stop_composite(self, new_status)
@@ -309,6 +341,8 @@ class Sequence(Direct, py_trees.composites.Sequence):
         if not children:
             self.current_child = None
             self.stop(_SUCCESS)
+            if _observer is not None:
+                _observer(self)
             return
         for child in itertools.islice(children, index, None) if index else children:
             if isinstance(child, Direct):
@@ -322,15 +356,19 @@ class Sequence(Direct, py_trees.composites.Sequence):
                     self.stop(child.status)
                 else:
                     self.status = child.status
+                if _observer is not None:
+                    _observer(self)
                 return
             if index + 1 < len(children):
                 self.current_child = children[index + 1]
                 index += 1
         self.stop(_SUCCESS)
+        if _observer is not None:
+            _observer(self)
 
     def stop(self, new_status: Status = _INVALID) -> None:
         _stop_composite(self, new_status)
 
 
 __all__ = ["Direct", "Inverter", "QuietBehaviour", "QuietDecorator", "Retry", "Selector",
-           "Sequence", "run"]
+           "Sequence", "run", "run_observed"]

@@ -108,8 +108,9 @@ class MissionTree(py_trees.trees.BehaviourTree):
     ``BehaviourTree.tick`` also walks every node after each tick for "full" visitors, which
     this project never adds; with a thousand waypoints that walk cost more than the tick.
     Here it runs only when a full visitor is there, so a tick costs what the ticked branch
-    costs, however many waypoints the mission has. Without any visitor the tick is
-    :func:`behaviors.ticking.run` (no generators).
+    costs, however many waypoints the mission has. The tick is
+    :func:`behaviors.ticking.run` (no generators), or :func:`behaviors.ticking.run_observed`
+    showing the visitors each node where py_trees' tick would yield it.
     """
 
     def tick(self, pre_tick_handler=None, post_tick_handler=None) -> None:
@@ -120,15 +121,21 @@ class MissionTree(py_trees.trees.BehaviourTree):
             pre_tick_handler(self)
         for handler in self.pre_tick_handlers:
             handler(self)
-        if self.visitors:
-            for visitor in self.visitors:
+        visitors = self.visitors
+        if visitors:
+            for visitor in visitors:
                 visitor.initialise()
-            for node in self.root.tick():
-                for visitor in self.visitors:
-                    node.visit(visitor)
-            for visitor in self.visitors:
+            # Each node shown to the visitors where its tick would yield it (no generators);
+            # py_trees' Behaviour.visit(visitor) is visitor.run(node).
+            if len(visitors) == 1:
+                ticking.run_observed(self.root, visitors[0].run)
+            else:
+                ticking.run_observed(
+                    self.root, lambda node: [node.visit(visitor) for visitor in visitors]
+                )
+            for visitor in visitors:
                 visitor.finalise()
-        else:  # nobody looks at the nodes a tick passes: tick without yielding them
+        else:  # nobody looks at the nodes a tick passes
             ticking.run(self.root)
         for handler in self.post_tick_handlers:
             handler(self)

@@ -87,7 +87,8 @@ def test_random_trees_tick_as_with_py_trees(seed):
     guard = ("leaf", [Status.FAILURE, Status.FAILURE, Status.RUNNING, Status.SUCCESS])
     plan = ("selector", False, [guard, _plan(rng), ("sequence", True, [_plan(rng), _plan(rng)])])
     trees, calls = [], []
-    for quiet in (False, True, True):  # py_trees, ours ticked, ours run (no generators)
+    # py_trees, ours ticked, ours run (no generators) with an observer
+    for quiet in (False, True, True):
         log: list = []
         root = _build(plan, _kit(quiet), log, iter(range(10_000)))
         trees.append(root)
@@ -97,9 +98,10 @@ def test_random_trees_tick_as_with_py_trees(seed):
         if tick == 17:  # an interruption from above, as a higher-priority branch does
             for root in trees:
                 root.stop(Status.INVALID)
-        visited = [[n.name for n in root.tick()] for root in (plain, quiet)]
-        ticking.run(direct)
-        assert visited[0] == visited[1], f"tick {tick}"
+        visited = [[(n.name, n.status) for n in root.tick()] for root in (plain, quiet)]
+        observed: list = []  # what a visitor sees of the plain call, in order
+        ticking.run_observed(direct, lambda n, seen=observed: seen.append((n.name, n.status)))
+        assert visited[0] == visited[1] == observed, f"tick {tick}"
         assert _state(plain) == _state(quiet) == _state(direct), f"tick {tick}"
         assert calls[0] == calls[1] == calls[2], f"tick {tick}"
     assert any(call[1] == "terminate" for call in calls[1])
@@ -116,13 +118,22 @@ def test_run_ticks_a_node_from_elsewhere_and_an_own_tick_through_its_generator()
             calls.append((self.name, "own tick"))
             yield from super().tick()
 
-    parallel = py_trees.composites.Parallel(
-        "p", policy=py_trees.common.ParallelPolicy.SuccessOnAll(synchronise=False),
-        children=[leaf("a", [Status.SUCCESS], calls), Counted("b", [Status.RUNNING], calls)])
-    root = ticking.Sequence("root", memory=False, children=[parallel])
+    def tree():
+        parallel = py_trees.composites.Parallel(
+            "p", policy=py_trees.common.ParallelPolicy.SuccessOnAll(synchronise=False),
+            children=[leaf("a", [Status.SUCCESS], calls), Counted("b", [Status.RUNNING], calls)])
+        return ticking.Sequence("root", memory=False, children=[parallel]), parallel
+
+    root, parallel = tree()
     ticking.run(root)
     assert ("b", "own tick") in calls and ("a", "update", Status.SUCCESS) in calls
     assert (root.status, parallel.status) == (Status.RUNNING, Status.RUNNING)
+    # A visitor sees the generator's nodes too, as py_trees' own tick yields them.
+    (observed_root, _), (ticked_root, _) = tree(), tree()
+    observed: list = []
+    ticking.run_observed(observed_root, lambda n: observed.append((n.name, n.status)))
+    assert observed == [(n.name, n.status) for n in ticked_root.tick()]
+    assert [n for n, _ in observed] == ["a", "b", "p", "root"]
 
 
 def test_an_invalid_status_is_logged_and_made_invalid(caplog):
