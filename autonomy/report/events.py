@@ -19,6 +19,9 @@ from typing import IO, Any
 import numpy as np
 import py_trees
 
+# json.dumps(event, separators=(",", ":")) without building an encoder per event.
+_ENCODE = json.JSONEncoder(separators=(",", ":")).encode
+
 
 def _clean(value: Any) -> Any:
     """A JSON-able copy: numpy scalars to Python, floats rounded to 0.1 mm / 0.1 ms."""
@@ -86,7 +89,7 @@ class EventLog:
                     # Line-buffered: each event is on disk at once (a live flight is
                     # followed with tail -f, and a killed run keeps what it logged).
                     self._file = self._path.open("w", encoding="utf-8", buffering=1)
-                self._file.write(json.dumps(event, separators=(",", ":")) + "\n")
+                self._file.write(_ENCODE(event) + "\n")
         return event
 
     def close(self) -> None:
