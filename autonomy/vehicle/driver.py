@@ -515,57 +515,58 @@ class MavlinkVehicle:
         handlers = self._handlers
         stats = self.stats
         backlog = self._backlog
-        read_record = mav.read_record
+        read_records = mav.read_records
         tlog = self._tlog
         while budget > 0:
-            found = None
+            batch = None
             if mav.buf_index == len(mav.buf) and self._backlog_pos < len(backlog):
-                # pymavlink's parser holds nothing: a clean packet next in the backlog is
-                # decoded straight into the fields the handlers read.
-                found = read_record(backlog, self._backlog_pos)
-            if found is not None:
-                msg, self._backlog_pos = found
-            elif mav.buf_len() < _MAX_PACKET and self._backlog_pos < len(backlog):
-                end = self._backlog_pos + _CHUNK
-                chunk = backlog[self._backlog_pos : end]
-                self._backlog_pos += len(chunk)
-                msg = mav.parse_char(chunk)
-            else:
-                msg = mav.parse_char(b"")
-            if msg is None:
-                if self._backlog_pos >= len(backlog):
-                    break
-                continue
-            budget -= 1
-            if isinstance(msg, MessageRecord):  # its type and sender without method calls
-                mtype, src, component = msg._type, msg[-3], msg[-2]
-            else:
-                mtype = msg.get_type()
-                if mtype == "BAD_DATA":
-                    if msg.reason == "Invalid signature":
-                        stats.bad_signature += 1
-                    else:
-                        stats.corrupt_packets += 1
-                        stats.corrupt_bytes += len(msg.data)
+                # pymavlink's parser holds nothing: the clean packets next in the backlog are
+                # decoded straight into the fields the handlers read, in one call.
+                batch, self._backlog_pos = read_records(backlog, self._backlog_pos, budget)
+            if not batch:
+                if mav.buf_len() < _MAX_PACKET and self._backlog_pos < len(backlog):
+                    end = self._backlog_pos + _CHUNK
+                    chunk = backlog[self._backlog_pos : end]
+                    self._backlog_pos += len(chunk)
+                    msg = mav.parse_char(chunk)
+                else:
+                    msg = mav.parse_char(b"")
+                if msg is None:
+                    if self._backlog_pos >= len(backlog):
+                        break
                     continue
-                src, component = msg.get_srcSystem(), msg.get_srcComponent()
-            stats.messages += 1
-            if tlog is not None:
-                tlog.write(msg.get_msgbuf(), now)
-            target = self._target_system
-            if src != target:
-                if src == 0 or target is not None:
-                    stats.ignored += 1
-                    continue
-                if mtype != "HEARTBEAT" or not self._adopt(msg):
-                    stats.ignored += 1
-                    continue
-            handler = handlers.get(mtype)
-            if handler is not None:
-                handler(msg, now)
-            boot_ms = getattr(msg, "time_boot_ms", None)
-            if boot_ms is not None and component == self._target_component:
-                newest_ms = max(newest_ms, boot_ms)
+                batch = (msg,)
+            budget -= len(batch)
+            for msg in batch:
+                if isinstance(msg, MessageRecord):  # its type and sender without method calls
+                    mtype, src, component = msg._type, msg[-3], msg[-2]
+                else:
+                    mtype = msg.get_type()
+                    if mtype == "BAD_DATA":
+                        if msg.reason == "Invalid signature":
+                            stats.bad_signature += 1
+                        else:
+                            stats.corrupt_packets += 1
+                            stats.corrupt_bytes += len(msg.data)
+                        continue
+                    src, component = msg.get_srcSystem(), msg.get_srcComponent()
+                stats.messages += 1
+                if tlog is not None:
+                    tlog.write(msg.get_msgbuf(), now)
+                target = self._target_system
+                if src != target:
+                    if src == 0 or target is not None:
+                        stats.ignored += 1
+                        continue
+                    if mtype != "HEARTBEAT" or not self._adopt(msg):
+                        stats.ignored += 1
+                        continue
+                handler = handlers.get(mtype)
+                if handler is not None:
+                    handler(msg, now)
+                boot_ms = getattr(msg, "time_boot_ms", None)
+                if boot_ms is not None and component == self._target_component:
+                    newest_ms = max(newest_ms, boot_ms)
         if newest_ms >= 0 and self._on_vehicle_time is not None:
             self._on_vehicle_time(newest_ms / 1000.0)
         if self._backlog_pos >= len(backlog):

@@ -31,7 +31,8 @@ _V1 = mavlink.PROTOCOL_MARKER_V1
 _V2 = mavlink.PROTOCOL_MARKER_V2
 _SIGNED = mavlink.MAVLINK_IFLAG_SIGNED
 _SIGNATURE = mavlink.MAVLINK_SIGNATURE_BLOCK_LEN
-_HEADER = struct.Struct("<BBBBBBBHB")
+_CORE = struct.Struct("<BBBBBBHB")  # a MAVLink 2 header after its magic byte
+_MAGIC_V2 = bytes((_V2,))
 _CRC = struct.Struct("<H")
 _MAVError = mavlink.MAVError
 _BadData = mavlink.MAVLink_bad_data
@@ -44,13 +45,14 @@ class _Plan:
 
     __slots__ = ("unpacker", "size", "extra", "get", "orders", "names", "strings", "template",
                  "msgid", "cls", "direct", "arrays", "fields", "pick", "record", "flat",
-                 "gather", "spread")
+                 "gather", "spread", "msgid_low", "msgid_high")
 
     def __init__(self, cls: type) -> None:
         self.unpacker = cls.unpacker
         self.size = cls.unpacker.size
         self.extra = bytes((cls.crc_extra,))
         self.msgid = cls.id
+        self.msgid_low, self.msgid_high = cls.id & 0xFFFF, cls.id >> 16
         self.cls = cls
         self.get = attrgetter(*cls.ordered_fieldnames)
         self.orders = tuple(cls.orders)
@@ -216,13 +218,14 @@ class FastMAVLink(mavlink.MAVLink):
                 return
             payload = plan.unpacker.pack(*values)
         # MAVLink 2 drops trailing zero bytes of the payload (at least one byte stays).
-        payload = payload.rstrip(b"\x00") or payload[:1]
-        msgid = plan.msgid
-        body = _HEADER.pack(_V2, len(payload), 0, 0, self.seq, self.srcSystem,
-                            self.srcComponent, msgid & 0xFFFF, msgid >> 16) + payload
-        buf = body + _CRC.pack(_crc16(plan.extra, _crc16(body[1:], 0xFFFF)))
+        payload = payload.rstrip(b"\x00") or b"\x00"
+        seq = self.seq
+        # The header after the magic byte, the payload: what the CRC covers (then crc_extra).
+        core = _CORE.pack(len(payload), 0, 0, seq, self.srcSystem, self.srcComponent,
+                          plan.msgid_low, plan.msgid_high) + payload
+        buf = _MAGIC_V2 + core + _CRC.pack(_crc16(plan.extra, _crc16(core, 0xFFFF)))
         self.file.write(buf)
-        self.seq = (self.seq + 1) % 256
+        self.seq = (seq + 1) % 256
         self.total_packets_sent += 1
         self.total_bytes_sent += len(buf)
         if (self.send_callback is not None and self.send_callback_args is not None
@@ -298,44 +301,60 @@ class FastMAVLink(mavlink.MAVLink):
         through the parse buffer and a message object; from a packet boundary with
         ``parse_char``'s buffer empty, both read the same packet. The parser's counters
         (``total_packets_received``, ...) do not count the packets read here."""
+        records, stop = self.read_records(buf, pos, 1)
+        return (records[0], stop) if records else None
+
+    def read_records(self, buf: bytes | bytearray, pos: int = 0,
+                     limit: int = -1) -> tuple[list, int]:
+        """:meth:`read_record` repeated from ``buf[pos]`` for as long as the packets are
+        clean, at most ``limit`` of them (negative: no limit): the messages read and the
+        index after the last one (``pos`` when the first is not clean). One call per batch
+        of a link's arrivals instead of one per packet."""
+        out: list = []
         end = len(buf)
-        if (end - pos < 12 or buf[pos] != _V2 or buf[pos + 2] != 0
-                or self.signing.secret_key is not None or _IGNORE_CRC):
-            return None
-        stop = pos + buf[pos + 1] + 12
-        if stop > end:
-            return None
-        plan = _PLANS.get(buf[pos + 7] | buf[pos + 8] << 8 | buf[pos + 9] << 16)
-        if plan is None:
-            return None
-        packet = bytes(buf[pos:stop])
-        if _crc16(plan.extra, _crc16(packet[1:-2], 0xFFFF)) != packet[-2] | packet[-1] << 8:
-            return None
-        if plan.record is None:
-            return self.decode(bytearray(packet)), stop
-        if plan.pick is not None and not plan.strings:  # decoded(), inline
-            if stop - pos - 12 >= plan.size:
-                values = plan.pick(plan.unpacker.unpack_from(packet, 10))
-            else:  # trailing zeros cut: put them back
-                values = plan.pick(plan.unpacker.unpack(packet[10:-2].ljust(plan.size, b"\x00")))
+        if end - pos < 12 or self.signing.secret_key is not None or _IGNORE_CRC:
+            return out, pos
+        if type(buf) is not bytes:  # one copy here, none per packet
+            buf, end, base = bytes(buf[pos:]), end - pos, pos
+            pos = 0
         else:
-            values = plan.decoded(packet)
-        return plan.record((*values, packet[5], packet[6], packet)), stop
+            base = 0
+        plans, crc16, count = _PLANS, _crc16, 0
+        while count != limit and end - pos >= 12 and buf[pos] == _V2 and buf[pos + 2] == 0:
+            stop = pos + buf[pos + 1] + 12
+            if stop > end:
+                break
+            plan = plans.get(buf[pos + 7] | buf[pos + 8] << 8 | buf[pos + 9] << 16)
+            if plan is None:
+                break
+            packet = buf[pos:stop]
+            if crc16(plan.extra, crc16(packet[1:-2], 0xFFFF)) != packet[-2] | packet[-1] << 8:
+                break
+            if plan.record is None:
+                out.append(self.decode(bytearray(packet)))
+            else:
+                if plan.pick is not None and not plan.strings:  # decoded(), inline
+                    if stop - pos - 12 >= plan.size:
+                        values = plan.pick(plan.unpacker.unpack_from(packet, 10))
+                    else:  # trailing zeros cut: put them back
+                        values = plan.pick(
+                            plan.unpacker.unpack(packet[10:-2].ljust(plan.size, b"\x00")))
+                else:
+                    values = plan.decoded(packet)
+                out.append(plan.record((*values, packet[5], packet[6], packet)))
+            pos = stop
+            count += 1
+        return out, base + pos
 
     def parse_records(self, data: bytes) -> list:
         """The messages of ``data`` as ``parse_buffer`` gives them (but a list, maybe
-        empty), clean packets as records (:meth:`read_record`) while the parser holds
+        empty), clean packets as records (:meth:`read_records`) while the parser holds
         nothing; from the first packet that is not clean, pymavlink's parser reads the
         rest."""
-        out = []
-        pos, end = 0, len(data)
-        while pos < end and self.buf_index == len(self.buf):
-            found = self.read_record(data, pos)
-            if found is None:
-                break
-            msg, pos = found
-            out.append(msg)
-        if pos < end:
+        out, pos = [], 0
+        if self.buf_index == len(self.buf):
+            out, pos = self.read_records(data)
+        if pos < len(data):
             out.extend(self.parse_buffer(data[pos:]) or ())
         return out
 
