@@ -57,10 +57,14 @@ class Direct:
     writes its own ``tick`` (and no ``run``) is run through that ``tick``.
 
     ``_initialises`` and ``_terminates`` say whether the class has an ``initialise`` or a
-    ``terminate`` of its own; py_trees' are empty, and calling them is skipped."""
+    ``terminate`` of its own; py_trees' are empty, and calling them is skipped.
+    ``_bare_stop``: the class's ``stop`` only sets the status (a leaf with
+    :class:`QuietBehaviour`'s ``stop`` and no ``terminate``), so a parent sets it instead of
+    calling ``stop`` (:func:`_stop`)."""
 
     _initialises = True
     _terminates = True
+    _bare_stop = False
 
     def __init_subclass__(cls, **kwargs) -> None:
         super().__init_subclass__(**kwargs)
@@ -68,6 +72,7 @@ class Direct:
             cls.run = _drain
         cls._initialises = cls.initialise is not Behaviour.initialise
         cls._terminates = cls.terminate is not Behaviour.terminate
+        cls._bare_stop = not cls._terminates and getattr(cls.stop, "sets_status_only", False)
 
     def run(self) -> None:  # pragma: no cover - every class here defines its own
         _drain(self)
@@ -119,7 +124,8 @@ class QuietBehaviour(Direct, Behaviour):
         if status is _RUNNING:
             self.status = status
         elif status is _SUCCESS or status is _FAILURE:
-            self.stop(status)
+            if not self._bare_stop:
+                self.stop(status)
             self.status = status
         else:
             _conclude(self, status)
@@ -130,6 +136,8 @@ class QuietBehaviour(Direct, Behaviour):
         if self._terminates:
             self.terminate(new_status)
         self.status = new_status
+
+    stop.sets_status_only = True  # when terminate is py_trees' (see Direct._bare_stop)
 
 
 class QuietDecorator(Direct, py_trees.decorators.Decorator):
@@ -158,9 +166,9 @@ class QuietDecorator(Direct, py_trees.decorators.Decorator):
         if self._terminates:
             self.terminate(new_status)
         if new_status == _INVALID:
-            self.decorated.stop(new_status)
+            _stop(self.decorated, new_status)
         if self.decorated.status == _RUNNING:
-            self.decorated.stop(_INVALID)
+            _stop(self.decorated, _INVALID)
         self.status = new_status
 
 
@@ -172,11 +180,19 @@ class Inverter(QuietDecorator, py_trees.decorators.Inverter):
     """:class:`py_trees.decorators.Inverter`."""
 
 
+def _stop(node: Behaviour, new_status: Status) -> None:
+    """``node.stop(new_status)``; for a node whose stop only sets the status, that alone."""
+    if getattr(node, "_bare_stop", False):
+        node.status = new_status
+    else:
+        node.stop(new_status)
+
+
 def _invalidate_from(children: list[Behaviour], start: int) -> None:
     """Stop (INVALID) every child from index ``start`` on that is not INVALID already."""
     for other in itertools.islice(children, start, None):
         if other.status != _INVALID:
-            other.stop(_INVALID)
+            _stop(other, _INVALID)
 
 
 def _invalidate_after(children: list[Behaviour], current: Behaviour) -> None:
@@ -185,7 +201,7 @@ def _invalidate_after(children: list[Behaviour], current: Behaviour) -> None:
     passed = False
     for other in children:
         if passed and other.status != _INVALID:
-            other.stop(_INVALID)
+            _stop(other, _INVALID)
         passed = True if other == current else passed
 
 
@@ -198,17 +214,20 @@ def _resume_index(selector, children: list[Behaviour]) -> int:
     index = children.index(selector.current_child)
     for child in itertools.islice(children, None, index):
         if child.status != _INVALID:
-            child.stop(_INVALID)
+            _stop(child, _INVALID)
     return index
 
 
-def _stop_composite(node: py_trees.composites.Composite, new_status: Status) -> None:
-    """py_trees' ``Composite.stop``."""
+def _stop_composite(node: py_trees.composites.Composite, new_status: Status = _INVALID) -> None:
+    """py_trees' ``Composite.stop`` (the ``stop`` of :class:`Selector` and :class:`Sequence`)."""
     if new_status == _INVALID:
         node.current_child = None
         for child in node.children:
             if child.status != _INVALID:
-                child.stop(new_status)
+                if getattr(child, "_bare_stop", False):
+                    child.status = new_status
+                else:
+                    child.stop(new_status)
     if node._terminates:
         node.terminate(new_status)
     node.status = new_status
@@ -281,8 +300,7 @@ class Selector(Direct, py_trees.composites.Selector):
         if _observer is not None:
             _observer(self)
 
-    def stop(self, new_status: Status = _INVALID) -> None:
-        _stop_composite(self, new_status)
+    stop = _stop_composite
 
 
 class Sequence(Direct, py_trees.composites.Sequence):
@@ -331,7 +349,7 @@ class Sequence(Direct, py_trees.composites.Sequence):
             self.current_child = children[0] if children else None
             for child in children:
                 if child.status is not _INVALID:
-                    child.stop(_INVALID)
+                    _stop(child, _INVALID)
             if self._initialises:
                 self.initialise()
         elif self.memory and self.current_child is not None:
@@ -366,8 +384,7 @@ class Sequence(Direct, py_trees.composites.Sequence):
         if _observer is not None:
             _observer(self)
 
-    def stop(self, new_status: Status = _INVALID) -> None:
-        _stop_composite(self, new_status)
+    stop = _stop_composite
 
 
 __all__ = ["Direct", "Inverter", "QuietBehaviour", "QuietDecorator", "Retry", "Selector",
