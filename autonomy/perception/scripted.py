@@ -116,6 +116,8 @@ class ScriptedSiteSource:
         self._uncertainty = np.array([s.uncertainty for s in sites]).reshape(n)
         self._size = np.array([s.size for s in sites]).reshape(n)
         self._verifies = np.array([s.verifies for s in sites], dtype=bool).reshape(n)
+        self._table = np.column_stack((self._x, self._y, self._z, self._roughness,
+                                       self._uncertainty, self._size, self._obstacle))
         self._revealed = np.zeros(n, dtype=bool)
         self._events: list[dict[str, Any]] = []
         self._dropped: dict[str, int] = {}
@@ -160,39 +162,31 @@ class ScriptedSiteSource:
         idx = in_view.nonzero()[0]  # np.flatnonzero of a 1-D array, in one call
         if idx.size == 0:
             return []
-        sigma = s.noise_base + s.noise_per_metre * height[idx]
+        above = height[idx]
+        sigma = s.noise_base + s.noise_per_metre * above
         noise = self._rng.standard_normal((idx.size, 3)) * sigma[:, None]
-        for i in idx[~self._revealed[idx]]:
-            self._events.append(
-                {"event": "site_revealed", "site": int(i), "x": float(self._xy[i, 0]),
-                 "y": float(self._xy[i, 1]), "height": float(height[i])}
-            )
-        self._revealed[idx] = True
-        observed_z = (self._z[idx] + noise[:, 2]).tolist()
-        # Python floats from here: the same double arithmetic as numpy scalars, cheaper.
-        xy = self._xy[idx].tolist()
-        shift = noise[:, :2].tolist()
-        rough = self._roughness[idx].tolist()
-        unc = self._uncertainty[idx].tolist()
-        size = self._size[idx].tolist()
-        obstacle = self._obstacle[idx].tolist()
-        above = height[idx].tolist()
+        revealed = self._revealed[idx]
+        if not revealed.all():
+            for i in idx[~revealed]:
+                self._events.append(
+                    {"event": "site_revealed", "site": int(i), "x": float(self._xy[i, 0]),
+                     "y": float(self._xy[i, 1]), "height": float(height[i])}
+                )
+            self._revealed[idx] = True
+        # Python floats from here: the same double arithmetic as numpy's, cheaper. One row
+        # per site in view: x, y, z, roughness, uncertainty, size, obstacle altitude.
+        rows = self._table[idx].tolist()
+        shifts = noise.tolist()
         now = float(now)
-        observations = [
-            SiteObservation(
-                x=xy[k][0] + shift[k][0],
-                y=xy[k][1] + shift[k][1],
-                z=observed_z[k],
-                roughness=rough[k],
-                uncertainty=unc[k],
-                size=size[k],
-                obstacle_altitude=max(obstacle[k], observed_z[k]),
-                observation_altitude=above[k],
-                timestamp=now,
+        observations = []
+        for (x, y, z, rough, unc, size, obstacle), (dx, dy, dz), h in zip(
+                rows, shifts, above.tolist(), strict=True):
+            z += dz
+            observations.append(SiteObservation(
+                x=x + dx, y=y + dy, z=z, roughness=rough, uncertainty=unc, size=size,
+                obstacle_altitude=max(obstacle, z), observation_altitude=h, timestamp=now,
                 source="scripted",
-            )
-            for k in range(len(xy))
-        ]
+            ))
         self.observations += len(observations)
         return observations
 
