@@ -35,37 +35,56 @@ def _nan_min(a: float, b: float) -> float:
     return a if a <= b else b
 
 
-_KEEP = 8  # most values kept by _kth_smallest's list; beyond, a sort
+_KEEP = 8  # most values kept by _kth_smallest's network; beyond, a sort
+
+
+@njit(cache=True, nogil=True, _nrt=False, inline="always")
+def _exchange(held: int, v: int) -> tuple[int, int]:
+    """One compare-exchange of the network: (the larger, the smaller)."""
+    return max(held, v), min(held, v)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _kth_smallest(values: np.ndarray, a: int, b: int, k: int, largest: np.ndarray) -> int:
-    """The ``k``-th smallest (0-based) of ``values[a:b]``, which it may reorder.
+def _kth_smallest(values: np.ndarray, a: int, b: int, k: int) -> int:
+    """The ``k``-th smallest (0-based) of ``values[a:b]`` (non-negative), which it may
+    reorder.
 
-    A cell's top is near the largest of its points: the ``b - a - k`` largest are kept in a
-    short descending list as the points are read (one comparison for most), and the
-    smallest of them is the answer (the same order statistic as a sort gives). ``largest``:
-    work space of ``_KEEP`` values."""
+    A cell's top is near the largest of its points: the ``b - a - k`` largest pass through
+    a compare-exchange network of two, four or eight places, held in registers and without
+    branches on the values (a short sorted list with an insertion per point mispredicted
+    its branches on noisy heights), and the smallest of the places that count is the
+    answer: the same order statistic as a sort gives."""
+    if b - a == 1:
+        return values[a]
     keep = b - a - k
     if keep > _KEEP:
         part = values[a:b]
         part.sort()
         return part[k]
-    held = 0
+    h0 = h1 = h2 = h3 = np.int64(-1)
+    if keep <= 2:
+        for q in range(a, b):
+            h0, v = _exchange(h0, values[q])
+            h1 = max(h1, v)
+        return h0 if keep == 1 else h1
+    if keep <= 4:
+        for q in range(a, b):
+            h0, v = _exchange(h0, values[q])
+            h1, v = _exchange(h1, v)
+            h2, v = _exchange(h2, v)
+            h3 = max(h3, v)
+        return h2 if keep == 3 else h3
+    h4 = h5 = h6 = h7 = np.int64(-1)
     for q in range(a, b):
-        v = values[q]
-        if held == keep:
-            if v <= largest[keep - 1]:
-                continue
-            r = keep - 1  # the smallest kept value leaves
-        else:
-            r = held
-            held += 1
-        while r > 0 and largest[r - 1] < v:
-            largest[r] = largest[r - 1]
-            r -= 1
-        largest[r] = v
-    return largest[keep - 1]
+        h0, v = _exchange(h0, values[q])
+        h1, v = _exchange(h1, v)
+        h2, v = _exchange(h2, v)
+        h3, v = _exchange(h3, v)
+        h4, v = _exchange(h4, v)
+        h5, v = _exchange(h5, v)
+        h6, v = _exchange(h6, v)
+        h7 = max(h7, v)
+    return h4 if keep == 5 else h5 if keep == 6 else h6 if keep == 7 else h7
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -73,7 +92,7 @@ def fuse_cells(
     x, y, z, variance, count,
     inv_rx, origin_i, inv_ry, origin_j, one,
     mean, var, top, last_update, closest,
-    n0, n1, now, camera_height, min_var, gate2, scratch, cell_scratch,
+    n0, n1, now, camera_height, min_var, gate2, point_cell, terms, levels, cell_scratch,
 ):
     """Fuse points into the flattened grids of an (n0, n1) map in place.
 
@@ -86,14 +105,17 @@ def fuse_cells(
         mean, var, top, last_update, closest: the map's (n0 * n1,) float64 grids.
         now: clock seconds; camera_height: camera ENU z, NaN when unknown.
         min_var: floor of a measurement's variance; gate2: outlier gate squared.
-        scratch: (5, N or more) float64 work space; cell_scratch: (n0 * n1 + 1,) int32
-            work space (kept between calls: fresh arrays cost page faults every call).
+        point_cell: (N or more,) int32, terms: (3, N or more) in the precision of
+            ``variance`` and ``z`` combined, levels: (N or more,) int64, cell_scratch:
+            (2, n0 * n1 + 1) int32: work space (kept between calls: fresh arrays cost page
+            faults every call; the terms in their own precision halve what a single-precision
+            frame moves through the cache).
 
     Returns:
         (number of measurements fused, number of points inside the window).
     """
     n = len(x)
-    flat = scratch[0].view(np.int64)
+    flat = point_cell
     inside = 0
     lo_cell = np.int64(n0 * n1)
     hi_cell = np.int64(-1)
@@ -107,7 +129,7 @@ def fuse_cells(
         # NaN fails every comparison and so falls outside.
         if fi >= 0 and fi < n0 and fj >= 0 and fj < n1:
             cell = np.int64(fi) * n1 + np.int64(fj)
-            flat[k] = cell
+            flat[k] = np.int32(cell)
             inside += 1
             if cell < lo_cell:
                 lo_cell = cell
@@ -147,19 +169,19 @@ def fuse_cells(
 
     # The points of each cell in their own order (a counting sort), so that sums run in
     # point order as bincount's do.
-    start = cell_scratch[: span_cells + 1]
+    start = cell_scratch[0, : span_cells + 1]
     start[:] = 0
     for k in range(n):
         if flat[k] >= 0:
             start[flat[k] - lo_cell + 1] += 1
     for c in range(span_cells):
         start[c + 1] += start[c]
-    fill = start[:-1].copy()
+    fill = cell_scratch[1, :span_cells]
+    fill[:] = start[:-1]
     # Each point's terms, written in cell order (so that the cells read them in a row).
-    w_of = scratch[1]
-    wz_of = scratch[2]
-    v_of = scratch[3]
-    levels = scratch[4].view(np.int64)
+    w_of = terms[0]
+    wz_of = terms[1]
+    v_of = terms[2]
     for k in range(n):
         if flat[k] < 0:
             continue
@@ -173,7 +195,6 @@ def fuse_cells(
         # No levels with a NaN height (its cells' heights are NaN anyway).
         levels[q] = 0 if z_nan else min(np.int64((z[k] - low_z) * inv_quantum), top_level)
 
-    largest = np.empty(_KEEP, np.int64)
     for c in range(span_cells):
         a, b = start[c], start[c + 1]
         if a == b:
@@ -188,7 +209,7 @@ def fuse_cells(
             v_cell += v_of[q]
         m = b - a
         pick = np.int64(TOP_QUANTILE * (m - 1))
-        percentile = z_lo + _kth_smallest(levels, a, b, pick, largest) * quantum
+        percentile = z_lo + _kth_smallest(levels, a, b, pick) * quantum
         meas = wz_cell / w_cell
         point_var = v_cell / m
         meas_top = _nan_max(percentile - TOP_NOISE_LIFT * np.sqrt(point_var), meas)
@@ -243,3 +264,4 @@ def forget_cells(mean, top, variance, closest, last_update, cutoff):
         elif t < oldest:
             oldest = t
     return count, oldest
+

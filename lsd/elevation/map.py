@@ -70,7 +70,7 @@ class ElevationMap:
         # No observed cell was last measured before this (a lower bound, so that
         # forgetting can tell cheaply when nothing is old enough yet).
         self._oldest = math.inf
-        self._fuse_scratch: tuple[np.ndarray, np.ndarray] | None = None
+        self._fuse_scratch: dict[np.dtype, tuple] = {}
 
     @property
     def resolution(self) -> float:
@@ -208,20 +208,24 @@ class ElevationMap:
             self.last_update.reshape(-1), self.closest.reshape(-1),
             n0, n1, float(now), math.nan if camera_height is None else float(camera_height),
             self.settings.min_sigma**2, self.settings.outlier_gate**2,
-            *self._scratch(len(x)),
+            *self._scratch(len(x), np.result_type(variance, z)),
         )
         if inside:
             self._oldest = min(self._oldest, now)
         return int(fused)
 
-    def _scratch(self, points: int) -> tuple[np.ndarray, np.ndarray]:
-        """Work space of :func:`fuse_cells` for ``points`` points, kept between calls."""
+    def _scratch(self, points: int, terms: np.dtype) -> tuple[np.ndarray, ...]:
+        """Work space of :func:`fuse_cells` for ``points`` points whose weighted terms have
+        the precision ``terms``, kept between calls."""
         n0, n1 = self.shape
-        if self._fuse_scratch is None or self._fuse_scratch[0].shape[1] < points:
-            self._fuse_scratch = (
-                np.empty((5, max(points, 1 << 16))), np.empty(n0 * n1 + 1, np.int32)
+        got = self._fuse_scratch.get(terms)
+        if got is None or got[0].shape[0] < points:
+            size = max(points, 1 << 16)
+            got = self._fuse_scratch[terms] = (
+                np.empty(size, np.int32), np.empty((3, size), terms),
+                np.empty(size, np.int64), np.empty((2, n0 * n1 + 1), np.int32),
             )
-        return self._fuse_scratch
+        return got
 
     def forget_older_than(self, now: float) -> int:
         """Forget cells last measured more than ``max_age`` seconds before ``now``.
