@@ -22,23 +22,32 @@ from lsd.plane_fit import copy_where
 _EMPTY = np.zeros(0, np.float32)  # no per-point counts
 
 
-def _shifted(array: np.ndarray, di: int, dj: int, fill: float) -> np.ndarray:
-    """``out[i, j] = array[i + di, j + dj]`` where that exists, ``fill`` elsewhere."""
-    n0, n1 = array.shape
+def _shift(grid: np.ndarray, di: int, dj: int, fill: float) -> None:
+    """``grid[i, j] = grid[i + di, j + dj]`` in place where that exists, ``fill`` elsewhere.
+
+    One overlapping copy of the flat (C-ordered) grid moves every cell by ``di`` rows and
+    ``dj`` columns (numpy copies overlapping 1-D slices in the safe direction, without a
+    temporary); the cells it brings in from the neighbouring row, or from beyond the ends,
+    lie in the strips that entered the window, which are then filled. No new arrays: a
+    fresh grid per move costs its allocation and page faults."""
+    n0, n1 = grid.shape
     if abs(di) >= n0 or abs(dj) >= n1:
-        return np.full_like(array, fill)
-    out = np.empty_like(array)
-    src_i = slice(max(di, 0), n0 + min(di, 0))
-    dst_i = slice(max(-di, 0), n0 - max(di, 0))
-    src_j = slice(max(dj, 0), n1 + min(dj, 0))
-    dst_j = slice(max(-dj, 0), n1 - max(dj, 0))
-    out[dst_i, dst_j] = array[src_i, src_j]
-    # Only the strips that entered the window are filled (each cell is written once).
-    out[: dst_i.start] = fill
-    out[dst_i.stop :] = fill
-    out[dst_i, : dst_j.start] = fill
-    out[dst_i, dst_j.stop :] = fill
-    return out
+        grid.fill(fill)
+        return
+    flat = grid.reshape(-1)
+    size, offset = n0 * n1, di * n1 + dj
+    if offset > 0:
+        flat[: size - offset] = flat[offset:]
+    elif offset < 0:
+        flat[-offset:] = flat[: size + offset]
+    if di > 0:
+        grid[n0 - di :] = fill
+    elif di < 0:
+        grid[:-di] = fill
+    if dj > 0:
+        grid[:, n1 - dj :] = fill
+    elif dj < 0:
+        grid[:, :-dj] = fill
 
 
 class ElevationMap:
@@ -131,11 +140,9 @@ class ElevationMap:
         di, dj = (int(v) for v in target - self.origin_index)
         if max(abs(di), abs(dj)) <= slack / self.resolution:
             return 0
-        self.mean = _shifted(self.mean, di, dj, np.nan)
-        self.top = _shifted(self.top, di, dj, np.nan)
-        self.variance = _shifted(self.variance, di, dj, np.inf)
-        self.closest = _shifted(self.closest, di, dj, np.inf)
-        self.last_update = _shifted(self.last_update, di, dj, -np.inf)
+        for grid, fill in ((self.mean, np.nan), (self.top, np.nan), (self.variance, np.inf),
+                           (self.closest, np.inf), (self.last_update, -np.inf)):
+            _shift(grid, di, dj, fill)
         self.origin_index = target
         return max(abs(di), abs(dj))
 
