@@ -5,7 +5,7 @@ PYTHONPATH, and the CPU per simulated second of every part is printed side by si
 ratio. Alternating the two keeps a shared machine's load changes out of the ratios.
 
 Run: .venv/bin/python benchmarks/bench_compare.py --before /path/to/old/checkout
-     [--mission missions/mars_science.yaml] [--seeds 0 1] [--rounds 2]
+     [--mission missions/mars_science.yaml] [--seeds 0 1] [--rounds 2] [--report]
 """
 
 from __future__ import annotations
@@ -22,9 +22,11 @@ ROOT = Path(__file__).resolve().parents[1]
 PROFILE = Path(__file__).resolve().parent / "bench_profile.py"
 
 
-def _profile(tree: Path, missions: list[str], seeds: list[int]) -> list[dict]:
+def _profile(tree: Path, missions: list[str], seeds: list[int], report: bool) -> list[dict]:
     env = dict(os.environ, PYTHONPATH=str(tree))
     command = [sys.executable, str(PROFILE), "--json", "--seeds", *map(str, seeds)]
+    if report:
+        command.append("--report")
     for mission in missions:
         command += ["--mission", mission]
     out = subprocess.run(command, env=env, cwd=tree, check=True, capture_output=True, text=True)
@@ -37,6 +39,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--mission", action="append", default=None)
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1])
     parser.add_argument("--rounds", type=int, default=1, help="alternations of the two")
+    parser.add_argument("--report", action="store_true",
+                        help="flights write their report directories, as campaign runs do")
     args = parser.parse_args(argv)
     missions = args.mission or [str(ROOT / "missions" / "mars_science.yaml"),
                                 str(ROOT / "missions" / "demo.yaml")]
@@ -48,7 +52,7 @@ def main(argv: list[str] | None = None) -> int:
     load = [os.getloadavg()[0]]
     for _ in range(args.rounds):
         for name, tree in trees.items():
-            for row in _profile(tree, missions, args.seeds):
+            for row in _profile(tree, missions, args.seeds, args.report):
                 acc = totals[name][row["mission"]]
                 for key in ("sim", "cpu", "wall"):
                     acc[key] += row[key]

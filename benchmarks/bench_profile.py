@@ -12,8 +12,11 @@ time is printed beside it.
 Prints, per mission, milliseconds of CPU per simulated second for every part and how many
 times faster than real time the flight runs per core (simulated time / CPU time).
 
+With ``--report`` each flight also writes its report directory (events.jsonl, flight.tlog,
+tree.btlog, blackboard.jsonl, report.html) into a temporary folder, as a campaign run does.
+
 Run: .venv/bin/python benchmarks/bench_profile.py [--mission missions/mars_science.yaml]
-     [--seeds 0 1] [--json]
+     [--seeds 0 1] [--report] [--json]
 (benchmarks/bench_compare.py runs it against an older checkout in the same run.)
 """
 
@@ -23,6 +26,7 @@ import argparse
 import json
 import os
 import sys
+import tempfile
 import time
 from collections import defaultdict
 from collections.abc import Callable, Iterator
@@ -101,14 +105,17 @@ def timed_parts() -> Iterator[dict[str, float]]:
             setattr(owner, name, original)
 
 
-def profile_flight(mission, seed: int) -> tuple[dict[str, float], float, float, float, str]:
+def profile_flight(mission, seed: int, report: bool = False
+                   ) -> tuple[dict[str, float], float, float, float, str]:
     """Fly one seed with every part timed: (CPU s per part incl. "other", total CPU s,
-    wall s, simulated s, outcome)."""
+    wall s, simulated s, outcome). ``report``: write the run's report directory as a
+    campaign run does (its writing falls in "other")."""
+    from autonomy.campaign.worker import fly_with_page
     from autonomy.runner import fly
 
-    with timed_parts() as cpu:
+    with timed_parts() as cpu, tempfile.TemporaryDirectory() as out:
         w0, c0 = time.perf_counter(), time.thread_time()
-        result = fly(mission, seed=seed)
+        result = fly_with_page(mission, seed, out) if report else fly(mission, seed=seed)
         total = time.thread_time() - c0
         wall = time.perf_counter() - w0
     parts = {part: cpu.get(part, 0.0) for part in PARTS}
@@ -123,6 +130,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--mission", action="append", default=None,
                         help="mission file (repeatable; default mars_science and demo)")
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1])
+    parser.add_argument("--report", action="store_true",
+                        help="write each run's report directory (logs, tlog, btlog, "
+                        "report.html) as a campaign run does")
     parser.add_argument("--json", action="store_true",
                         help="one JSON line per mission instead of the table")
     args = parser.parse_args(argv)
@@ -137,7 +147,7 @@ def main(argv: list[str] | None = None) -> int:
         sim = cpu = wall = 0.0
         outcomes = []
         for seed in args.seeds:
-            parts, total, w, s, outcome = profile_flight(mission, seed)
+            parts, total, w, s, outcome = profile_flight(mission, seed, args.report)
             for part, value in parts.items():
                 sums[part] += value
             sim, cpu, wall = sim + s, cpu + total, wall + w
