@@ -166,7 +166,7 @@ class ScriptedSiteSource:
         sigma = s.noise_base + s.noise_per_metre * above
         noise = self._rng.standard_normal((idx.size, 3)) * sigma[:, None]
         revealed = self._revealed[idx]
-        if not revealed.all():
+        if not all(revealed.tolist()):
             for i in idx[~revealed]:
                 self._events.append(
                     {"event": "site_revealed", "site": int(i), "x": float(self._xy[i, 0]),

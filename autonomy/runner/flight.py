@@ -70,7 +70,9 @@ class Flight:
         low_altitude_every: tree ticks between perception updates while the range finder
             reads less than ``low_altitude`` m; default ``perception_every``.
         low_altitude: m AGL.
-        truth: a callable returning the simulator's ground truth, or None when flying live.
+        truth: a callable returning the simulator's ground truth of this tick (its
+            ``position``, ``battery_percent``, ``touchdown``, ``crashed`` and
+            ``crash_reason``, e.g. :meth:`sitl.Sitl.tick_truth`), or None when flying live.
         lockstep: True to drain the LSM queue synchronously after each perception update.
         console: optional phase console.
         loss_wait: clock seconds the mission holds for a lost link (see

@@ -192,7 +192,7 @@ def fly(
                 mission.perception.low_altitude_rate or mission.perception.rate,
             ),
             low_altitude=mission.perception.low_altitude,
-            truth=(lambda: sitl.truth) if sitl is not None else None,
+            truth=sitl.tick_truth if sitl is not None else None,
             lockstep=lockstep,
             console=PhaseConsole(before_line=meter.clear if meter else None) if console else None,
             loss_wait=mission.vehicle.link.loss_wait,

@@ -52,6 +52,17 @@ class Touchdown(NamedTuple):
     speed: float
 
 
+class TickTruth(NamedTuple):
+    """What a lockstep runner reads of the ground truth on every tick (see
+    :meth:`Sitl.tick_truth`): the fields of :class:`TruthState` of the same names."""
+
+    position: tuple[float, float, float]
+    battery_percent: float
+    touchdown: Touchdown | None
+    crashed: bool
+    crash_reason: str
+
+
 @dataclass(slots=True)
 class TruthState:
     """Ground truth of the simulated vehicle, for reports and tests (not sent over MAVLink);
@@ -151,6 +162,7 @@ class Sitl:
                 s.laser, self._heights, np.random.default_rng([seed, _LASER_STREAM])
             )
         self._ground_xy = (0.0, 0.0)
+        self._touchdown_of = self._touchdown = None  # the autopilot's, as a Touchdown
         self.server = MavlinkServer(
             self.autopilot,
             self._agl,
@@ -304,6 +316,18 @@ class Sitl:
             ground_height=m.z - agl,
             wind=self.wind.velocity,
         )
+
+    def tick_truth(self) -> TickTruth:
+        """The part of :attr:`truth` a runner records on every tick, without the rest (the
+        height above ground, the wind, the velocity), which costs as much again."""
+        ap = self.autopilot
+        m = self.model
+        td = ap.touchdown
+        if td is not None and td is not self._touchdown_of:
+            self._touchdown_of = td
+            self._touchdown = Touchdown(td.x, td.y, td.z, td.speed)
+        return TickTruth((m.x, m.y, m.z), self.battery.percent,
+                         None if td is None else self._touchdown, ap.crashed, ap.crash_reason)
 
     def close(self) -> None:
         """Stop serving all links (closing those that can be closed)."""
