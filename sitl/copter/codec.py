@@ -217,6 +217,26 @@ class FastMAVLink(mavlink.MAVLink):
                 super().send(mavmsg, force_mavlink1=force_mavlink1)
                 return
             payload = plan.unpacker.pack(*values)
+        self._frame(plan, payload)
+        if (self.send_callback is not None and self.send_callback_args is not None
+                and self.send_callback_kwargs is not None):
+            self.send_callback(mavmsg, *self.send_callback_args, **self.send_callback_kwargs)
+
+    def send_values(self, msgid: int, values: tuple) -> None:
+        """Send a message of type ``msgid`` given the values its Struct packs (wire order,
+        arrays spread): the bytes :meth:`send` makes of that message, without building it.
+        For a sender that signs nothing and has no send callback (the SITL's links; check
+        :attr:`sends_values`)."""
+        plan = _PLANS[msgid]
+        self._frame(plan, plan.unpacker.pack(*values))
+
+    @property
+    def sends_values(self) -> bool:
+        """Whether :meth:`send_values` may be used: nothing signed, no send callback."""
+        return not self.signing.sign_outgoing and self.send_callback is None
+
+    def _frame(self, plan: _Plan, payload: bytes) -> None:
+        """Write ``payload`` (the Struct's packing) as an unsigned MAVLink 2 packet."""
         # MAVLink 2 drops trailing zero bytes of the payload (at least one byte stays).
         payload = payload.rstrip(b"\x00") or b"\x00"
         seq = self.seq
@@ -228,9 +248,6 @@ class FastMAVLink(mavlink.MAVLink):
         self.seq = (seq + 1) % 256
         self.total_packets_sent += 1
         self.total_bytes_sent += len(buf)
-        if (self.send_callback is not None and self.send_callback_args is not None
-                and self.send_callback_kwargs is not None):
-            self.send_callback(mavmsg, *self.send_callback_args, **self.send_callback_kwargs)
 
     def parse_char(self, c: Any) -> Any:
         if not self.robust_parsing:

@@ -476,40 +476,55 @@ class MavlinkServer:
         ap = self.autopilot
         if ap.texts:
             self._send_texts()
-        self._mission_events()
+        if ap.auto.reached or (ap.mission.current, ap.auto.mission_state) != self._mission_now:
+            self._mission_events()
         cache = self._cache
         cache.clear()
         home_msg = mavlink.MAVLINK_MSG_ID_HOME_POSITION
         build = self.telemetry.builders
+        values = self.telemetry.values
+        known = None  # ap.position_known, asked once (it only changes with the time)
         for link in self.links:
             if not link.open:
                 continue
-            if ap.position_known and (not link.home_sent or ap.home_changed):
+            if known is None:
+                known = ap.position_known
+            if known and (not link.home_sent or ap.home_changed):
                 link.once.append(home_msg)
+            mav = link.mav
             once = link.once
             for msgid in once:
                 if msgid == home_msg:
-                    if not ap.position_known:
+                    if not known:
                         continue  # no home until the EKF has a position
                     link.home_sent = True
-                link.mav.send(build[msgid]())
+                mav.send(build[msgid]())
             once.clear()
             due = link.next_due
             limit = now + 1e-9
+            direct = mav.sends_values
             for msgid, when in due.items():
                 if limit >= when:
-                    if msgid == home_msg and not ap.position_known:
+                    if msgid == home_msg and not known:
                         continue
-                    msg = cache.get(msgid)
-                    if msg is None:
-                        msg = cache[msgid] = build[msgid]()
-                    link.mav.send(msg)
-                    nxt = when + link.intervals[msgid]
-                    due[msgid] = nxt if nxt > now else now + link.intervals[msgid]
+                    if direct and msgid in values:  # packed from its values, no message
+                        key = -msgid
+                        fields = cache.get(key)
+                        if fields is None:
+                            fields = cache[key] = values[msgid]()
+                        mav.send_values(msgid, fields)
+                    else:
+                        msg = cache.get(msgid)
+                        if msg is None:
+                            msg = cache[msgid] = build[msgid]()
+                        mav.send(msg)
+                    interval = link.intervals[msgid]
+                    nxt = when + interval
+                    due[msgid] = nxt if nxt > now else now + interval
             if link.param_queue:  # a parameter list being sent
                 self.params.emit(link)
             if link.upload is not None:  # a mission upload in progress
                 self.missions.emit(link)
             link.flush()
-        if ap.position_known:
+        if known if known is not None else ap.position_known:
             ap.home_changed = False

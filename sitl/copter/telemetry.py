@@ -1,7 +1,11 @@
 """The telemetry messages the SITL sends, built from the autopilot's state.
 
 One message object per type is kept and refilled in place on each build (cheaper than a new
-one); pymavlink packs it again on every send.
+one); pymavlink packs it again on every send. The streams sent on every tick (ATTITUDE,
+LOCAL_POSITION_NED, DISTANCE_SENSOR) also have :attr:`Telemetry.values`: the values their
+Struct packs, in wire order, which a link that signs nothing packs without the message
+(:meth:`sitl.copter.codec.FastMAVLink.send_values`); the builders fill their message from
+the same values, so both give the same bytes.
 """
 
 from __future__ import annotations
@@ -63,6 +67,9 @@ _EKF_SETTLED = (
 _EKF_POSITION = _S.EKF_POS_HORIZ_ABS | _S.EKF_PRED_POS_HORIZ_ABS
 _UINT16_MAX = 65535
 _INT16_MAX = 32767
+# DISTANCE_SENSOR's extension fields, never set here: horizontal and vertical fov, the
+# quaternion (spread), signal quality.
+_DISTANCE_EXTENSIONS = (0, 0, 0, 0, 0, 0, 0)
 
 # What each personality's AUTOPILOT_VERSION claims: only what this simulator does.
 _COMMON_CAPABILITIES = (
@@ -144,6 +151,13 @@ class Telemetry:
         for msgid, personality in ONLY.items():
             if ap.name != personality:
                 del self.builders[msgid]
+        self.values: dict[int, Callable[[], tuple]] = {
+            mavlink.MAVLINK_MSG_ID_ATTITUDE: self._attitude_values,
+            mavlink.MAVLINK_MSG_ID_LOCAL_POSITION_NED: self._local_position_ned_values,
+            mavlink.MAVLINK_MSG_ID_DISTANCE_SENSOR: self._distance_sensor_values,
+        }
+        self._attitude_at: tuple[float, float, float, float, float] | None = None
+        self._roll_pitch = (0.0, 0.0)
 
     def _time_ms(self) -> int:
         return int(self.server.time * 1000.0) & 0xFFFFFFFF
@@ -161,13 +175,27 @@ class Telemetry:
             msg.system_status = mavlink.MAV_STATE_STANDBY
         return msg
 
-    def _attitude(self):
+    def _roll_pitch_now(self) -> tuple[float, float]:
+        """The model's (roll, pitch), computed once for the state it is in (ATTITUDE and
+        DISTANCE_SENSOR of the same tick both need it)."""
         m = self.autopilot.model
+        at = (m.ax, m.ay, m.az, m.heading, self.server.time)
+        if at != self._attitude_at:
+            self._attitude_at = at
+            self._roll_pitch = m.attitude()
+        return self._roll_pitch
+
+    def _attitude_values(self) -> tuple:
+        m = self.autopilot.model
+        roll, pitch = self._roll_pitch_now()
+        msg = self._attitude_msg  # roll and pitch speeds stay as built
+        return (self._time_ms(), roll, pitch, m.heading, msg.rollspeed, msg.pitchspeed,
+                m.yaw_speed)
+
+    def _attitude(self):
         msg = self._attitude_msg
-        msg.time_boot_ms = self._time_ms()
-        msg.roll, msg.pitch = m.attitude()
-        msg.yaw = m.heading
-        msg.yawspeed = m.yaw_speed
+        (msg.time_boot_ms, msg.roll, msg.pitch, msg.yaw, msg.rollspeed, msg.pitchspeed,
+         msg.yawspeed) = self._attitude_values()
         return msg
 
     def _global_position_int(self):
@@ -202,30 +230,34 @@ class Telemetry:
         msg.climb = m.vz
         return msg
 
-    def _local_position_ned(self):
+    def _local_position_ned_values(self) -> tuple:
         ap = self.autopilot
         m = ap.model
-        msg = self._lpn_msg
-        msg.time_boot_ms = self._time_ms()
         east, north = ap.estimated_xy()
-        msg.x, msg.y, msg.z = north, east, -(m.z - ap.home_z)
-        msg.vx, msg.vy, msg.vz = m.vy, m.vx, -m.vz
+        return (self._time_ms(), north, east, -(m.z - ap.home_z), m.vy, m.vx, -m.vz)
+
+    def _local_position_ned(self):
+        msg = self._lpn_msg
+        (msg.time_boot_ms, msg.x, msg.y, msg.z, msg.vx, msg.vy,
+         msg.vz) = self._local_position_ned_values()
         return msg
 
-    def _distance_sensor(self):
-        ap = self.autopilot
-        m = ap.model
-        s = ap.settings
-        msg = self._distance_msg
-        roll, pitch = m.attitude()
+    def _distance_sensor_values(self) -> tuple:
+        s = self.autopilot.settings
+        msg = self._distance_msg  # its type, id, orientation and covariance stay as built
+        roll, pitch = self._roll_pitch_now()
         tilt = max(math.cos(roll) * math.cos(pitch), 0.1)
         distance = self.server.agl() / tilt
         # Beyond the sensor's range it reports max + 1 cm, as ArduPilot does for "out of range".
         cm = min(max(distance, s.rangefinder_min), s.rangefinder_max + 0.01) * 100.0
-        msg.time_boot_ms = self._time_ms()
-        msg.min_distance = int(s.rangefinder_min * 100)
-        msg.max_distance = int(s.rangefinder_max * 100)
-        msg.current_distance = int(round(cm))
+        return (self._time_ms(), int(s.rangefinder_min * 100), int(s.rangefinder_max * 100),
+                int(round(cm)), msg.type, msg.id, msg.orientation, msg.covariance,
+                *_DISTANCE_EXTENSIONS)
+
+    def _distance_sensor(self):
+        msg = self._distance_msg
+        (msg.time_boot_ms, msg.min_distance, msg.max_distance,
+         msg.current_distance) = self._distance_sensor_values()[:4]
         return msg
 
     def _sys_status(self):
