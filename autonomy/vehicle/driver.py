@@ -56,6 +56,7 @@ _EKF_POS_ABS = mavlink.EKF_POS_HORIZ_ABS
 _EKF_PRED_POS_ABS = mavlink.EKF_PRED_POS_HORIZ_ABS
 _EKF_CONST_POS = mavlink.EKF_CONST_POS_MODE
 _ARMED_FLAG = mavlink.MAV_MODE_FLAG_SAFETY_ARMED
+_SET_POSITION_TARGET = mavlink.MAVLINK_MSG_ID_SET_POSITION_TARGET_LOCAL_NED
 _POSITION_ONLY = 0x0DF8  # ignore velocity, acceleration, yaw, yaw rate
 _VELOCITY_ONLY = 0x0DC7  # ignore position, acceleration, yaw, yaw rate
 _POSITION_VELOCITY = 0x0DC0  # a trajectory's setpoint: ignore acceleration, yaw, yaw rate
@@ -777,13 +778,12 @@ class MavlinkVehicle:
 
     def _send_heartbeat(self, now: float) -> None:
         self._last_heartbeat_sent = now
-        self._mav.heartbeat_send(
-            mavlink.MAV_TYPE_GCS,
-            mavlink.MAV_AUTOPILOT_INVALID,
-            0,
-            0,
-            mavlink.MAV_STATE_ACTIVE,
-        )
+        fields = (mavlink.MAV_TYPE_GCS, mavlink.MAV_AUTOPILOT_INVALID, 0, 0,
+                  mavlink.MAV_STATE_ACTIVE, 3)  # MAVLink version 3: pymavlink's default
+        if self._mav.sends_values:  # packed from the fields, no message object built
+            self._mav.send_fields(mavlink.MAVLINK_MSG_ID_HEARTBEAT, fields)
+        else:
+            self._mav.send(mavlink.MAVLink_heartbeat_message(*fields))
 
     def _request_streams(self, now: float) -> None:
         streams = dict(self.settings.streams)
@@ -869,20 +869,12 @@ class MavlinkVehicle:
             mask, pos, vel = _POSITION_VELOCITY, (x, y, z), sp.velocity_ned
         else:
             mask, pos, vel = _VELOCITY_ONLY, (0.0, 0.0, 0.0), (x, y, z)
-        self._mav.set_position_target_local_ned_send(
-            int(now * 1000) & 0xFFFFFFFF,
-            self._target_system,
-            self._target_component,
-            mavlink.MAV_FRAME_LOCAL_NED,
-            mask,
-            *pos,
-            *vel,
-            0.0,
-            0.0,
-            0.0,
-            0.0,
-            0.0,
-        )
+        fields = (int(now * 1000) & 0xFFFFFFFF, self._target_system, self._target_component,
+                  mavlink.MAV_FRAME_LOCAL_NED, mask, *pos, *vel, 0.0, 0.0, 0.0, 0.0, 0.0)
+        if self._mav.sends_values:  # packed from the fields, no message object built
+            self._mav.send_fields(_SET_POSITION_TARGET, fields)
+        else:
+            self._mav.send(mavlink.MAVLink_set_position_target_local_ned_message(*fields))
 
     # ------------------------------------------------------------------ command building
     def _start(self, name: str) -> Handle | None:

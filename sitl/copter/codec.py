@@ -45,7 +45,7 @@ class _Plan:
 
     __slots__ = ("unpacker", "size", "extra", "get", "orders", "names", "strings", "template",
                  "msgid", "cls", "direct", "arrays", "fields", "pick", "record", "flat",
-                 "gather", "spread", "msgid_low", "msgid_high")
+                 "gather", "spread", "msgid_low", "msgid_high", "to_wire")
 
     def __init__(self, cls: type) -> None:
         self.unpacker = cls.unpacker
@@ -92,6 +92,9 @@ class _Plan:
             self.spread = _function("v", f"None if {short} else ({spread},)")
         # Several fields and no arrays: ``get`` alone gives the values to pack.
         self.flat = not self.arrays and len(self.orders) > 1
+        # The declared fields' values in wire order (for such a type).
+        self.to_wire = (itemgetter(*(self.orders.index(j) for j in range(len(self.orders))))
+                        if self.flat else None)
         # pymavlink strips trailing NULs off every bytes value: chars ('c') and strings ('Ns').
         self.strings = tuple(i for i, (tip, count) in enumerate(self.fields)
                              if count == 0 and items[tip] in "cs")
@@ -229,6 +232,18 @@ class FastMAVLink(mavlink.MAVLink):
         :attr:`sends_values`)."""
         plan = _PLANS[msgid]
         self._frame(plan, plan.unpacker.pack(*values))
+
+    def send_fields(self, msgid: int, fields: tuple) -> None:
+        """Send a message of type ``msgid`` given its fields in declaration order (the
+        arguments of its pymavlink constructor): the bytes :meth:`send` makes of
+        ``mavlink_map[msgid](*fields)``, without building it when the type has no arrays and
+        its constructor only stores its arguments. For a sender :attr:`sends_values` holds
+        for."""
+        plan = _PLANS.get(msgid)
+        if plan is None or plan.to_wire is None or not plan.direct:  # pymavlink's way
+            self.send(mavlink.mavlink_map[msgid](*fields))
+            return
+        self._frame(plan, plan.unpacker.pack(*plan.to_wire(fields)))
 
     @property
     def sends_values(self) -> bool:
