@@ -409,9 +409,18 @@ class LandingSiteManager:
     def _flush_redetections(self) -> None:
         """Apply the queued last_seen/count bumps of plain redetections, vectorised."""
         if self._pending_slots:
-            slots = np.array(self._pending_slots, dtype=np.int64)
-            np.add.at(self._count, slots, 1)
-            np.maximum.at(self._last, slots, np.array(self._pending_times))
+            if len(self._pending_slots) < _SMALL_BATCH:
+                # A few: row by row (ufunc.at's set-up costs more than these additions and
+                # comparisons; the times are finite, so max is numpy's maximum).
+                count, last = self._count, self._last
+                for slot, t in zip(self._pending_slots, self._pending_times, strict=True):
+                    count[slot] += 1
+                    if t > last[slot]:
+                        last[slot] = t
+            else:
+                slots = np.array(self._pending_slots, dtype=np.int64)
+                np.add.at(self._count, slots, 1)
+                np.maximum.at(self._last, slots, np.array(self._pending_times))
             self._pending_slots.clear()
             self._pending_times.clear()
             self._pending_set.clear()

@@ -68,3 +68,33 @@ def test_small_batches_are_validated_as_large_ones(monkeypatch):
     assert {None, "non_finite", "position_out_of_range", "roughness_out_of_range",
             "uncertainty_out_of_range", "negative_size", "negative_observation_altitude",
             "banned_zone", "beyond_max_distance"} <= found
+
+
+def test_small_and_large_batches_count_redetections_alike(monkeypatch):
+    """Redetections bump the detection count and last-seen time of their site the same way
+    row by row (a few) as with numpy's ufunc.at (many), several of one site in a batch and
+    late or early timestamps included."""
+    from lsm import SiteObservation
+    from lsm import manager as module
+
+    def run() -> list[tuple[int, int, float]]:
+        manager = LandingSiteManager(LsmSettings(match_radius=2.0), LossWeights())
+        manager.set_drone_position((0.0, 0.0, 30.0))
+        rng = np.random.default_rng(9)
+        centres = rng.uniform(-100, 100, (12, 2))
+        for x, y in centres:
+            manager.submit(SiteObservation(float(x), float(y), 0.0, 0.2, 0.2, 2.0, 0.0, 30.0, 0.0))
+        manager.process_pending()
+        for step in range(40):
+            for _ in range(int(rng.integers(1, 6))):
+                x, y = centres[int(rng.integers(len(centres)))]
+                t = float(step + rng.uniform(-3.0, 1.0))
+                manager.submit(SiteObservation(float(x) + 0.1, float(y), 0.0, 0.2, 0.2, 2.0,
+                                               0.0, 40.0, t))
+            manager.process_pending()
+        return sorted((s.id, s.detection_count, s.last_seen) for s in manager.ranked())
+
+    small = run()
+    monkeypatch.setattr(module, "_SMALL_BATCH", 0)
+    assert run() == small
+    assert max(count for _, count, _ in small) > 5
