@@ -41,7 +41,7 @@ import cv2
 import numpy as np
 
 from lsd.elevation.map import ElevationMap, pooled_level
-from lsd.elevation.projection import back_project
+from lsd.elevation.projection import back_project, median32
 from lsd.elevation.settings import DetectorSettings, ElevationMapSettings
 from lsd.frames import DepthFrame
 from lsd.plane_fit import PlaneFit, copy_where, fit_planes
@@ -217,8 +217,9 @@ class ElevationDetector:
         everything = n_valid == depth.size
         pick = None if everything else np.flatnonzero(valid)
         # Height above the ground from a subsample of the points (a median is robust).
-        drops = drop.reshape(-1) if everything else drop.reshape(-1)[pick]
-        self.agl = -float(np.median(drops[:: max(1, n_valid // 4096)]))
+        step = max(1, n_valid // 4096)
+        drops = drop.reshape(-1)[:: step] if everything else drop.reshape(-1)[pick[:: step]]
+        self.agl = -float(median32(np.ascontiguousarray(drops)))
         ground_per_pixel = max(self.agl, 0.0) / max(k.fx, k.fy)
         # In place, east, north and drop become world x, y and z (single precision keeps
         # better than a millimetre within kilometres of home, ample for cells of 1 cm+).

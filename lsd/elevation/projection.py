@@ -62,3 +62,24 @@ def back_project(depth, placement, sigma, rotation, xn, yn, min_var):
             else:
                 variance[i, j] = min_var
     return east, north, drop, variance
+
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def median32(sample):
+    """``np.median`` of a single-precision array as numpy computes it: the middle value, or
+    the two middle ones' single-precision sum halved (NaN when any value is NaN), from a
+    partition without numpy's copies, NaN check and mean."""
+    n = sample.size
+    for k in range(n):
+        if np.isnan(sample[k]):
+            return np.float32(np.nan)
+    half = n // 2
+    part = np.partition(sample, half)
+    if n % 2:
+        return part[half]
+    below = part[0]
+    for k in range(1, half):
+        below = max(below, part[k])
+    return (below + part[half]) / np.float32(2.0)
+

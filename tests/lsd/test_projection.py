@@ -1,12 +1,12 @@
-"""The compiled back-projection (lsd.elevation.projection) against numpy's single-precision
-expressions it replaces, bit for bit."""
+"""The compiled back-projection and median (lsd.elevation.projection) against the numpy
+expressions they replace, bit for bit."""
 
 from __future__ import annotations
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from lsd.elevation.projection import back_project
+from lsd.elevation.projection import back_project, median32
 
 
 def test_back_projection_is_numpys_single_precision_arithmetic_bit_for_bit():
@@ -37,3 +37,16 @@ def test_back_projection_is_numpys_single_precision_arithmetic_bit_for_bit():
     # Without a per-pixel error every variance is the floor.
     flat = back_project(depth, placement, np.zeros((0, 0), f32), rotation, xn, yn, min_var)
     assert (flat[3] == min_var).all() and np.array_equal(flat[2], drop, equal_nan=True)
+
+
+def test_median32_is_numpys_median_of_single_precision_values():
+    rng = np.random.default_rng(19)
+    for n in list(range(1, 40)) + [4095, 4096]:
+        values = (rng.normal(-2.5, 1.0, n) * 10.0 ** rng.uniform(-3, 3)).astype(np.float32)
+        if n % 3 == 0:
+            values = np.round(values, 1).astype(np.float32)  # ties
+        got = median32(values.copy())
+        assert got == float(np.median(values)), n  # (numba returns the float32 as a float)
+    values[7] = np.nan
+    assert np.isnan(median32(values)) and np.isnan(np.median(values))
+
