@@ -298,9 +298,10 @@ def _run_lockstep(flight: Flight, sitl: Any, clock: SimClock, mission: Mission,
                     return "crashed"
                 if flight.link_gave_up is not None:
                     return f"link lost: {flight.link_gave_up}"
-                if flight.status == Status.SUCCESS:
+                status = flight.status
+                if status == Status.SUCCESS:
                     return "landed"
-                if flight.status == Status.FAILURE:
+                if status == Status.FAILURE:
                     return bring_down(flight, "mission failed", "land", advance)
             return bring_down(flight, "time limit", "land", advance)
         except (_Interrupted, KeyboardInterrupt):

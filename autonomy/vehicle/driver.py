@@ -268,16 +268,13 @@ class MavlinkVehicle:
             "STATUSTEXT": self._on_statustext,
             "COMMAND_ACK": self._on_command_ack,
         }
-        self._state = VehicleState(time=now)
+        # The snapshot built by the last poll(): a plain attribute, not a property, since
+        # the tree reads it a dozen times a tick (behaviors.ports.VehiclePort.state).
+        self.state = VehicleState(time=now)
         # ArduPilot sends nothing on a link until it hears from a ground station.
         self._send_heartbeat(now)
 
     # ------------------------------------------------------------------ public: state
-    @property
-    def state(self) -> VehicleState:
-        """The snapshot built by the last :meth:`poll`."""
-        return self._state
-
     @property
     def autopilot(self) -> str:
         return self._autopilot
@@ -324,8 +321,8 @@ class MavlinkVehicle:
         if now - self._last_heartbeat_sent >= self.settings.heartbeat_period - _SLACK:
             self._send_heartbeat(now)
         self._stream_setpoint(now)
-        self._state = self._snapshot(now, age)
-        return self._state
+        self.state = self._snapshot(now, age)
+        return self.state
 
     # ------------------------------------------------------------------ public: commands
     def arm(self) -> Handle:
@@ -566,8 +563,9 @@ class MavlinkVehicle:
                 if handler is not None:
                     handler(msg, now)
                 boot_ms = getattr(msg, "time_boot_ms", None)
-                if boot_ms is not None and component == self._target_component:
-                    newest_ms = max(newest_ms, boot_ms)
+                if (boot_ms is not None and boot_ms > newest_ms
+                        and component == self._target_component):
+                    newest_ms = boot_ms
         if newest_ms >= 0 and self._on_vehicle_time is not None:
             self._on_vehicle_time(newest_ms / 1000.0)
         if self._backlog_pos >= len(backlog):
