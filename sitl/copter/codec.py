@@ -45,7 +45,7 @@ class _Plan:
 
     __slots__ = ("unpacker", "size", "extra", "get", "orders", "names", "strings", "template",
                  "msgid", "cls", "direct", "arrays", "fields", "pick", "record", "flat",
-                 "gather", "spread", "msgid_low", "msgid_high", "to_wire")
+                 "gather", "spread", "msgid_low", "msgid_high", "to_wire", "quick")
 
     def __init__(self, cls: type) -> None:
         self.unpacker = cls.unpacker
@@ -113,6 +113,12 @@ class _Plan:
                              if k not in self.names and k not in (
                                  "_header", "_payload", "_msgbuf", "_crc", "_signed")}
         self.record = _record_type(cls.msgname, self.names) if self.direct else None
+        # What read_records needs of a type read as a record with its fields picked from the
+        # wire tuple (no arrays, no strings), in one attribute.
+        self.quick = None
+        if self.record is not None and self.pick is not None and not self.strings:
+            self.quick = (self.size, self.unpacker.unpack_from, self.unpacker.unpack, self.pick,
+                          self.record)
 
     def decoded(self, msgbuf: bytes | bytearray) -> tuple | list:
         """The declared fields' values of the whole MAVLink 2 packet ``msgbuf`` (header to
@@ -362,18 +368,18 @@ class FastMAVLink(mavlink.MAVLink):
             packet = buf[pos:stop]
             if crc16(plan.extra, crc16(packet[1:-2], 0xFFFF)) != packet[-2] | packet[-1] << 8:
                 break
-            if plan.record is None:
+            quick = plan.quick
+            if quick is not None:  # decoded(), inline
+                size, unpack_from, unpack, pick, record = quick
+                if stop - pos - 12 >= size:
+                    values = pick(unpack_from(packet, 10))
+                else:  # trailing zeros cut: put them back
+                    values = pick(unpack(packet[10:-2].ljust(size, b"\x00")))
+                out.append(record((*values, packet[5], packet[6], packet)))
+            elif plan.record is None:
                 out.append(self.decode(bytearray(packet)))
             else:
-                if plan.pick is not None and not plan.strings:  # decoded(), inline
-                    if stop - pos - 12 >= plan.size:
-                        values = plan.pick(plan.unpacker.unpack_from(packet, 10))
-                    else:  # trailing zeros cut: put them back
-                        values = plan.pick(
-                            plan.unpacker.unpack(packet[10:-2].ljust(plan.size, b"\x00")))
-                else:
-                    values = plan.decoded(packet)
-                out.append(plan.record((*values, packet[5], packet[6], packet)))
+                out.append(plan.record((*plan.decoded(packet), packet[5], packet[6], packet)))
             pos = stop
             count += 1
         return out, base + pos
