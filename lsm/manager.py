@@ -73,6 +73,20 @@ class Decision:
     timestamp: float
 
 
+def _site_at(c: dict[str, np.ndarray], i: int, source: str, loss: float) -> LandingSite:
+    """The :class:`LandingSite` of row ``i`` of the columns ``c`` (see
+    ``LandingSiteManager._columns``)."""
+    p = c["position"][i]
+    return LandingSite(
+        id=int(c["id"][i]), x=float(p[0]), y=float(p[1]), z=float(p[2]),
+        roughness=float(c["roughness"][i]), uncertainty=float(c["uncertainty"][i]),
+        size=float(c["size"][i]), obstacle_altitude=float(c["obstacle_altitude"][i]),
+        verification_altitude=float(c["verification_altitude"][i]),
+        first_seen=float(c["first_seen"][i]), last_seen=float(c["last_seen"][i]),
+        detection_count=int(c["detection_count"][i]), source=source, loss=loss,
+    )
+
+
 class RankedSites(Sequence[LandingSite]):
     """Retained sites in ascending loss: a sorted copy taken under the manager's lock.
 
@@ -92,17 +106,7 @@ class RankedSites(Sequence[LandingSite]):
         return len(self.ids)
 
     def _site(self, i: int) -> LandingSite:
-        c = self._c
-        p = c["position"][i]
-        return LandingSite(
-            id=int(c["id"][i]), x=float(p[0]), y=float(p[1]), z=float(p[2]),
-            roughness=float(c["roughness"][i]), uncertainty=float(c["uncertainty"][i]),
-            size=float(c["size"][i]), obstacle_altitude=float(c["obstacle_altitude"][i]),
-            verification_altitude=float(c["verification_altitude"][i]),
-            first_seen=float(c["first_seen"][i]), last_seen=float(c["last_seen"][i]),
-            detection_count=int(c["detection_count"][i]), source=self._sources[i],
-            loss=float(c["loss"][i]),
-        )
+        return _site_at(self._c, i, self._sources[i], float(self._c["loss"][i]))
 
     @overload
     def __getitem__(self, index: int) -> LandingSite: ...
@@ -327,9 +331,10 @@ class LandingSiteManager:
             slot = self._slot_of.get(int(site_id))
             if slot is None:
                 return None
-            idx = np.array([slot])
-            cols = self._columns(idx, self._losses(idx))
-            return RankedSites(cols, [self._sources[slot]])[0]
+            # The loss as a ranking computes it; the rest read at the slot of the whole
+            # columns (no eleven one-element copies).
+            loss = float(self._losses(np.array([slot]))[0])
+            return _site_at(self._columns(slice(None), None), slot, self._sources[slot], loss)
 
     def is_verified(self, site: LandingSite) -> bool:
         """True when the site was (re-)detected at or below the verification altitude

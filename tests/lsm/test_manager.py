@@ -235,3 +235,18 @@ def test_positions_beyond_any_mission_frame_are_rejected_before_the_drone_is_kno
     lsm.submit(far)
     lsm.process_pending()
     assert len(lsm) == 0 and lsm.counters()["rejected_position_out_of_range"] == 1
+
+
+def test_get_gives_the_record_a_ranking_gives():
+    """get(id) is the ranked record of that id, every field and the loss at the current drone
+    position the same, after merges, updates and moves of the drone."""
+    m = manager(capacity=20)
+    rng = np.random.default_rng(4)
+    for step in range(30):
+        x, y = rng.uniform(-40, 40, 2)
+        feed(m, obs(float(x), float(y), rough=float(rng.uniform(0, 1)),
+                    size=float(rng.uniform(0.5, 6)), alt=float(rng.uniform(2, 60)), t=step,
+                    source=f"s{step % 3}"))
+        m.set_drone_position((float(rng.uniform(-20, 20)), 0.0, 30.0))
+        for site in m.ranked():
+            assert m.get(site.id) == site
