@@ -92,7 +92,7 @@ def fuse_cells(
     x, y, z, variance, count,
     inv_rx, origin_i, inv_ry, origin_j, one,
     mean, var, top, last_update, closest,
-    n0, n1, now, camera_height, min_var, gate2, point_cell, terms, levels, cell_scratch,
+    n0, n1, now, camera_height, min_var, gate2, point_cell, terms, levels, cell_count,
 ):
     """Fuse points into the flattened grids of an (n0, n1) map in place.
 
@@ -106,10 +106,11 @@ def fuse_cells(
         now: clock seconds; camera_height: camera ENU z, NaN when unknown.
         min_var: floor of a measurement's variance; gate2: outlier gate squared.
         point_cell: (N or more,) int32, terms: (3, N or more) in the precision of
-            ``variance`` and ``z`` combined, levels: (N or more,) int64, cell_scratch:
-            (2, n0 * n1 + 1) int32: work space (kept between calls: fresh arrays cost page
-            faults every call; the terms in their own precision halve what a single-precision
-            frame moves through the cache).
+            ``variance`` and ``z`` combined, levels: (N or more,) int64: work space (kept
+            between calls: fresh arrays cost page faults every call; the terms in their own
+            precision halve what a single-precision frame moves through the cache).
+        cell_count: (n0 * n1,) int32 work space, all zero, and left so: the points of each
+            cell counted as they are found, then where the cell's points go.
 
     Returns:
         (number of measurements fused, number of points inside the window).
@@ -123,6 +124,7 @@ def fuse_cells(
     z_hi = -np.inf
     z_nan = False
     fused = 0.0
+    counted = len(count) > 0
     for k in range(n):
         fi = x[k] * inv_rx - origin_i
         fj = y[k] * inv_ry - origin_j
@@ -130,6 +132,7 @@ def fuse_cells(
         if fi >= 0 and fi < n0 and fj >= 0 and fj < n1:
             cell = np.int64(fi) * n1 + np.int64(fj)
             flat[k] = np.int32(cell)
+            cell_count[cell] += 1
             inside += 1
             if cell < lo_cell:
                 lo_cell = cell
@@ -142,11 +145,14 @@ def fuse_cells(
                 z_hi = zk
             if zk != zk:
                 z_nan = True
-            fused += 1.0 if len(count) == 0 else np.float64(count[k])
+            if counted:
+                fused += np.float64(count[k])
         else:
             flat[k] = -1
     if inside == 0:
         return 0, 0
+    if not counted:  # a sum of ones
+        fused = float(inside)
     if z_nan:  # numpy's min and max: NaN
         z_lo = np.nan
         z_hi = np.nan
@@ -168,16 +174,13 @@ def fuse_cells(
     low_z, inv_quantum = in_z[0], in_z[1]
 
     # The points of each cell in their own order (a counting sort), so that sums run in
-    # point order as bincount's do.
-    start = cell_scratch[0, : span_cells + 1]
-    start[:] = 0
-    for k in range(n):
-        if flat[k] >= 0:
-            start[flat[k] - lo_cell + 1] += 1
+    # point order as bincount's do: each cell's count becomes where its points start...
+    fill = cell_count[lo_cell : hi_cell + 1]
+    placed = 0
     for c in range(span_cells):
-        start[c + 1] += start[c]
-    fill = cell_scratch[1, :span_cells]
-    fill[:] = start[:-1]
+        m = fill[c]
+        fill[c] = placed
+        placed += m
     # Each point's terms, written in cell order (so that the cells read them in a row).
     w_of = terms[0]
     wz_of = terms[1]
@@ -187,7 +190,7 @@ def fuse_cells(
             continue
         c = flat[k] - lo_cell
         q = fill[c]
-        fill[c] += 1
+        fill[c] = q + 1
         w = one / variance[k]
         w_of[q] = w
         wz_of[q] = w * z[k]
@@ -195,8 +198,11 @@ def fuse_cells(
         # No levels with a NaN height (its cells' heights are NaN anyway).
         levels[q] = 0 if z_nan else min(np.int64((z[k] - low_z) * inv_quantum), top_level)
 
+    # ...and then where they end (the next one's start), cleared as it is read.
+    b = 0
     for c in range(span_cells):
-        a, b = start[c], start[c + 1]
+        a, b = b, fill[c]
+        fill[c] = 0
         if a == b:
             continue
         # Sums in point order, in double precision, as bincount takes them.

@@ -230,7 +230,7 @@ class ElevationMap:
             size = max(points, 1 << 16)
             got = self._fuse_scratch[terms] = (
                 np.empty(size, np.int32), np.empty((3, size), terms),
-                np.empty(size, np.int64), np.empty((2, n0 * n1 + 1), np.int32),
+                np.empty(size, np.int64), np.zeros(n0 * n1, np.int32),
             )
         return got
 
