@@ -7,7 +7,8 @@ cells cost, not what the whole map costs. Every operation is the numpy version's
 same precision and order: single-precision cell indices, weights and height levels where the
 points are single precision (numpy 2's scalar promotion), double-precision sums taken in
 point order (what ``bincount`` does), and the 90th-percentile level as the same order
-statistic, so the map comes out bit for bit the same.
+statistic (the level of the same order statistic of the heights), so the map comes out bit
+for bit the same.
 """
 
 from __future__ import annotations
@@ -39,14 +40,14 @@ _KEEP = 8  # most values kept by _kth_smallest's network; beyond, a sort
 
 
 @njit(cache=True, nogil=True, _nrt=False, inline="always")
-def _exchange(held: int, v: int) -> tuple[int, int]:
+def _exchange(held: float, v: float) -> tuple[float, float]:
     """One compare-exchange of the network: (the larger, the smaller)."""
     return max(held, v), min(held, v)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _kth_smallest(values: np.ndarray, a: int, b: int, k: int) -> int:
-    """The ``k``-th smallest (0-based) of ``values[a:b]`` (non-negative), which it may
+def _kth_smallest(values: np.ndarray, a: int, b: int, k: int) -> float:
+    """The ``k``-th smallest (0-based) of ``values[a:b]`` (floats, no NaN), which it may
     reorder.
 
     A cell's top is near the largest of its points: the ``b - a - k`` largest pass through
@@ -61,7 +62,7 @@ def _kth_smallest(values: np.ndarray, a: int, b: int, k: int) -> int:
         part = values[a:b]
         part.sort()
         return part[k]
-    h0 = h1 = h2 = h3 = np.int64(-1)
+    h0 = h1 = h2 = h3 = -np.inf
     if keep <= 2:
         for q in range(a, b):
             h0, v = _exchange(h0, values[q])
@@ -74,7 +75,7 @@ def _kth_smallest(values: np.ndarray, a: int, b: int, k: int) -> int:
             h2, v = _exchange(h2, v)
             h3 = max(h3, v)
         return h2 if keep == 3 else h3
-    h4 = h5 = h6 = h7 = np.int64(-1)
+    h4 = h5 = h6 = h7 = -np.inf
     for q in range(a, b):
         h0, v = _exchange(h0, values[q])
         h1, v = _exchange(h1, v)
@@ -92,7 +93,7 @@ def fuse_cells(
     x, y, z, variance, count,
     inv_rx, origin_i, inv_ry, origin_j, one,
     mean, var, top, last_update, closest,
-    n0, n1, now, camera_height, min_var, gate2, point_cell, terms, levels, cell_count,
+    n0, n1, now, camera_height, min_var, gate2, point_cell, terms, heights, cell_count,
 ):
     """Fuse points into the flattened grids of an (n0, n1) map in place.
 
@@ -106,9 +107,10 @@ def fuse_cells(
         now: clock seconds; camera_height: camera ENU z, NaN when unknown.
         min_var: floor of a measurement's variance; gate2: outlier gate squared.
         point_cell: (N or more,) int32, terms: (3, N or more) in the precision of
-            ``variance`` and ``z`` combined, levels: (N or more,) int64: work space (kept
-            between calls: fresh arrays cost page faults every call; the terms in their own
-            precision halve what a single-precision frame moves through the cache).
+            ``variance`` and ``z`` combined, heights: (N or more,) of ``z``'s type: work
+            space (kept between calls: fresh arrays cost page faults every call; the terms
+            in their own precision halve what a single-precision frame moves through the
+            cache).
         cell_count: (n0 * n1,) int32 work space, all zero, and left so: the points of each
             cell counted as they are found, then where the cell's points go.
 
@@ -168,7 +170,7 @@ def fuse_cells(
     quantum = span / float(np.int64(1) << height_bits)
     # The minimum (exact: it is one of z) and 1 / quantum (rounded) in z's precision, as
     # numpy 2 promotes a Python float against z.
-    in_z = np.empty(2, z.dtype)
+    in_z = np.empty(3, z.dtype)
     in_z[0] = z_lo
     in_z[1] = 1.0 / quantum
     low_z, inv_quantum = in_z[0], in_z[1]
@@ -195,8 +197,7 @@ def fuse_cells(
         w_of[q] = w
         wz_of[q] = w * z[k]
         v_of[q] = variance[k]
-        # No levels with a NaN height (its cells' heights are NaN anyway).
-        levels[q] = 0 if z_nan else min(np.int64((z[k] - low_z) * inv_quantum), top_level)
+        heights[q] = z[k]
 
     # ...and then where they end (the next one's start), cleared as it is read.
     b = 0
@@ -215,7 +216,14 @@ def fuse_cells(
             v_cell += v_of[q]
         m = b - a
         pick = np.int64(TOP_QUANTILE * (m - 1))
-        percentile = z_lo + _kth_smallest(levels, a, b, pick) * quantum
+        # The level of the pick-th height: the pick-th level, as a height's level never
+        # falls as the height rises (a rounded difference, a rounded positive multiple,
+        # truncated). No levels with a NaN height (its cells' heights are NaN anyway).
+        level = 0
+        if not z_nan:
+            in_z[2] = _kth_smallest(heights, a, b, pick)
+            level = min(np.int64((in_z[2] - low_z) * inv_quantum), top_level)
+        percentile = z_lo + level * quantum
         meas = wz_cell / w_cell
         point_var = v_cell / m
         meas_top = _nan_max(percentile - TOP_NOISE_LIFT * np.sqrt(point_var), meas)

@@ -79,7 +79,7 @@ class ElevationMap:
         # No observed cell was last measured before this (a lower bound, so that
         # forgetting can tell cheaply when nothing is old enough yet).
         self._oldest = math.inf
-        self._fuse_scratch: dict[np.dtype, tuple] = {}
+        self._fuse_scratch: dict[tuple[np.dtype, np.dtype], tuple] = {}
 
     @property
     def resolution(self) -> float:
@@ -215,22 +215,22 @@ class ElevationMap:
             self.last_update.reshape(-1), self.closest.reshape(-1),
             n0, n1, float(now), math.nan if camera_height is None else float(camera_height),
             self.settings.min_sigma**2, self.settings.outlier_gate**2,
-            *self._scratch(len(x), np.result_type(variance, z)),
+            *self._scratch(len(x), np.result_type(variance, z), z.dtype),
         )
         if inside:
             self._oldest = min(self._oldest, now)
         return int(fused)
 
-    def _scratch(self, points: int, terms: np.dtype) -> tuple[np.ndarray, ...]:
+    def _scratch(self, points: int, terms: np.dtype, heights: np.dtype) -> tuple:
         """Work space of :func:`fuse_cells` for ``points`` points whose weighted terms have
-        the precision ``terms``, kept between calls."""
+        the precision ``terms`` and heights ``heights``, kept between calls."""
         n0, n1 = self.shape
-        got = self._fuse_scratch.get(terms)
+        got = self._fuse_scratch.get((terms, heights))
         if got is None or got[0].shape[0] < points:
             size = max(points, 1 << 16)
-            got = self._fuse_scratch[terms] = (
+            got = self._fuse_scratch[(terms, heights)] = (
                 np.empty(size, np.int32), np.empty((3, size), terms),
-                np.empty(size, np.int64), np.zeros(n0 * n1, np.int32),
+                np.empty(size, heights), np.zeros(n0 * n1, np.int32),
             )
         return got
 

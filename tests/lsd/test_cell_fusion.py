@@ -12,14 +12,30 @@ from lsd.elevation.map import _shift
 def test_kth_smallest_is_the_sorted_value_with_ties_and_past_the_network():
     rng = np.random.default_rng(11)
     for m in list(range(1, 90)) + [200, 1000]:
-        for spread in (3, 1 << 40):  # many ties, then almost none
-            values = rng.integers(0, spread, m + 7)
+        for ties in (True, False):
+            values = rng.normal(-2.5, 3.0, m + 7).astype(np.float32)
+            if ties:
+                values = np.round(values).astype(np.float32)
             a, b = 3, 3 + m
             ks = {int(TOP_QUANTILE * (m - 1)), 0, m - 1, int(rng.integers(m))}
             for k in ks:
                 expected = np.sort(values[a:b])[k]
                 got = _kth_smallest(values.copy(), a, b, k)
                 assert got == expected, (m, k)
+
+
+def test_a_cells_top_level_is_the_level_of_its_top_height():
+    # The fusion picks the order statistic among the heights and quantises that one: the
+    # same level as the order statistic of every point's level (single precision).
+    rng = np.random.default_rng(12)
+    for n in (2, 7, 30, 300):
+        z = (rng.normal(0.0, 1.0, n) * 10.0 ** rng.uniform(-4, 2)).astype(np.float32)
+        low, quantum = z.min(), (float(z.max()) - float(z.min()) + 1e-9) / 2.0**50
+        inv = np.float32(1.0 / quantum)
+        levels = np.minimum(((z - low) * inv).astype(np.int64), (1 << 50) - 1)
+        k = int(TOP_QUANTILE * (n - 1))
+        top = np.float32(_kth_smallest(z.copy(), 0, n, k))
+        assert min(np.int64((top - low) * inv), (1 << 50) - 1) == np.sort(levels)[k]
 
 
 def test_a_recentred_grid_moves_in_place_as_a_copy_would_every_way_and_beyond():
