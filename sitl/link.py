@@ -35,12 +35,12 @@ class LinkEndpoint:
 
     def read(self) -> bytes:
         """Everything the peer wrote since the last call, or ``b""``."""
+        if not self._inbox:  # nothing written (a list's length is read atomically)
+            return b""
         with self._lock:
-            if not self._inbox:
-                return b""
             chunks = self._inbox[:]
             self._inbox.clear()
-        data = b"".join(chunks)
+        data = chunks[0] if len(chunks) == 1 else b"".join(chunks)
         self.bytes_read += len(data)
         return data
 
