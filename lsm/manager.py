@@ -56,6 +56,7 @@ _MAX_COORDINATE = 1e7  # m: farther from home than any mission's local frame rea
 _KEY_STRIDE = 1 << 32  # spatial-hash key = ix * stride + iy (|iy| < 2**31 cells)
 _SMALL_BATCH = 32  # observations below which per-row Python beats numpy's per-call cost
 _TREE_K = 2  # nearest snapshot entries examined per observation
+_FEW_SITES = 8  # snapshots this small are examined whole instead of queried (see below)
 _SNAPSHOT_MIN = 64  # changed sites tolerated in the hash before the k-d tree is rebuilt
 
 
@@ -490,11 +491,19 @@ class LandingSiteManager:
 
     def _tree_candidates(self, xy: np.ndarray) -> tuple[list, list] | None:
         """The _TREE_K nearest snapshot sites within the match radius of each observation,
-        as flat (slots, versions) lists, row i at [i * _TREE_K, (i + 1) * _TREE_K); -1 where
-        there are fewer."""
+        as flat (slots, versions, k) lists, row i at [i * k, (i + 1) * k); -1 where there are
+        fewer (k = _TREE_K; with few sites, every site and k their number)."""
         if self._tree is None:
             return None
         n = len(self._tree_slots)
+        if n <= _FEW_SITES:
+            # A few sites: every snapshot entry is a candidate of every row (the query's
+            # set-up costs more than looking at them all). The nearest valid entry within
+            # the match radius is the same (_nearest_within_match's exact d2 test and
+            # tie rule do not depend on the order), and a row whose entries are all stale
+            # is searched in full as when its nearest ones are.
+            slots, versions = self._tree_slots.tolist(), self._tree_versions.tolist()
+            return slots * len(xy), versions * len(xy), n
         with np.errstate(invalid="ignore"):
             # The bound is strict and the tree's distances are rounded: pad it; the exact
             # d2 <= r2 test in _nearest_within_match decides.
@@ -504,10 +513,11 @@ class LandingSiteManager:
         idx = np.minimum(idx, n - 1)
         slots = np.where(found, self._tree_slots[idx], -1)
         versions = np.where(found, self._tree_versions[idx], -1)
-        return slots.ravel().tolist(), versions.ravel().tolist()
+        return slots.ravel().tolist(), versions.ravel().tolist(), _TREE_K
 
     def _nearest_within_match(self, x: float, y: float, key: int, tree_slots: list | None,
-                              tree_versions: list | None, row: int = 0) -> int | None:
+                              tree_versions: list | None, row: int = 0,
+                              k: int = _TREE_K) -> int | None:
         """The retained site within match_radius nearest to (x, y); ties go to the older
         (smaller id) site. None when there is none."""
         r2 = self.settings.match_radius * self.settings.match_radius
@@ -517,7 +527,7 @@ class LandingSiteManager:
         if tree_slots is not None:
             version = self._version
             any_valid = False
-            for j in range(row * _TREE_K, (row + 1) * _TREE_K):
+            for j in range(row * k, (row + 1) * k):
                 slot = tree_slots[j]
                 if slot < 0:
                     break
@@ -763,7 +773,7 @@ class LandingSiteManager:
             self._snapshot_tree()
         keys = self._match_keys(vals)
         candidates = self._tree_candidates(vals[:, :2])
-        cand_slots, cand_versions = candidates if candidates else (None, None)
+        cand_slots, cand_versions, k = candidates if candidates else (None, None, _TREE_K)
         nearest = self._nearest_within_match
         for i, reason in enumerate(reasons):
             row = rows[i]
@@ -773,7 +783,7 @@ class LandingSiteManager:
             if cand_slots is None:
                 slot = nearest(row[0], row[1], keys[i], None, None)
             else:
-                slot = nearest(row[0], row[1], keys[i], cand_slots, cand_versions, i)
+                slot = nearest(row[0], row[1], keys[i], cand_slots, cand_versions, i, k)
             if slot is None:
                 self._insert(row, batch[i].source)
             elif row[7] < self._veralt[slot]:

@@ -98,3 +98,38 @@ def test_small_and_large_batches_count_redetections_alike(monkeypatch):
     monkeypatch.setattr(module, "_SMALL_BATCH", 0)
     assert run() == small
     assert max(count for _, count, _ in small) > 5
+
+
+def test_few_sites_match_as_with_the_tree(monkeypatch):
+    """With few sites every snapshot entry is a candidate instead of the k-d tree's nearest:
+    the same decisions (inserted, merged, updated, replaced, dropped) and the same sites,
+    over a stream of redetections that move sites, new sites, bans and drone moves."""
+    from lsm import SiteObservation
+    from lsm import manager as module
+
+    def run() -> tuple[list, list]:
+        decisions = []
+        m = LandingSiteManager(LsmSettings(capacity=8, match_radius=2.0, ban_radius=2.5),
+                               LossWeights(), on_decision=lambda d: decisions.append(
+                                   (d.kind, d.site_id, d.reason)))
+        rng = np.random.default_rng(11)
+        centres = rng.uniform(-12, 12, (14, 2))
+        for step in range(150):
+            m.set_drone_position((float(rng.uniform(-5, 5)), float(rng.uniform(-5, 5)), 20.0))
+            for _ in range(int(rng.integers(1, 5))):
+                cx, cy = centres[int(rng.integers(len(centres)))]
+                x, y = rng.normal((cx, cy), 1.2)
+                m.submit(SiteObservation(float(x), float(y), 0.0, float(rng.uniform(0, 1)),
+                                         0.2, float(rng.uniform(0.5, 5)), 0.0,
+                                         float(rng.uniform(2, 40)), float(step)))
+            m.process_pending()
+            if step % 37 == 36 and len(m):
+                m.ban(m.best().id)
+        return decisions, list(m.ranked())
+
+    few = run()
+    monkeypatch.setattr(module, "_FEW_SITES", -1)
+    tree = run()
+    assert few == tree
+    kinds = {kind for kind, _, _ in few[0]}
+    assert {"inserted", "merged", "updated", "replaced"} <= kinds
