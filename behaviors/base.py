@@ -191,8 +191,7 @@ class RouteAction(VehicleAction):
         if not self.leg_commanded:
             self.command(self.vehicle.goto(*target))
             self.leg_commanded = True
-        self.feedback_message = (
-            f"leg {self.leg + 1}/{len(legs)} to ({target[0]:.1f}, {target[1]:.1f}, "
-            f"{target[2]:.1f}), {horizontal_distance(position, target):.1f} m to go"
-        )
+        self.feedback_later("leg {}/{} to ({:.1f}, {:.1f}, {:.1f}), {:.1f} m to go",
+                            self.leg + 1, len(legs), target[0], target[1], target[2],
+                            horizontal_distance(position, target))
         return Status.RUNNING

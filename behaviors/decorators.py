@@ -59,7 +59,7 @@ class ClockTimeout(QuietDecorator):
             self.blackboard.set(keys.FAILURE_REASON, reason)
             return Status.FAILURE
         if child.status == Status.RUNNING:
-            self.feedback_message = f"{self.deadline - self.clock.now():.1f} s left"
+            self.feedback_later("{:.1f} s left", self.deadline - self.clock.now())
         return child.status
 
 

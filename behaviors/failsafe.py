@@ -37,7 +37,7 @@ class BatteryReserve(MissionBehaviour):
 
     def update(self) -> Status:
         if not battery_below(self.vehicle, self.level):
-            self.feedback_message = f"battery above {self.level:g} %"
+            self.feedback_later("battery above {:g} %", self.level)
             return Status.FAILURE
         if self.blackboard.get(keys.OUTCOME_HINT) is None:
             self.blackboard.set(keys.OUTCOME_HINT, "battery_reserve")
@@ -140,7 +140,7 @@ class BatteryCritical(LatchedFailsafe):
     def triggered(self) -> str | None:
         if self.vehicle.state.armed and battery_below(self.vehicle, self.level):
             return f"battery at or below the critical {self.level:g} %"
-        self.feedback_message = f"battery above {self.level:g} % (or disarmed)"
+        self.feedback_later("battery above {:g} % (or disarmed)", self.level)
         return None
 
 

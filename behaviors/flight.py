@@ -104,8 +104,10 @@ class Takeoff(VehicleAction):
         problem = self.command_problem()
         if problem is not None:
             return self.fail(problem)
-        height = "unknown" if position is None else f"{position[2]:.1f} m"
-        self.feedback_message = f"climbing to {self.altitude:.1f} m, at {height}"
+        if position is None:
+            self.feedback_later("climbing to {:.1f} m, at unknown", self.altitude)
+        else:
+            self.feedback_later("climbing to {:.1f} m, at {:.1f} m", self.altitude, position[2])
         return Status.RUNNING
 
 

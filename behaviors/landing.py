@@ -262,7 +262,7 @@ class LandingSiteVerification(VehicleAction):
                 self.site = record  # follow the record as low looks move it
                 self._follow(record)
             moved = f", re-centred {self.recentred}x" if self.recentred else ""
-            self.feedback_message = f"waiting for re-detection, {remaining:.1f} s left{moved}"
+            self.feedback_later("waiting for re-detection, {:.1f} s left{}", remaining, moved)
             return Status.RUNNING
         banned = record is not None and self.lsm.ban(record.id)
         if banned:

@@ -77,6 +77,25 @@ class Direct:
     def run(self) -> None:  # pragma: no cover - every class here defines its own
         _drain(self)
 
+    @property
+    def feedback_message(self) -> str:
+        """py_trees' feedback message. One set by :meth:`feedback_later` is formatted when
+        it is first read."""
+        text = self._feedback
+        if text.__class__ is tuple:
+            text = self._feedback = text[0].format(*text[1:])
+        return text
+
+    @feedback_message.setter
+    def feedback_message(self, text: str) -> None:
+        self._feedback = text
+
+    def feedback_later(self, template: str, *values: object) -> None:
+        """Make the feedback message ``template.format(*values)``, formatted only if it is
+        read: a running node says where it is on every tick, and few of those messages are
+        ever read (the event log reads it when a status changes)."""
+        self._feedback = (template, *values)
+
 
 def _drain(node: Behaviour) -> None:
     """Tick ``node`` through its generator (a node from elsewhere, e.g. py_trees' Parallel)."""

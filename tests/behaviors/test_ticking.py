@@ -172,3 +172,23 @@ def test_peek_reads_what_the_blackboard_client_reads():
     with pytest.raises(KeyError):
         node.peek(keys.FAILSAFE)
     keys.reset()
+
+
+def test_a_feedback_message_set_for_later_reads_as_formatted():
+    """feedback_later keeps the values and formats them when the message is read, as the
+    f-string it replaces would have; a plain assignment still replaces it."""
+    from behaviors.ticking import QuietBehaviour
+
+    class Leaf(QuietBehaviour):
+        def update(self) -> Status:
+            return Status.RUNNING
+
+    node = Leaf(name="node")
+    assert node.feedback_message == ""
+    values = (3, 7, 12.345, -0.05, 1e-7, 2.5)
+    node.feedback_later("leg {}/{} at {:.1f}, {:.1f} ({:g}), {} m", *values)
+    a, b, c, d, e, f = values
+    assert node.feedback_message == f"leg {a}/{b} at {c:.1f}, {d:.1f} ({e:g}), {f} m"
+    assert node.feedback_message == "leg 3/7 at 12.3, -0.1 (1e-07), 2.5 m"
+    node.feedback_message = "plain"
+    assert node.feedback_message == "plain"
