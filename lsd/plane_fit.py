@@ -16,7 +16,7 @@ from functools import cached_property
 import cv2
 import numpy as np
 
-from lsd.plane_fit_kernel import fit_rows, reference_height
+from lsd.plane_fit_kernel import fit_rows, gradient_magnitude, reference_height
 
 
 def copy_where(dst: np.ndarray, src: np.ndarray | float, mask: np.ndarray) -> np.ndarray:
@@ -122,13 +122,10 @@ def fit_planes(
         none if cell_variance is None else np.ascontiguousarray(cell_variance, np.float64),
         ref, float(resolution), half, float(tolerance), *out,
     )
-    # The gradient's magnitude by OpenCV (its own approximation, which the kernel does not
-    # repeat); the slope is numpy's arctangent of it (PlaneFit.slope).
-    gradient = cv2.magnitude(b, c)
-    with np.errstate(invalid="ignore"):
-        np.multiply(gradient, gradient, out=b)
-        b += f32(1.0)
-        slope_error /= b
+    # The gradient's magnitude, each operation rounded once (OpenCV's cv2.magnitude, used
+    # before, approximates it, a cell one way or another depending on where the arrays
+    # happen to lie in memory); the slope is numpy's arctangent of it (PlaneFit.slope).
+    gradient = gradient_magnitude(b, c, slope_error)
     return PlaneFit(
         height=plane,
         gradient=gradient,

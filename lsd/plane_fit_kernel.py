@@ -181,6 +181,24 @@ def reference_height(height: np.ndarray, stride: int) -> float:
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
+def gradient_magnitude(b: np.ndarray, c: np.ndarray, slope_error: np.ndarray) -> np.ndarray:
+    """(n0, n1) float32 ``sqrt(b^2 + c^2)`` of :func:`fit_rows`'s gradient components, each
+    operation rounded once (the same bits wherever the arrays lie), and ``slope_error``
+    divided in place by ``1 + gradient^2``."""
+    n0, n1 = b.shape
+    out = np.empty((n0, n1), _F)
+    one = _F(1.0)
+    for i in range(n0):
+        for j in range(n1):
+            x = b[i, j]
+            y = c[i, j]
+            g = np.sqrt(x * x + y * y)
+            out[i, j] = g
+            slope_error[i, j] /= g * g + one
+    return out
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
 def fit_rows(
     height, variance, top, cell_variance, ref, resolution, half, tolerance,
     b_out, c_out, plane_out, slope_error_out, roughness_out, roughness_error_out,
