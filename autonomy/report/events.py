@@ -34,6 +34,10 @@ def _clean(value: Any) -> Any:
         return _clean_dict(value)
     if kind is tuple or kind is list:
         return [_clean(v) for v in value]
+    if kind is np.ndarray and value.dtype.kind in "fiub":
+        # tolist() gives the Python numbers the chain below would make of each element,
+        # without a numpy scalar per element (a report page holds thousands).
+        return _clean(value.tolist())
     if isinstance(value, (bool, np.bool_)):
         return bool(value)
     if isinstance(value, (int, np.integer)):

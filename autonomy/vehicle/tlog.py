@@ -43,8 +43,7 @@ class TlogWriter:
         if self._file.closed:
             return
         stamp = int(round((self.epoch + clock_time) * 1e6))
-        self._file.write(_STAMP.pack(stamp))
-        self._file.write(packet)
+        self._file.write(_STAMP.pack(stamp) + packet)
         self.packets += 1
 
     def close(self) -> None:

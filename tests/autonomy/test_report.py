@@ -71,6 +71,12 @@ def test_events_are_cleaned_as_by_the_plain_isinstance_chain():
         "i64": np.int64(3), "nb": np.bool_(False), "arr": np.array([1.5, np.nan]),
         "tuple": (1.23456, (2, "z")), "nested": {1: 0.12345, "k": [np.int32(4), {2.5: "w"}]},
         "obj": object.__new__(type("Thing", (), {"__str__": lambda self: "thing"})),
+        # arrays of every number kind, as a report page's trace holds them
+        "f32_2d": np.random.default_rng(0).normal(size=(6, 3)).astype(np.float32) * 100,
+        "f64_big": np.random.default_rng(1).normal(size=500) * 1e3,
+        "f_inf": np.array([np.inf, -0.0, 1e-9, 12345.67895]),
+        "ints": np.arange(-3, 3), "u8": np.array([[0, 255]], np.uint8),
+        "bools": np.array([True, False]), "strs": np.array(["a", "b"]),
     }
     log = EventLog(lambda: 0.25)
     event = log.add("flight", **fields)
