@@ -776,12 +776,11 @@ class MavlinkVehicle:
 
     def _send_heartbeat(self, now: float) -> None:
         self._last_heartbeat_sent = now
-        fields = (mavlink.MAV_TYPE_GCS, mavlink.MAV_AUTOPILOT_INVALID, 0, 0,
-                  mavlink.MAV_STATE_ACTIVE, 3)  # MAVLink version 3: pymavlink's default
-        if self._mav.sends_values:  # packed from the fields, no message object built
-            self._mav.send_fields(mavlink.MAVLINK_MSG_ID_HEARTBEAT, fields)
-        else:
-            self._mav.send(mavlink.MAVLink_heartbeat_message(*fields))
+        # Packed from its fields (no message object built where the link allows it);
+        # MAVLink version 3 is pymavlink's default.
+        self._mav.send_fields(mavlink.MAVLINK_MSG_ID_HEARTBEAT, (
+            mavlink.MAV_TYPE_GCS, mavlink.MAV_AUTOPILOT_INVALID, 0, 0,
+            mavlink.MAV_STATE_ACTIVE, 3))
 
     def _request_streams(self, now: float) -> None:
         streams = dict(self.settings.streams)
@@ -867,12 +866,9 @@ class MavlinkVehicle:
             mask, pos, vel = _POSITION_VELOCITY, (x, y, z), sp.velocity_ned
         else:
             mask, pos, vel = _VELOCITY_ONLY, (0.0, 0.0, 0.0), (x, y, z)
-        fields = (int(now * 1000) & 0xFFFFFFFF, self._target_system, self._target_component,
-                  mavlink.MAV_FRAME_LOCAL_NED, mask, *pos, *vel, 0.0, 0.0, 0.0, 0.0, 0.0)
-        if self._mav.sends_values:  # packed from the fields, no message object built
-            self._mav.send_fields(_SET_POSITION_TARGET, fields)
-        else:
-            self._mav.send(mavlink.MAVLink_set_position_target_local_ned_message(*fields))
+        self._mav.send_fields(_SET_POSITION_TARGET, (
+            int(now * 1000) & 0xFFFFFFFF, self._target_system, self._target_component,
+            mavlink.MAV_FRAME_LOCAL_NED, mask, *pos, *vel, 0.0, 0.0, 0.0, 0.0, 0.0))
 
     # ------------------------------------------------------------------ command building
     def _start(self, name: str) -> Handle | None:

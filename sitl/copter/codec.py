@@ -242,11 +242,12 @@ class FastMAVLink(mavlink.MAVLink):
     def send_fields(self, msgid: int, fields: tuple) -> None:
         """Send a message of type ``msgid`` given its fields in declaration order (the
         arguments of its pymavlink constructor): the bytes :meth:`send` makes of
-        ``mavlink_map[msgid](*fields)``, without building it when the type has no arrays and
-        its constructor only stores its arguments. For a sender :attr:`sends_values` holds
-        for."""
+        ``mavlink_map[msgid](*fields)``, without building it when the type has no arrays, its
+        constructor only stores its arguments and :attr:`sends_values` holds (else built and
+        sent by :meth:`send`)."""
         plan = _PLANS.get(msgid)
-        if plan is None or plan.to_wire is None or not plan.direct:  # pymavlink's way
+        if (plan is None or plan.to_wire is None or not plan.direct
+                or not self.sends_values):  # pymavlink's way
             self.send(mavlink.mavlink_map[msgid](*fields))
             return
         self._frame(plan, plan.unpacker.pack(*plan.to_wire(fields)))

@@ -483,12 +483,10 @@ class MavlinkServer:
         home_msg = mavlink.MAVLINK_MSG_ID_HOME_POSITION
         build = self.telemetry.builders
         values = self.telemetry.values
-        known = None  # ap.position_known, asked once (it only changes with the time)
+        known = ap.position_known  # asked once: it only changes with the time
         for link in self.links:
             if not link.open:
                 continue
-            if known is None:
-                known = ap.position_known
             if known and (not link.home_sent or ap.home_changed):
                 link.once.append(home_msg)
             mav = link.mav
@@ -526,5 +524,5 @@ class MavlinkServer:
             if link.upload is not None:  # a mission upload in progress
                 self.missions.emit(link)
             link.flush()
-        if known if known is not None else ap.position_known:
+        if known:
             ap.home_changed = False
