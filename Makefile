@@ -25,9 +25,12 @@ demo: $(STAMP)
 	$(BIN)/lander demo
 
 # The site is checked after the tests, so that a broken link never hides a test result.
+# The tests run on TEST_WORKERS processes (pytest-xdist); `make test TEST_WORKERS=0` runs
+# them in this one.
+TEST_WORKERS ?= 2
 test: $(STAMP)
 	$(BIN)/ruff check .
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q -n $(TEST_WORKERS)
 	$(BIN)/mkdocs build --strict --quiet
 
 lint: $(STAMP)
