@@ -17,10 +17,10 @@ from numba import njit
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def _column_distances(inside: np.ndarray, far: int) -> np.ndarray:
-    """(n0, n1) int64: each cell's distance (in cells) to the nearest outside cell of its
+    """(n0, n1) int32: each cell's distance (in cells) to the nearest outside cell of its
     column, at most ``far``; downwards then upwards, row by row (memory read in order)."""
     n0, n1 = inside.shape
-    column = np.empty((n0, n1), np.int64)
+    column = np.empty((n0, n1), np.int32)
     for j in range(n1):
         column[0, j] = far if inside[0, j] else 0
     for i in range(1, n0):
@@ -37,44 +37,69 @@ def distance_to_outside(inside: np.ndarray, resolution: float) -> np.ndarray:
     """(n0, n1) float64 metres from each cell centre to the near edge of the nearest cell
     where ``inside`` is False, never below 0: ``max(sqrt(d2) - 0.5, 0) * resolution`` with
     ``d2`` the squared distance in cells (0 outside) and the root taken in single precision.
-    Cells beyond the grid do not count; some cell must be outside."""
+    Cells beyond the grid do not count; some cell must be outside.
+
+    Along a row, a run of inside cells between two outside ones needs only its own columns'
+    parabolas and those two (any column beyond an outside cell is farther than it), so each
+    run gets its own envelope and outside cells none: the same minima, for the inside
+    cells' share of the work."""
     n0, n1 = inside.shape
     column = _column_distances(inside, n0 + n1)  # n0 + n1: farther than any in the grid
-    out = np.empty((n0, n1))
+    out = np.zeros((n0, n1))
     apex = np.empty(n1, np.int64)  # the envelope's parabolas: their apex columns
     first = np.empty(n1, np.int64)  # and the first column where each is the lowest
     height = np.empty(n1, np.int64)  # the row's squared column distances
     for i in range(n0):
         for j in range(n1):
-            height[j] = column[i, j] * column[i, j]
-        q = 0
-        apex[0] = 0
-        first[0] = 0
-        for u in range(1, n1):
-            # Drop the parabolas that u's is below from where they begin to be lowest.
-            while q >= 0:
-                t, s = first[q], apex[q]
-                if (t - s) * (t - s) + height[s] <= (t - u) * (t - u) + height[u]:
-                    break
-                q -= 1
-            if q < 0:
-                q = 0
-                apex[0] = u
-            else:
-                s = apex[q]
-                # The first column where u's parabola is below s's (floor division).
-                w = 1 + (u * u - s * s + height[u] - height[s]) // (2 * (u - s))
-                if w < n1:
-                    q += 1
-                    apex[q] = u
-                    first[q] = w
-        for u in range(n1 - 1, -1, -1):
-            s = apex[q]
-            squared = (u - s) * (u - s) + height[s]
-            out[i, u] = max(np.float64(np.sqrt(np.float32(squared))) - 0.5, 0.0) * resolution
-            if u == first[q]:
-                q -= 1
+            c = np.int64(column[i, j])
+            height[j] = c * c
+        u = 0
+        while u < n1:
+            if height[u] == 0:  # outside: 0 m
+                u += 1
+                continue
+            a = u
+            while u < n1 and height[u] > 0:
+                u += 1
+            # The run a..u-1 and the outside cells bounding it (where the grid has them).
+            _run_distances(height, a - 1 if a > 0 else a, u + 1 if u < n1 else u, a, u,
+                           apex, first, out[i], resolution)
     return out
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _run_distances(height, lo, hi, a, b, apex, first, out_row, resolution):
+    """``out_row[a:b]`` from the lower envelope of the parabolas of columns ``lo..hi-1``
+    (Meijster's row pass on that stretch)."""
+    q = 0
+    apex[0] = lo
+    first[0] = lo
+    for u in range(lo + 1, hi):
+        # Drop the parabolas that u's is below from where they begin to be lowest.
+        while q >= 0:
+            t, s = first[q], apex[q]
+            if (t - s) * (t - s) + height[s] <= (t - u) * (t - u) + height[u]:
+                break
+            q -= 1
+        if q < 0:
+            q = 0
+            apex[0] = u
+            first[0] = lo
+        else:
+            s = apex[q]
+            # The first column where u's parabola is below s's (floor division).
+            w = 1 + (u * u - s * s + height[u] - height[s]) // (2 * (u - s))
+            if w < hi:
+                q += 1
+                apex[q] = u
+                first[q] = w
+    for u in range(hi - 1, lo - 1, -1):
+        s = apex[q]
+        if a <= u < b:
+            squared = (u - s) * (u - s) + height[s]
+            out_row[u] = max(np.float64(np.sqrt(np.float32(squared))) - 0.5, 0.0) * resolution
+        if u == first[q]:
+            q -= 1
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
