@@ -37,8 +37,8 @@ from replay_compare import (
 )
 
 ROOT = Path(__file__).resolve().parents[1]
-PARTS = ("fit_planes", "step_hazards", "safe_mask", "site_size", "step_room", "select_sites",
-         "obstacle_altitude", "maximum_box", "_largest_within", "pooled_level")
+PARTS = ("fit_planes", "step_hazards", "step_levels", "safe_mask", "site_size", "step_room",
+         "select_sites", "obstacle_altitude", "maximum_box", "_largest_within", "pooled_level")
 
 
 def record(mission_file: Path, seed: int, out: Path) -> int:

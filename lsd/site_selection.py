@@ -49,13 +49,36 @@ def step_hazards(
         doubtful: a cell within ``clearance_margin`` of a step beyond ``max_step`` that
             only the noise tolerance forgives (the data neither confirm nor rule out a rock).
     """
-    with np.errstate(invalid="ignore"):
-        level = (fit.step > settings.max_step).astype(np.uint8)
-        level += fit.step - settings.noise_tolerance * fit.step_error > settings.max_step
+    level = step_levels(fit, settings, resolution)
+    return level >= 2, level >= 1
+
+
+def step_levels(fit: PlaneFit, settings: DetectorSettings, resolution: float) -> np.ndarray:
+    """(n, n) uint8 :func:`step_hazards` in one grid: 2 where ``hazard``, 1 where only
+    ``doubtful``, 0 elsewhere."""
+    f32 = np.float32
+    # One compiled pass; numpy compares float32 grids with Python floats in single
+    # precision, and so does it.
+    level = _step_levels(fit.step, fit.step_error, f32(settings.max_step),
+                         f32(settings.noise_tolerance))
     margin = int(np.ceil(settings.clearance_margin / resolution - 1e-9))
     if margin > 0:  # one maximum filter grows both masks
         level = maximum_box(level, 2 * margin + 1)
-    return level >= 2, level >= 1
+    return level
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _step_levels(step, step_error, max_step, k):
+    """(n, n) uint8: whether each cell's step exceeds ``max_step`` (NaN does not), plus
+    whether it still does less ``k`` standard errors."""
+    n0, n1 = step.shape
+    level = np.empty((n0, n1), np.uint8)
+    for i in range(n0):
+        for j in range(n1):
+            beyond = step[i, j] > max_step
+            level[i, j] = np.uint8(beyond) + np.uint8(step[i, j] - k * step_error[i, j]
+                                                      > max_step)
+    return level
 
 
 def step_room(

@@ -32,6 +32,7 @@ footprints, site selection) shares its windows and masks; the map itself is map.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 from collections import Counter
 from dataclasses import dataclass
@@ -52,7 +53,7 @@ from lsd.site_selection import (
     safe_mask,
     select_sites,
     site_size,
-    step_hazards,
+    step_levels,
     step_room,
 )
 from lsm.records import SiteObservation
@@ -322,8 +323,8 @@ class ElevationDetector:
             tolerance=s.noise_tolerance,
             cell_variance=cell_variance,
         )
-        hazard, doubtful = step_hazards(fit, s, r)
-        safe = safe_mask(fit, s, hazard)
+        level = step_levels(fit, s, r)  # step_hazards: 2 hazard, 1 doubtful
+        safe = safe_mask(fit, s, level >= 2)
         size = site_size(safe, r)
         # World index (in analysed cells) of the analysed window's cell [0, 0].
         box_origin = ((origin[0] + box[0]) // pool, (origin[1] + box[2]) // pool)
@@ -336,20 +337,26 @@ class ElevationDetector:
         # A site is only as trustworthy as the farthest look at the ground under its
         # footprint (the smallest camera height each cell was seen from, largest over the
         # footprint).
+        # Only cells large enough to be sites are ranked, so only they need a quality.
+        large = size >= s.footprint_radius
+        ranked = np.flatnonzero(large)
         f32 = np.float32
         farthest_look = maximum_box(looks, 2 * reach + 1)
         with np.errstate(invalid="ignore"):
             # Between equally roomy cells prefer the best-seen one (so that a low hover
             # redetects the site right below it), then the smoothest and most certain.
-            quality = fit.roughness * f32(-0.15 / s.max_roughness)
-            quality -= fit.sigma * f32(0.15 / s.max_uncertainty)
-            quality += f32(0.3)
-            quality += np.exp(farthest_look * f32(-0.1)) * f32(0.7)
-        cv2.patchNaNs(quality, 0.0)
+            # (Elementwise, so the same values as over the whole grid: numpy's exp rounds
+            # each element alike wherever it lies in an array.)
+            ranked_quality = fit.roughness.take(ranked) * f32(-0.15 / s.max_roughness)
+            ranked_quality -= fit.sigma.take(ranked) * f32(0.15 / s.max_uncertainty)
+            ranked_quality += f32(0.3)
+            ranked_quality += np.exp(farthest_look.take(ranked) * f32(-0.1)) * f32(0.7)
+        quality = np.zeros(size.shape, f32)
+        quality.put(ranked, cv2.patchNaNs(ranked_quality, 0.0))
         # Low down, where sites are verified, a site also keeps as far as its block allows
         # from every step beyond max_step, forgiven by the noise tolerance or not: small
         # rocks read low in rendered, fused depth, so a forgiven step may be a rock.
-        room = step_room(fit, s, r, size >= s.footprint_radius) if m is self.fine_map else None
+        room = step_room(fit, s, r, large) if m is self.fine_map else None
         i, j = select_sites(size, quality, box_origin, r, s, room=room)
         if len(i) == 0:
             return []
@@ -375,7 +382,7 @@ class ElevationDetector:
         # A site that is safe only because noise forgives a step near it is no proof of a
         # close look: it may not verify, nor overwrite a conclusive look. Low down, near
         # means anywhere in the footprint or the ring of look_margin around it.
-        doubt = doubtful[i, j]
+        doubt = level[i, j] >= 1
         if room is not None:
             doubt |= room[i, j] < s.footprint_radius + s.look_margin
         altitude = np.where(doubt, np.maximum(altitude, s.doubtful_altitude), altitude)
@@ -635,11 +642,21 @@ def _block_points(
 def _largest_within(grid: np.ndarray, i: np.ndarray, j: np.ndarray, radius: float) -> np.ndarray:
     """(k,) largest value of ``grid`` over the cells within ``radius`` cells of cell
     (i[k], j[k]) (a disk; the nearest edge cell stands for cells beyond the grid)."""
+    di, dj = _disk(radius)
+    return largest_at(grid, np.asarray(i, np.int64), np.asarray(j, np.int64), di, dj)
+
+
+@functools.lru_cache(maxsize=8)
+def _disk(radius: float) -> tuple[np.ndarray, np.ndarray]:
+    """Row and column offsets (int64, read-only) of the cells within ``radius`` cells of a
+    cell (the same few radii every frame)."""
     n = int(np.floor(radius + 1e-9))
     di, dj = np.mgrid[-n : n + 1, -n : n + 1]
     inside = np.hypot(di, dj) <= radius + 1e-9
-    return largest_at(grid, np.asarray(i, np.int64), np.asarray(j, np.int64),
-                      di[inside].astype(np.int64), dj[inside].astype(np.int64))
+    offsets = di[inside].astype(np.int64), dj[inside].astype(np.int64)
+    for a in offsets:
+        a.flags.writeable = False
+    return offsets
 
 
 def _aligned(

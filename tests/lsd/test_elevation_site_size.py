@@ -77,3 +77,25 @@ def test_step_room_at_wanted_cells_is_exact_as_far_as_the_selection_reads_it():
         assert ((room[far] == full[far]) | np.isinf(room[far])).all()
         assert np.isinf(room[~wanted]).all()
     assert (counts > 300).all()  # both within and beyond the reach, many times
+
+
+def test_step_levels_are_numpys_single_precision_comparisons():
+    from lsd.site_selection import step_hazards, step_levels
+
+    settings = DetectorSettings(max_step=0.05, noise_tolerance=3.0, clearance_margin=0.0)
+    rng = np.random.default_rng(21)
+    limit = np.float32(0.05)
+    # Steps at, just above and just below the limit (in float32), random ones, NaN.
+    near = np.array([limit, np.nextafter(limit, np.float32(1)),
+                     np.nextafter(limit, np.float32(0))], np.float32)
+    step = rng.choice(np.concatenate([near, rng.random(5, dtype=np.float32) * 0.2,
+                                      [np.nan]]).astype(np.float32), size=(60, 50))
+    error = rng.choice(np.array([0.0, 1e-3, 0.01, np.nan], np.float32), size=step.shape)
+    fit = dataclasses.replace(PlaneFit(*(np.zeros_like(step) for _ in range(9))), step=step,
+                              step_error=error)
+    with np.errstate(invalid="ignore"):
+        expected = (step > 0.05).astype(np.uint8) + (step - 3.0 * error > 0.05)
+    level = step_levels(fit, settings, 0.1)
+    assert np.array_equal(level, expected) and set(np.unique(level)) == {0, 1, 2}
+    hazard, doubtful = step_hazards(fit, settings, 0.1)
+    assert np.array_equal(hazard, expected >= 2) and np.array_equal(doubtful, expected >= 1)
