@@ -16,7 +16,7 @@ from functools import cached_property
 import cv2
 import numpy as np
 
-from lsd.plane_fit_kernel import fit_rows, gradient_magnitude, reference_height
+from lsd import plane_fit_kernel as kernel
 
 
 def copy_where(dst: np.ndarray, src: np.ndarray | float, mask: np.ndarray) -> np.ndarray:
@@ -112,28 +112,28 @@ def fit_planes(
     # Heights from a reference and coordinates from the grid centre keep the moments small
     # enough for single precision (the window sums are double). Any height near the data
     # will do as the reference: the median of an even subsample of the grid.
-    ref = reference_height(height, max(1, int(np.sqrt(height.size / 4096))))
+    ref = kernel.reference_height(height, max(1, int(np.sqrt(height.size / 4096))))
     none = np.zeros((0, 0))
-    out = [np.empty(height.shape, f32) for _ in range(10)]
-    b, c, plane, slope_error, roughness, roughness_error, step, step_error, sigma, frac = out
-    fit_rows(
+    # One block for all the fields (fewer fresh pages than one array each). The gradient's
+    # magnitude is computed in the kernel, each operation rounded once (OpenCV's
+    # cv2.magnitude, used before, approximates it, a cell one way or another depending on
+    # where the arrays happen to lie in memory); the slope is numpy's arctangent of it
+    # (PlaneFit.slope).
+    out = np.empty((9, *height.shape), f32)
+    kernel.fit_rows(
         height, variance,
         none if top is None else np.ascontiguousarray(top, dtype=np.float64),
         none if cell_variance is None else np.ascontiguousarray(cell_variance, np.float64),
-        ref, float(resolution), half, float(tolerance), *out,
+        ref, float(resolution), half, float(tolerance), out,
     )
-    # The gradient's magnitude, each operation rounded once (OpenCV's cv2.magnitude, used
-    # before, approximates it, a cell one way or another depending on where the arrays
-    # happen to lie in memory); the slope is numpy's arctangent of it (PlaneFit.slope).
-    gradient = gradient_magnitude(b, c, slope_error)
     return PlaneFit(
-        height=plane,
-        gradient=gradient,
-        slope_error=slope_error,
-        roughness=roughness,
-        roughness_error=roughness_error,
-        step=step,
-        step_error=step_error,
-        sigma=sigma,
-        observed_fraction=frac,
+        height=out[kernel.HEIGHT],
+        gradient=out[kernel.GRADIENT],
+        slope_error=out[kernel.SLOPE_ERROR],
+        roughness=out[kernel.ROUGHNESS],
+        roughness_error=out[kernel.ROUGHNESS_ERROR],
+        step=out[kernel.STEP],
+        step_error=out[kernel.STEP_ERROR],
+        sigma=out[kernel.SIGMA],
+        observed_fraction=out[kernel.FRACTION],
     )
