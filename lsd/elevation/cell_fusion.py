@@ -88,12 +88,48 @@ def _kth_smallest(values: np.ndarray, a: int, b: int, k: int) -> float:
     return h4 if keep == 5 else h5 if keep == 6 else h6 if keep == 7 else h7
 
 
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _update_cell(cell, w_cell, wz_cell, v_cell, m, percentile, mean, var, top, last_update,
+                 closest, now, camera_height, min_var, gate2):
+    """One cell's Kalman update from its points' sums and top percentile."""
+    meas = wz_cell / w_cell
+    point_var = v_cell / m
+    meas_top = _nan_max(percentile - TOP_NOISE_LIFT * np.sqrt(point_var), meas)
+    meas_var = _nan_max(1.0 / w_cell, min_var)
+    mu = mean[cell]
+    p = var[cell]  # inf where the cell is new
+    old_top = top[cell]
+    if not np.isfinite(mu):
+        # A new cell starts from its measurement (zero innovation, gain 1 as p is inf).
+        mu = meas
+        old_top = meas_top
+    total = p + meas_var
+    innovation = meas - mu
+    gain = 1.0 - meas_var / total
+    new_var_keep = False
+    if innovation * innovation > gate2 * total:
+        # The estimate with the smaller variance wins: gain 1 replaces, 0 keeps.
+        closer = meas_var < p
+        gain = 1.0 if closer else 0.0
+        new_var_keep = not closer
+    new_mu = mu + gain * innovation
+    new_var = p if new_var_keep else gain * meas_var
+    new_top = old_top + gain * (meas_top - old_top)
+    mean[cell] = new_mu
+    top[cell] = _nan_max(new_top, new_mu)
+    var[cell] = new_var
+    last_update[cell] = now
+    if camera_height == camera_height:
+        closest[cell] = _nan_min(closest[cell], _nan_max(camera_height - meas, 0.0))
+
+
 @njit(cache=True, nogil=True, error_model="numpy")
 def fuse_cells(
     x, y, z, variance, count,
     inv_rx, origin_i, inv_ry, origin_j, one,
     mean, var, top, last_update, closest,
     n0, n1, now, camera_height, min_var, gate2, point_cell, terms, heights, cell_count,
+    cell_list,
 ):
     """Fuse points into the flattened grids of an (n0, n1) map in place.
 
@@ -112,7 +148,9 @@ def fuse_cells(
             in their own precision halve what a single-precision frame moves through the
             cache).
         cell_count: (n0 * n1,) int32 work space, all zero, and left so: the points of each
-            cell counted as they are found, then where the cell's points go.
+            cell counted, then where the cell's points go.
+        cell_list: (2, n0 * n1) int32 work space: the touched cells of one point and of
+            more.
 
     Returns:
         (number of measurements fused, number of points inside the window).
@@ -127,6 +165,9 @@ def fuse_cells(
     z_nan = False
     fused = 0.0
     counted = len(count) > 0
+    # Each point's cell (-1 outside), then the points of each cell counted: in separate
+    # loops, as one loop that both stores a point's cell and counts it in memory runs
+    # several times slower (so do the places and the terms below).
     for k in range(n):
         fi = x[k] * inv_rx - origin_i
         fj = y[k] * inv_ry - origin_j
@@ -134,7 +175,6 @@ def fuse_cells(
         if fi >= 0 and fi < n0 and fj >= 0 and fj < n1:
             cell = np.int64(fi) * n1 + np.int64(fj)
             flat[k] = np.int32(cell)
-            cell_count[cell] += 1
             inside += 1
             if cell < lo_cell:
                 lo_cell = cell
@@ -153,6 +193,10 @@ def fuse_cells(
             flat[k] = -1
     if inside == 0:
         return 0, 0
+    for k in range(n):
+        c = flat[k]
+        if c >= 0:
+            cell_count[c] += 1
     if not counted:  # a sum of ones
         fused = float(inside)
     if z_nan:  # numpy's min and max: NaN
@@ -183,29 +227,57 @@ def fuse_cells(
         m = fill[c]
         fill[c] = placed
         placed += m
-    # Each point's terms, written in cell order (so that the cells read them in a row).
+    # ...each point's place in cell order replaces its cell (and the starts become ends)...
+    for k in range(n):
+        c = flat[k]
+        if c >= 0:
+            c -= lo_cell
+            q = fill[c]
+            fill[c] = q + 1
+            flat[k] = q
+    # ...and its terms are written there (so that the cells read them in a row).
     w_of = terms[0]
     wz_of = terms[1]
     v_of = terms[2]
     for k in range(n):
-        if flat[k] < 0:
+        q = flat[k]
+        if q < 0:
             continue
-        c = flat[k] - lo_cell
-        q = fill[c]
-        fill[c] = q + 1
         w = one / variance[k]
         w_of[q] = w
         wz_of[q] = w * z[k]
         v_of[q] = variance[k]
         heights[q] = z[k]
 
-    # ...and then where they end (the next one's start), cleared as it is read.
+    # The touched cells, those of one point apart (most cells of a frame from 5 m up: a
+    # loop without branches on each cell's count), each with where its points end.
+    singles = cell_list[0]
+    multis = cell_list[1]
+    n_single = 0
+    n_multi = 0
     b = 0
     for c in range(span_cells):
         a, b = b, fill[c]
-        fill[c] = 0
-        if a == b:
-            continue
+        m = b - a
+        singles[n_single] = c
+        n_single += m == 1
+        multis[n_multi] = c
+        n_multi += m > 1
+    for k in range(n_single):
+        c = singles[k]
+        q = fill[c] - 1
+        level = 0
+        if not z_nan:
+            in_z[2] = heights[q]
+            level = min(np.int64((in_z[2] - low_z) * inv_quantum), top_level)
+        # Each sum from zero, as the loop below takes it (-0.0 becomes 0.0).
+        _update_cell(c + lo_cell, 0.0 + w_of[q], 0.0 + wz_of[q], 0.0 + v_of[q], 1,
+                     z_lo + level * quantum, mean, var, top, last_update, closest, now,
+                     camera_height, min_var, gate2)
+    for k in range(n_multi):
+        c = multis[k]
+        a = fill[c - 1] if c > 0 else 0  # where the cell before ends
+        b = fill[c]
         # Sums in point order, in double precision, as bincount takes them.
         w_cell = 0.0
         wz_cell = 0.0
@@ -223,37 +295,9 @@ def fuse_cells(
         if not z_nan:
             in_z[2] = _kth_smallest(heights, a, b, pick)
             level = min(np.int64((in_z[2] - low_z) * inv_quantum), top_level)
-        percentile = z_lo + level * quantum
-        meas = wz_cell / w_cell
-        point_var = v_cell / m
-        meas_top = _nan_max(percentile - TOP_NOISE_LIFT * np.sqrt(point_var), meas)
-        meas_var = _nan_max(1.0 / w_cell, min_var)
-        cell = c + lo_cell
-        mu = mean[cell]
-        p = var[cell]  # inf where the cell is new
-        old_top = top[cell]
-        if not np.isfinite(mu):
-            # A new cell starts from its measurement (zero innovation, gain 1 as p is inf).
-            mu = meas
-            old_top = meas_top
-        total = p + meas_var
-        innovation = meas - mu
-        gain = 1.0 - meas_var / total
-        new_var_keep = False
-        if innovation * innovation > gate2 * total:
-            # The estimate with the smaller variance wins: gain 1 replaces, 0 keeps.
-            closer = meas_var < p
-            gain = 1.0 if closer else 0.0
-            new_var_keep = not closer
-        new_mu = mu + gain * innovation
-        new_var = p if new_var_keep else gain * meas_var
-        new_top = old_top + gain * (meas_top - old_top)
-        mean[cell] = new_mu
-        top[cell] = _nan_max(new_top, new_mu)
-        var[cell] = new_var
-        last_update[cell] = now
-        if camera_height == camera_height:
-            closest[cell] = _nan_min(closest[cell], _nan_max(camera_height - meas, 0.0))
+        _update_cell(c + lo_cell, w_cell, wz_cell, v_cell, m, z_lo + level * quantum,
+                     mean, var, top, last_update, closest, now, camera_height, min_var, gate2)
+    fill[:] = 0  # the work space left all zero
     return fused, inside
 
 

@@ -231,6 +231,7 @@ class ElevationMap:
             got = self._fuse_scratch[(terms, heights)] = (
                 np.empty(size, np.int32), np.empty((3, size), terms),
                 np.empty(size, heights), np.zeros(n0 * n1, np.int32),
+                np.empty((2, n0 * n1), np.int32),
             )
         return got
 
