@@ -42,7 +42,7 @@ import cv2
 import numpy as np
 
 from lsd.elevation.map import ElevationMap, pooled_level
-from lsd.elevation.projection import back_project, median32
+from lsd.elevation.projection import back_project, block_points, median32
 from lsd.elevation.settings import DetectorSettings, ElevationMapSettings
 from lsd.frames import DepthFrame
 from lsd.plane_fit import PlaneFit, copy_where, fit_planes
@@ -247,7 +247,7 @@ class ElevationDetector:
                 block = max(block, min(2, _pixel_block(pooled, ground_per_pixel, depth.shape, 1.0)))
             if block > 1:
                 if block not in blocks:  # both maps may take the same blocks
-                    blocks[block] = _block_points(east, north, drop, variance, valid, block)
+                    blocks[block] = block_points(east, north, drop, variance, valid, block)
                 x, y, z, var, count = blocks[block]
             elif everything:
                 x, y, z, var = (a.reshape(-1) for a in (east, north, drop, variance))
@@ -581,62 +581,6 @@ def _pixel_block(
     while block > 1 and min(shape) < 2 * block:
         block //= 2
     return block
-
-
-def _block_points(
-    east: np.ndarray,
-    north: np.ndarray,
-    drop: np.ndarray,
-    variance: np.ndarray,
-    valid: np.ndarray,
-    block: int,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """The valid pixels of each ``block`` x ``block`` square combined into one point.
-
-    Args:
-        east, north, drop: (H, W) float32 world coordinates of each pixel's point, m.
-        variance: (H, W) float32 variance of each pixel's height, m^2.
-        valid: (H, W) bool usable pixels.
-        block: block side, pixels.
-
-    Returns:
-        x, y, z, variance, count: (B,) float32 per block holding a valid pixel: the mean
-        horizontal position, the inverse-variance weighted mean height, the variance
-        of that mean (1 / sum of weights) and the number of valid pixels.
-    """
-    f32 = np.float32
-    height, width = valid.shape
-    rows, cols = height // block, width // block
-    # Sums over whole blocks (the few pixels of a partial block at the far edges are left
-    # out); INTER_AREA averages each block exactly.
-    crop = (slice(0, rows * block), slice(0, cols * block))
-    mask = valid[crop]
-    every = bool(mask.all())  # then no pixel needs masking out
-    if every:
-        weight = np.divide(f32(1.0), variance[crop])
-    else:
-        weight = np.zeros(mask.shape, f32)
-        np.divide(f32(1.0), variance[crop], out=weight, where=mask)
-    share = mask.astype(f32)
-
-    def mean(image: np.ndarray) -> np.ndarray:
-        return cv2.resize(image, (cols, rows), interpolation=cv2.INTER_AREA).reshape(-1)
-
-    def masked(image: np.ndarray) -> np.ndarray:
-        return image[crop] if every else np.where(mask, image[crop], f32(0.0))
-
-    area = f32(block * block)
-    count = mean(share) * area
-    w_sum = mean(weight) * area
-    wz_sum = mean(weight * masked(drop)) * area
-    east_sum = mean(masked(east)) * area
-    north_sum = mean(masked(north)) * area
-    keep = np.flatnonzero(count > 0.5)
-    count, w_sum = count[keep], w_sum[keep]
-    x = east_sum[keep] / count
-    y = north_sum[keep] / count
-    z = wz_sum[keep] / w_sum
-    return x, y, z, 1.0 / w_sum, np.rint(count)
 
 
 def _largest_within(grid: np.ndarray, i: np.ndarray, j: np.ndarray, radius: float) -> np.ndarray:

@@ -2,10 +2,13 @@
 pass (numba): the vectorised version made a dozen single-precision passes over the image
 (each ray component, each offset, the ray's length along the optical axis, the height
 variance); this kernel computes each pixel's in one go, with the same single-precision
-operations in the same order, so the points come out bit for bit the same."""
+operations in the same order, so the points come out bit for bit the same. The pixel blocks
+fused as one point each (:func:`block_points`) likewise: their masked images in one pass,
+OpenCV's block means, and the points in one pass."""
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 from numba import njit
 
@@ -83,3 +86,77 @@ def median32(sample):
         below = max(below, part[k])
     return (below + part[half]) / np.float32(2.0)
 
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _block_terms(east, north, drop, variance, valid, planes):
+    """The masked images whose block means make the pixel blocks, in one pass (each with
+    the array version's single-precision operations): the weight ``1 / variance``, the
+    weighted height, east, north and the valid share, zero where a pixel is not valid."""
+    zero = _F(0.0)
+    for i in range(planes.shape[1]):
+        for j in range(planes.shape[2]):
+            ok = valid[i, j]
+            w = _F(1.0) / variance[i, j]
+            w = w if ok else zero
+            planes[0, i, j] = w
+            planes[1, i, j] = w * drop[i, j] if ok else zero
+            planes[2, i, j] = east[i, j] if ok else zero
+            planes[3, i, j] = north[i, j] if ok else zero
+            planes[4, i, j] = _F(1.0) if ok else zero
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _block_sums_to_points(means, area):
+    """The blocks holding a valid pixel (more than half a pixel's share) as points from
+    their block means (x, y, z, variance, count as :func:`block_points` returns them)."""
+    sums = means.reshape(5, -1)
+    out = np.empty((5, sums.shape[1]), _F)
+    n = 0
+    for b in range(sums.shape[1]):
+        count = sums[4, b] * area
+        if not count > 0.5:
+            continue
+        w_sum = sums[0, b] * area
+        out[0, n] = (sums[2, b] * area) / count
+        out[1, n] = (sums[3, b] * area) / count
+        out[2, n] = (sums[1, b] * area) / w_sum
+        out[3, n] = _F(1.0) / w_sum
+        # np.rint of a float32 below 2**23 (numba's np.rint of a scalar costs more than
+        # the rest): the addition rounds to an integer, half to even.
+        out[4, n] = (count + _F(2.0**23)) - _F(2.0**23)
+        n += 1
+    return out[0, :n], out[1, :n], out[2, :n], out[3, :n], out[4, :n]
+
+
+def block_points(
+    east: np.ndarray,
+    north: np.ndarray,
+    drop: np.ndarray,
+    variance: np.ndarray,
+    valid: np.ndarray,
+    block: int,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The valid pixels of each ``block`` x ``block`` square combined into one point.
+
+    Args:
+        east, north, drop: (H, W) float32 world coordinates of each pixel's point, m.
+        variance: (H, W) float32 variance of each pixel's height, m^2.
+        valid: (H, W) bool usable pixels.
+        block: block side, pixels.
+
+    Returns:
+        x, y, z, variance, count: (B,) float32 per block holding a valid pixel: the mean
+        horizontal position, the inverse-variance weighted mean height, the variance
+        of that mean (1 / sum of weights) and the number of valid pixels.
+    """
+    height, width = valid.shape
+    rows, cols = height // block, width // block
+    # Sums over whole blocks (the few pixels of a partial block at the far edges are left
+    # out): the masked images made in one compiled pass, then each averaged over blocks by
+    # OpenCV (INTER_AREA averages each block exactly, vectorised), times the block's area.
+    planes = np.empty((5, rows * block, cols * block), _F)
+    _block_terms(east, north, drop, variance, valid, planes)
+    means = np.empty((5, rows, cols), _F)
+    for k in range(5):
+        cv2.resize(planes[k], (cols, rows), dst=means[k], interpolation=cv2.INTER_AREA)
+    return _block_sums_to_points(means, _F(block * block))

@@ -1,12 +1,13 @@
-"""The compiled back-projection and median (lsd.elevation.projection) against the numpy
-expressions they replace, bit for bit."""
+"""The compiled back-projection, median and pixel blocks (lsd.elevation.projection) against
+the numpy and OpenCV expressions they replace, bit for bit."""
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from lsd.elevation.projection import back_project, median32
+from lsd.elevation.projection import back_project, block_points, median32
 
 
 def test_back_projection_is_numpys_single_precision_arithmetic_bit_for_bit():
@@ -50,3 +51,52 @@ def test_median32_is_numpys_median_of_single_precision_values():
     values[7] = np.nan
     assert np.isnan(median32(values)) and np.isnan(np.median(values))
 
+
+
+def _opencv_block_points(east, north, drop, variance, valid, block):
+    """The pixel blocks as the array version made them: block means by OpenCV's
+    INTER_AREA resize of the masked images, times the block's area."""
+    f32 = np.float32
+    rows, cols = valid.shape[0] // block, valid.shape[1] // block
+    crop = (slice(0, rows * block), slice(0, cols * block))
+    mask = valid[crop]
+    weight = np.zeros(mask.shape, f32)
+    np.divide(f32(1.0), variance[crop], out=weight, where=mask)
+
+    def total(image):
+        mean = cv2.resize(image, (cols, rows), interpolation=cv2.INTER_AREA).reshape(-1)
+        return mean * f32(block * block)
+
+    def masked(image):
+        return np.where(mask, image[crop], f32(0.0))
+
+    count = total(mask.astype(f32))
+    w_sum = total(weight)
+    wz_sum = total(weight * masked(drop))
+    east_sum, north_sum = total(masked(east)), total(masked(north))
+    keep = np.flatnonzero(count > 0.5)
+    count, w_sum = count[keep], w_sum[keep]
+    return (east_sum[keep] / count, north_sum[keep] / count, wz_sum[keep] / w_sum,
+            1.0 / w_sum, np.rint(count))
+
+
+def test_pixel_blocks_are_opencvs_block_means_bit_for_bit():
+    # Values over many orders of magnitude, so that any other order of the sums shows; odd
+    # sizes (partial blocks left out; 2 x 2 blocks past the last four of a row summed in
+    # OpenCV's scalar order), every pixel valid or a few.
+    f32 = np.float32
+    rng = np.random.default_rng(23)
+    for trial in range(60):
+        block = (2, 4, 8)[trial % 3]
+        height, width = (int(v) for v in rng.integers(block, 70, 2))
+        east, north, drop = (
+            (rng.standard_normal((height, width)) * 10.0 ** rng.integers(-2, 4, (height, width)))
+            .astype(f32) for _ in range(3)
+        )
+        variance = (rng.random((height, width)) * 10.0 ** rng.integers(-6, 1, (height, width))
+                    + 1e-7).astype(f32)
+        valid = rng.random((height, width)) < (0.1, 0.8, 1.0)[trial % 5 % 3]
+        got = block_points(east, north, drop, variance, valid, block)
+        want = _opencv_block_points(east, north, drop, variance, valid, block)
+        for a, b in zip(got, want, strict=True):
+            assert a.dtype == b.dtype == np.float32 and a.tobytes() == b.tobytes(), trial
