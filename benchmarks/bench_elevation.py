@@ -38,7 +38,8 @@ from replay_compare import (
 
 ROOT = Path(__file__).resolve().parents[1]
 PARTS = ("fit_planes", "step_hazards", "step_levels", "safe_mask", "site_size", "step_room",
-         "select_sites", "obstacle_altitude", "maximum_box", "_largest_within", "pooled_level")
+         "step_room_at", "select_sites", "rank_sites", "obstacle_altitude", "maximum_box",
+         "_largest_within", "pooled_level")
 
 
 def record(mission_file: Path, seed: int, out: Path) -> int:

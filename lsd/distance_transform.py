@@ -111,23 +111,47 @@ def distance_within(inside: np.ndarray, wanted: np.ndarray, resolution: float,
     cheap where outside cells are near, which is where a short reach matters."""
     n0, n1 = inside.shape
     column = _column_distances(inside, reach + 1)  # only needed up to the reach
-    limit = reach * reach
     out = np.full((n0, n1), np.inf)
     for i in range(n0):
         for u in range(n1):
-            if not wanted[i, u]:
-                continue
-            # The exact squared distance if it is at most reach^2: every column within
-            # reach is looked at unless a nearer outside cell is already found.
-            best = column[i, u] * column[i, u] if column[i, u] <= reach else limit + 1
-            d = 1
-            while d * d < best and d <= reach:
-                if u - d >= 0 and column[i, u - d] <= reach:
-                    best = min(best, d * d + column[i, u - d] * column[i, u - d])
-                if u + d < n1 and column[i, u + d] <= reach:
-                    best = min(best, d * d + column[i, u + d] * column[i, u + d])
-                d += 1
-            if best <= limit:
-                root = np.float64(np.sqrt(np.float32(best)))
-                out[i, u] = max(root - 0.5, 0.0) * resolution
+            if wanted[i, u]:
+                out[i, u] = _within(column, i, u, reach, resolution)
     return out
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def distance_at(inside: np.ndarray, cell_i: np.ndarray, cell_j: np.ndarray,
+                reaches: np.ndarray, resolution: float) -> np.ndarray:
+    """(k,) :func:`distance_to_outside` at cells (cell_i[k], cell_j[k]), where the nearest
+    outside cell is at most ``reaches[k]`` cells away (inf elsewhere): :func:`distance_within`
+    with a reach of each cell's own."""
+    far = 0
+    for k in range(len(cell_i)):
+        far = max(far, reaches[k])
+    column = _column_distances(inside, far + 1)
+    out = np.empty(len(cell_i))
+    for k in range(len(cell_i)):
+        out[k] = _within(column, cell_i[k], cell_j[k], reaches[k], resolution)
+    return out
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _within(column, i, u, reach, resolution):
+    """The distance (metres, as :func:`distance_to_outside`) from cell (i, u) to the nearest
+    outside cell if that is at most ``reach`` cells away (column distances at least
+    ``reach + 1`` where capped), else inf."""
+    n1 = column.shape[1]
+    limit = reach * reach
+    # The exact squared distance if it is at most reach^2: every column within reach is
+    # looked at unless a nearer outside cell is already found.
+    best = column[i, u] * column[i, u] if column[i, u] <= reach else limit + 1
+    d = 1
+    while d * d < best and d <= reach:
+        if u - d >= 0 and column[i, u - d] <= reach:
+            best = min(best, d * d + column[i, u - d] * column[i, u - d])
+        if u + d < n1 and column[i, u + d] <= reach:
+            best = min(best, d * d + column[i, u + d] * column[i, u + d])
+        d += 1
+    if best > limit:
+        return np.inf
+    return max(np.float64(np.sqrt(np.float32(best))) - 0.5, 0.0) * resolution

@@ -10,7 +10,7 @@ import numpy as np
 from numba import njit
 from scipy import ndimage
 
-from lsd.distance_transform import distance_to_outside, distance_within
+from lsd.distance_transform import distance_at, distance_to_outside, distance_within
 from lsd.elevation.settings import DetectorSettings
 from lsd.plane_fit import PlaneFit
 
@@ -105,6 +105,26 @@ def step_room(
     # Cells beyond `reach` (whole cells, with one to spare) are farther than room_reach.
     reach = int(np.ceil(room_reach(settings, resolution) / resolution + 0.5)) + 1
     return distance_within(~level, wanted, float(resolution), reach)
+
+
+def step_room_at(
+    fit: PlaneFit,
+    settings: DetectorSettings,
+    resolution: float,
+    cell_i: np.ndarray,
+    cell_j: np.ndarray,
+    bound: np.ndarray,
+) -> np.ndarray:
+    """(k,) :func:`step_room` at cells (cell_i[k], cell_j[k]) where it is at most
+    ``bound[k]`` metres, inf where it is more (each cell searched no farther)."""
+    with np.errstate(invalid="ignore"):
+        level = fit.step > settings.max_step  # NaN (unobserved) is no step
+    if not level.any():
+        return np.full(len(cell_i), np.inf)
+    # Whole cells, with one to spare: a nearest step beyond them is beyond the bound.
+    reaches = np.ceil(np.asarray(bound) / resolution + 0.5).astype(np.int64) + 1
+    return distance_at(~level, np.asarray(cell_i, np.int64), np.asarray(cell_j, np.int64),
+                       reaches, float(resolution))
 
 
 def size_cap(settings: DetectorSettings, resolution: float) -> float:
@@ -301,34 +321,52 @@ def select_sites(
     Returns:
         i, j: grid indices of the sites, each (k,) int64, best first, k <= ``max_sites``.
     """
-    block = max(1, int(round(settings.site_spacing / resolution)))
-    cap = size_cap(settings, resolution)
-    eligible = size >= settings.footprint_radius
-    if not eligible.any():
+    i, j = np.nonzero(np.asarray(size) >= settings.footprint_radius)
+    if len(i) == 0:
         empty = np.zeros(0, dtype=np.int64)
         return empty, empty
+    return rank_sites(i, j, np.asarray(size)[i, j], np.asarray(quality)[i, j], origin_index,
+                      resolution, settings, None if room is None else np.asarray(room)[i, j])
+
+
+def rank_sites(
+    i: np.ndarray,
+    j: np.ndarray,
+    size: np.ndarray,
+    quality: np.ndarray,
+    origin_index: tuple[int, int],
+    resolution: float,
+    settings: DetectorSettings,
+    room: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`select_sites` given only the cells that may be sites: those at least
+    ``footprint_radius`` in size, at grid indices ``i``, ``j`` ((k,) each, in row-major
+    order), and their ``size``, ``quality`` and ``room`` ((k,) each), so that the rest of
+    the grid need not be looked at, nor their quality worked out."""
+    block = max(1, int(round(settings.site_spacing / resolution)))
+    cap = size_cap(settings, resolution)
     quality = np.asarray(quality)
     i, j = _block_winners(
-        np.asarray(size, dtype=np.float64),
-        np.zeros((0, 0)) if room is None else np.asarray(room, dtype=np.float64),
-        quality, quality.dtype.type(1e-3 * resolution), float(cap),
-        float(settings.footprint_radius), 1e-6 * resolution,
+        np.asarray(i, np.int64), np.asarray(j, np.int64), np.asarray(size, dtype=np.float64),
+        np.zeros(0) if room is None else np.asarray(room, dtype=np.float64),
+        quality, quality.dtype.type(1e-3 * resolution), float(cap), 1e-6 * resolution,
         int(origin_index[0]) % block, int(origin_index[1]) % block, block,
     )
     return i[: settings.max_sites], j[: settings.max_sites]
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _block_winners(size, room, quality, quality_weight, cap, least, centre_weight, lead0,
-                   lead1, block):
-    """The sites of :func:`select_sites`, best first (all of them), in one pass over the
-    blocks, with its keys computed as its vectorised form computes them (capped size plus
-    ``quality_weight * clip(quality, 0, 1)`` in the quality's precision, less
-    ``centre_weight * off_centre / block**2``), the first best cell of a block in row-major
-    order, and a stable sort."""
-    n0, n1 = size.shape
+def _block_winners(cell_i, cell_j, size, room, quality, quality_weight, cap, centre_weight,
+                   lead0, lead1, block):
+    """The sites of :func:`rank_sites`, best first (all of them), in one pass over its
+    cells, with its keys computed as the vectorised form of :func:`select_sites` computed
+    them (capped size plus ``quality_weight * clip(quality, 0, 1)`` in the quality's
+    precision, less ``centre_weight * off_centre / block**2``), the first best cell of a
+    block in row-major order (the cells come in that order), and a stable sort."""
     has_room = room.shape[0] > 0
     half_block = (block - 1) / 2
+    n0 = cell_i.max() + 1 if len(cell_i) else 0
+    n1 = cell_j.max() + 1 if len(cell_j) else 0
     b0 = (n0 + lead0 + block - 1) // block
     b1 = (n1 + lead1 + block - 1) // block
     win_i = np.empty((b0, b1), np.int64)
@@ -336,33 +374,19 @@ def _block_winners(size, room, quality, quality_weight, cap, least, centre_weigh
     win_key = np.full((b0, b1), -np.inf)
     zero = quality.dtype.type(0.0)
     one = quality.dtype.type(1.0)
-    for bi in range(b0):
-        for bj in range(b1):
-            best = -np.inf
-            bi_, bj_ = 0, 0
-            for r in range(block):
-                i = bi * block + r - lead0
-                if i < 0 or i >= n0:
-                    continue
-                ai = (r - half_block) ** 2
-                for c in range(block):
-                    j = bj * block + c - lead1
-                    if j < 0 or j >= n1:
-                        continue
-                    sz = size[i, j]
-                    if not sz >= least:
-                        continue
-                    capped = min(sz, room[i, j]) if has_room else sz
-                    capped = min(capped, cap)
-                    q = min(max(quality[i, j], zero), one)
-                    key = capped + np.float64(quality_weight * q)
-                    key -= centre_weight * ((ai + (c - half_block) ** 2) / (block * block))
-                    if key > best:
-                        best = key
-                        bi_, bj_ = i, j
-            win_key[bi, bj] = best
-            win_i[bi, bj] = bi_
-            win_j[bi, bj] = bj_
+    for k in range(len(cell_i)):
+        i, j = cell_i[k], cell_j[k]
+        bi, r = divmod(i + lead0, block)
+        bj, c = divmod(j + lead1, block)
+        capped = min(size[k], room[k]) if has_room else size[k]
+        capped = min(capped, cap)
+        q = min(max(quality[k], zero), one)
+        key = capped + np.float64(quality_weight * q)
+        key -= centre_weight * (((r - half_block) ** 2 + (c - half_block) ** 2) / (block * block))
+        if key > win_key[bi, bj]:
+            win_key[bi, bj] = key
+            win_i[bi, bj] = i
+            win_j[bi, bj] = j
     # A winner closer than half a block (Chebyshev) to a better winner is suppressed; such
     # a neighbour can only sit in one of the 8 adjacent blocks.
     reach = block // 2

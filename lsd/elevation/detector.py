@@ -50,11 +50,12 @@ from lsd.site_selection import (
     largest_at,
     maximum_box,
     obstacle_altitude,
+    rank_sites,
     safe_mask,
-    select_sites,
     site_size,
+    size_cap,
     step_levels,
-    step_room,
+    step_room_at,
 )
 from lsm.records import SiteObservation
 
@@ -339,7 +340,9 @@ class ElevationDetector:
         # footprint).
         # Only cells large enough to be sites are ranked, so only they need a quality.
         large = size >= s.footprint_radius
-        ranked = np.flatnonzero(large)
+        ranked_i, ranked_j = np.nonzero(large)
+        if len(ranked_i) == 0:
+            return []
         f32 = np.float32
         farthest_look = maximum_box(looks, 2 * reach + 1)
         with np.errstate(invalid="ignore"):
@@ -347,17 +350,23 @@ class ElevationDetector:
             # redetects the site right below it), then the smoothest and most certain.
             # (Elementwise, so the same values as over the whole grid: numpy's exp rounds
             # each element alike wherever it lies in an array.)
-            ranked_quality = fit.roughness.take(ranked) * f32(-0.15 / s.max_roughness)
-            ranked_quality -= fit.sigma.take(ranked) * f32(0.15 / s.max_uncertainty)
-            ranked_quality += f32(0.3)
-            ranked_quality += np.exp(farthest_look.take(ranked) * f32(-0.1)) * f32(0.7)
-        quality = np.zeros(size.shape, f32)
-        quality.put(ranked, cv2.patchNaNs(ranked_quality, 0.0))
+            quality = fit.roughness[ranked_i, ranked_j] * f32(-0.15 / s.max_roughness)
+            quality -= fit.sigma[ranked_i, ranked_j] * f32(0.15 / s.max_uncertainty)
+            quality += f32(0.3)
+            quality += np.exp(farthest_look[ranked_i, ranked_j] * f32(-0.1)) * f32(0.7)
+        cv2.patchNaNs(quality, 0.0)
         # Low down, where sites are verified, a site also keeps as far as its block allows
         # from every step beyond max_step, forgiven by the noise tolerance or not: small
         # rocks read low in rendered, fused depth, so a forgiven step may be a rock.
-        room = step_room(fit, s, r, large) if m is self.fine_map else None
-        i, j = select_sites(size, quality, box_origin, r, s, room=room)
+        # Its room is only read where it is less than both the (capped) size and the doubt
+        # ring's radius.
+        ranked_size = size[ranked_i, ranked_j]
+        room = None
+        if m is self.fine_map:
+            bound = np.maximum(np.minimum(ranked_size, size_cap(s, r)),
+                               s.footprint_radius + s.look_margin)
+            room = step_room_at(fit, s, r, ranked_i, ranked_j, bound)
+        i, j = rank_sites(ranked_i, ranked_j, ranked_size, quality, box_origin, r, s, room=room)
         if len(i) == 0:
             return []
         # The obstacle altitude from the map's own cells (the highest, not a block's mean),
@@ -383,8 +392,10 @@ class ElevationDetector:
         # close look: it may not verify, nor overwrite a conclusive look. Low down, near
         # means anywhere in the footprint or the ring of look_margin around it.
         doubt = level[i, j] >= 1
-        if room is not None:
-            doubt |= room[i, j] < s.footprint_radius + s.look_margin
+        if room is not None:  # the sites' own rooms (the cells come in row-major order)
+            n1 = size.shape[1]
+            at = np.searchsorted(ranked_i * n1 + ranked_j, i * n1 + j)
+            doubt |= room[at] < s.footprint_radius + s.look_margin
         altitude = np.where(doubt, np.maximum(altitude, s.doubtful_altitude), altitude)
         label = f"{s.source}:{source}" if source else s.source
         observations = [
