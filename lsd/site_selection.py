@@ -259,12 +259,33 @@ def _highest_around(height, variance, i, j, half):
             top[a - i0, b - j0] = t if t == t else -np.inf  # unobserved (NaN) never wins
     out = np.empty(len(i))
     for k in range(len(i)):
-        best = np.float32(-np.inf)
-        for a in range(max(i[k] - half, 0) - i0, min(i[k] + half + 1, n0) - i0):
-            for b in range(max(j[k] - half, 0) - j0, min(j[k] + half + 1, n1) - j0):
-                best = max(best, top[a, b])
-        out[k] = best
+        out[k] = _largest_in(top, max(i[k] - half, 0) - i0, min(i[k] + half + 1, n0) - i0,
+                             max(j[k] - half, 0) - j0, min(j[k] + half + 1, n1) - j0)
     return out
+
+
+@njit(cache=True, nogil=True, error_model="numpy", boundscheck=False)
+def _largest_in(top, a0, a1, b0, b1):
+    """The largest of ``top[a0:a1, b0:b1]`` (float32, no NaN; -inf if empty): each column's
+    largest first, down the rows (vectorised), then across. A maximum of numbers is exact in
+    any order, but for the sign of a zero: when the largest is 0, it is taken again in
+    row-major order, the first of equals kept, as it always was."""
+    best = np.float32(-np.inf)
+    if a0 >= a1 or b0 >= b1:
+        return best
+    column = top[a0, b0:b1].copy()
+    for a in range(a0 + 1, a1):
+        row = top[a, b0:b1]
+        for b in range(b1 - b0):
+            column[b] = max(column[b], row[b])
+    for v in column:
+        best = max(best, v)
+    if best == 0:
+        best = np.float32(-np.inf)
+        for a in range(a0, a1):
+            for b in range(b0, b1):
+                best = max(best, top[a, b])
+    return best
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
