@@ -99,3 +99,50 @@ def test_step_levels_are_numpys_single_precision_comparisons():
     assert np.array_equal(level, expected) and set(np.unique(level)) == {0, 1, 2}
     hazard, doubtful = step_hazards(fit, settings, 0.1)
     assert np.array_equal(hazard, expected >= 2) and np.array_equal(doubtful, expected >= 1)
+
+
+def test_step_room_at_given_cells_is_exact_up_to_each_cells_bound():
+    from lsd.site_selection import step_room_at
+
+    settings = DetectorSettings(max_step=0.05)
+    rng = np.random.default_rng(23)
+    counts = np.zeros(2, int)
+    for share in (0.3, 0.01, 0.0005):
+        step = np.where(rng.random((80, 90)) < share, 0.2, 0.0).astype(np.float32)
+        step[3, 70] = 0.2
+        fit = dataclasses.replace(PlaneFit(*(np.zeros_like(step) for _ in range(9))), step=step)
+        full = step_room(fit, settings, 0.1)
+        i, j = np.nonzero(rng.random(step.shape) < 0.3)
+        bound = rng.uniform(0.2, 4.0, len(i))
+        room = step_room_at(fit, settings, 0.1, i, j, bound)
+        within = full[i, j] <= bound
+        counts += within.sum(), (~within).sum()
+        assert np.array_equal(room[within], full[i, j][within])
+        # Beyond its bound a cell's room is exact or inf: it decides nothing there.
+        assert ((room[~within] == full[i, j][~within]) | np.isinf(room[~within])).all()
+    assert (counts > 300).all()
+
+
+def test_obstacle_altitude_at_sites_is_the_largest_top_of_each_square():
+    from lsd.site_selection import obstacle_altitude
+
+    rng = np.random.default_rng(24)
+    height = rng.normal(0.0, 0.3, (70, 60))
+    height[rng.random(height.shape) < 0.2] = np.nan
+    variance = rng.uniform(0.0, 0.01, height.shape)
+    i, j = rng.integers(0, 70, 40), rng.integers(0, 60, 40)
+    got = obstacle_altitude(height, variance, 0.1, 0.5, sites=(i, j))
+    f32 = np.float32
+    with np.errstate(invalid="ignore"):
+        top = ((np.sqrt(variance.astype(f32)) * f32(2)).astype(np.float64) + height).astype(f32)
+    top[np.isnan(top)] = -np.inf
+    expected = [top[max(a - 5, 0): a + 6, max(b - 5, 0): b + 6].max()
+                for a, b in zip(i, j, strict=True)]
+    assert np.array_equal(got, np.array(expected, np.float64))
+    # Where the largest is a zero of either sign, the first in row-major order stands.
+    flat = np.full((20, 20), -1.0)
+    variance = np.zeros(flat.shape)
+    flat[4, 12], variance[4, 12] = -0.0, -0.0  # -0 + 2 sqrt(-0): a negative zero
+    flat[9, 3] = 0.0
+    first = obstacle_altitude(flat, variance, 0.1, 1.0, sites=(np.array([8]), np.array([8])))
+    assert first[0] == 0 and np.signbit(first[0])
