@@ -5,14 +5,18 @@ All functions are pure and work on (n, n) grids whose axis 0 is x and axis 1 is 
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import cv2
 import numpy as np
 from numba import njit
 from scipy import ndimage
 
 from lsd.distance_transform import distance_at, distance_to_outside, distance_within
-from lsd.elevation.settings import DetectorSettings
 from lsd.plane_fit import PlaneFit
+
+if TYPE_CHECKING:  # at run time lsd.elevation imports this module
+    from lsd.elevation.settings import DetectorSettings
 
 
 def maximum_box(array: np.ndarray, size: int) -> np.ndarray:
