@@ -18,9 +18,11 @@ import threading
 import time
 import tracemalloc
 
+import _checkout  # noqa: F401  (this checkout's packages first)
 import numpy as np
 
 from lsm import LandingSiteManager, LsmSettings, SiteObservation
+from lsm.settings import MAX_DISTANCE
 
 
 def observations(n: int, n_sites: int, redetect: float, seed: int) -> list[SiteObservation]:
@@ -71,7 +73,8 @@ def throughput(capacity: int, n: int, redetect: float) -> tuple[float, float, di
 
 
 def ranked_latency(n_sites: int, repeats: int = 200) -> tuple[float, float]:
-    m = LandingSiteManager(LsmSettings(capacity=n_sites, max_distance=1e6, match_radius=0.5))
+    m = LandingSiteManager(LsmSettings(capacity=n_sites, max_distance=MAX_DISTANCE,
+                                       match_radius=0.5))
     rng = np.random.default_rng(7)
     xy = rng.uniform(-2000, 2000, size=(n_sites, 2))
     m.submit_many(SiteObservation(float(x), float(y), 0.0, 0.2, 0.3, 2.0, 1.0, 50.0)
@@ -92,7 +95,7 @@ def bytes_per_site(n_sites: int) -> float:
     data = [SiteObservation(float(i % 100) * 10.0, float(i // 100) * 10.0, 0.0, 0.2, 0.3, 2.0,
                             1.0, 50.0, 0.0, "sfm") for i in range(n_sites)]
     tracemalloc.start()
-    m = LandingSiteManager(LsmSettings(capacity=n_sites, max_distance=1e6))
+    m = LandingSiteManager(LsmSettings(capacity=n_sites, max_distance=MAX_DISTANCE))
     m.submit_many(data)
     data = None
     m.process_pending()
