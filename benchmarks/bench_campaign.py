@@ -27,6 +27,8 @@ import tempfile
 import time
 from pathlib import Path
 
+import _checkout  # noqa: F401  (this checkout's packages first)
+
 ROOT = Path(__file__).resolve().parents[1]
 
 

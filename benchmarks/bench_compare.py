@@ -18,6 +18,8 @@ import sys
 from collections import defaultdict
 from pathlib import Path
 
+import _checkout  # noqa: F401  (this checkout's packages first)
+
 ROOT = Path(__file__).resolve().parents[1]
 PROFILE = Path(__file__).resolve().parent / "bench_profile.py"
 

@@ -17,6 +17,7 @@ from __future__ import annotations
 import math
 import time
 
+import _checkout  # noqa: F401  (this checkout's packages first)
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from autonomy.clock import SimClock

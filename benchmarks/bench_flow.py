@@ -19,6 +19,7 @@ from __future__ import annotations
 import argparse
 import time
 
+import _checkout  # noqa: F401  (this checkout's packages first)
 import cv2
 import numpy as np
 

@@ -26,6 +26,7 @@ import statistics
 import time
 from pathlib import Path
 
+import _checkout  # noqa: F401  (this checkout's packages first)
 import numpy as np
 import yaml
 

@@ -19,6 +19,7 @@ import tempfile
 import time
 from pathlib import Path
 
+import _checkout  # noqa: F401  (this checkout's packages first)
 import laspy
 import numpy as np
 

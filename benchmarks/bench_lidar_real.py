@@ -20,6 +20,7 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
+import _checkout  # noqa: F401  (this checkout's packages first)
 import numpy as np
 
 from lsd.io import read_point_cloud

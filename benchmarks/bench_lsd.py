@@ -25,6 +25,8 @@ from __future__ import annotations
 
 import os
 
+import _checkout  # noqa: F401  (this checkout's packages first)
+
 # One core: keep BLAS from spreading (or spinning) over threads; set before numpy loads.
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 os.environ.setdefault("OMP_NUM_THREADS", "1")

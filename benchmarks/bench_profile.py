@@ -33,6 +33,8 @@ from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
+import _checkout  # noqa: F401  (this checkout's packages first)
+
 ROOT = Path(__file__).resolve().parents[1]
 
 PARTS = ("world", "render", "map update", "detection", "LSM", "tree", "driver", "SITL")

@@ -30,6 +30,7 @@ import time
 from collections import defaultdict
 from pathlib import Path
 
+import _checkout  # noqa: F401  (this checkout's packages first)
 from replay_compare import (
     print_header,
     print_row,

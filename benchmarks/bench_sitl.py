@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import time
 
+import _checkout  # noqa: F401  (this checkout's packages first)
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from sitl import MemoryLink, Sitl

@@ -18,6 +18,8 @@ import argparse
 import os
 import time
 
+import _checkout  # noqa: F401  (this checkout's packages first)
+
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import cv2  # noqa: E402

@@ -20,6 +20,7 @@ from collections import defaultdict
 from collections.abc import Callable
 from pathlib import Path
 
+import _checkout  # noqa: F401  (this checkout's packages first)
 import numpy as np
 import py_trees
 

@@ -18,6 +18,8 @@ from __future__ import annotations
 
 import os
 
+import _checkout  # noqa: F401  (this checkout's packages first)
+
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import argparse  # noqa: E402

@@ -12,6 +12,7 @@ import sys
 from collections import defaultdict
 from pathlib import Path
 
+import _checkout  # noqa: F401  (this checkout's packages first)
 import numpy as np
 
 

@@ -14,6 +14,8 @@ from collections import defaultdict
 from collections.abc import Callable
 from pathlib import Path
 
+import _checkout  # noqa: F401  (this checkout's packages first)
+
 ROOT = Path(__file__).resolve().parents[1]
 
 
