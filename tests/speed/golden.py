@@ -16,6 +16,7 @@ import argparse
 import dataclasses
 import hashlib
 import json
+import os
 import sys
 from pathlib import Path
 from typing import Any
@@ -168,4 +169,8 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
+    # As a script: this checkout's packages ahead of the environment's editable install
+    # (which may point at another checkout), unless the caller chose them by PYTHONPATH.
+    if not os.environ.get("PYTHONPATH"):
+        sys.path.insert(0, str(ROOT))
     sys.exit(main())
