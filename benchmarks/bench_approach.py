@@ -25,16 +25,13 @@ from __future__ import annotations
 import argparse
 import json
 import statistics
-import sys
 import time
 from collections import Counter
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
-
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
+from _checkout import ROOT  # noqa: E402  (this checkout's packages first)
 
 from autonomy.config import apply_overrides, load_mission  # noqa: E402
 from autonomy.perception import approach as approach_module  # noqa: E402

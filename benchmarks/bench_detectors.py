@@ -43,10 +43,9 @@ import time
 import tracemalloc
 from pathlib import Path
 
+import _checkout  # noqa: E402, F401  (this checkout's packages first)
 import numpy as np
 from scipy import sparse
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from lsd.depth_costmap.detector import (  # noqa: E402
     DepthCostmapDetector,

@@ -23,8 +23,7 @@ import time
 from collections import defaultdict
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
+from _checkout import ROOT  # noqa: E402  (this checkout's packages first)
 
 
 def _harness():

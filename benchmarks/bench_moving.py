@@ -20,6 +20,7 @@ import argparse
 import time
 from pathlib import Path
 
+import _checkout  # noqa: F401  (this checkout's packages first)
 import numpy as np
 
 from sitl.sensors import DepthCamera, DepthCameraSettings

@@ -11,13 +11,11 @@ pages: N times the figure printed here.
 from __future__ import annotations
 
 import statistics
-import sys
 import tempfile
 import time
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
+from _checkout import ROOT  # noqa: E402  (this checkout's packages first)
 
 from autonomy.config import load_mission  # noqa: E402
 from autonomy.report import write_flight_page, write_report_png  # noqa: E402

@@ -19,6 +19,7 @@ import time
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(__file__))
+import _checkout  # noqa: E402, F401  (this checkout's packages first)
 from bench_tree import _load_fakes  # noqa: E402
 
 from autonomy.clock import SimClock  # noqa: E402
