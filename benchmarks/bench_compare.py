@@ -19,6 +19,7 @@ from collections import defaultdict
 from pathlib import Path
 
 import _checkout  # noqa: F401  (this checkout's packages first)
+from _seeds import add_seed_arguments, chosen_seeds
 
 ROOT = Path(__file__).resolve().parents[1]
 PROFILE = Path(__file__).resolve().parent / "bench_profile.py"
@@ -39,11 +40,12 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--before", required=True, type=Path, help="the older checkout")
     parser.add_argument("--mission", action="append", default=None)
-    parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1])
+    add_seed_arguments(parser)
     parser.add_argument("--rounds", type=int, default=1, help="alternations of the two")
     parser.add_argument("--report", action="store_true",
                         help="flights write their report directories, as campaign runs do")
     args = parser.parse_args(argv)
+    args.seeds = chosen_seeds(args)
     missions = args.mission or [str(ROOT / "missions" / "mars_science.yaml"),
                                 str(ROOT / "missions" / "demo.yaml")]
     missions = [str(Path(m).resolve()) for m in missions]

@@ -34,6 +34,7 @@ from contextlib import contextmanager
 from pathlib import Path
 
 import _checkout  # noqa: F401  (this checkout's packages first)
+from _seeds import add_seed_arguments, chosen_seeds
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -131,13 +132,14 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--mission", action="append", default=None,
                         help="mission file (repeatable; default mars_science and demo)")
-    parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1])
+    add_seed_arguments(parser)
     parser.add_argument("--report", action="store_true",
                         help="write each run's report directory (logs, tlog, btlog, "
                         "report.html) as a campaign run does")
     parser.add_argument("--json", action="store_true",
                         help="one JSON line per mission instead of the table")
     args = parser.parse_args(argv)
+    args.seeds = chosen_seeds(args)
     missions = args.mission or [str(ROOT / "missions" / "mars_science.yaml"),
                                 str(ROOT / "missions" / "demo.yaml")]
     if not args.json:

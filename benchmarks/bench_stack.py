@@ -27,6 +27,7 @@ import time
 from pathlib import Path
 
 import _checkout  # noqa: F401  (this checkout's packages first)
+from _seeds import add_seed_arguments, chosen_seeds
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -61,13 +62,14 @@ def _line(label: str, rounds: list[float]) -> str:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--mission", default=str(ROOT / "missions" / "demo.yaml"))
-    parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1])
+    add_seed_arguments(parser)
     parser.add_argument("--rounds", type=int, default=5)
     parser.add_argument("--before", type=Path, default=None, help="an older checkout")
     parser.add_argument("--alternations", type=int, default=3,
                         help="with --before: processes per checkout, alternating")
     parser.add_argument("--json", action="store_true", help="one JSON line (no --before)")
     args = parser.parse_args(argv)
+    args.seeds = chosen_seeds(args)
     mission = str(Path(args.mission).resolve())
     if args.before is None:
         row = measure(mission, args.seeds, args.rounds)
