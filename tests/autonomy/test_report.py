@@ -56,10 +56,11 @@ def _reference_clean(value):
     return str(value)
 
 
-def test_events_are_cleaned_as_by_the_plain_isinstance_chain():
+def test_events_are_cleaned_as_by_the_plain_isinstance_chain(tmp_path):
     """The log's type-first fast path gives what the plain chain gives, for plain values,
     numpy scalars and arrays, bool subclasses of int, nested dicts with non-string keys,
-    non-finite floats and objects shown by their text."""
+    non-finite floats and objects shown by their text; and its line in events.jsonl is
+    json.dumps's, character for character."""
     import numpy as np
 
     class Text(str):
@@ -78,11 +79,15 @@ def test_events_are_cleaned_as_by_the_plain_isinstance_chain():
         "ints": np.arange(-3, 3), "u8": np.array([[0, 255]], np.uint8),
         "bools": np.array([True, False]), "strs": np.array(["a", "b"]),
     }
-    log = EventLog(lambda: 0.25)
+    log = EventLog(lambda: 0.25, tmp_path / "events.jsonl")
     event = log.add("flight", **fields)
-    assert event == _reference_clean({"t": 0.25, "kind": "flight", **fields})
-    assert json.dumps(event) == json.dumps(_reference_clean({"t": 0.25, "kind": "flight",
-                                                             **fields}))
+    log.add("lsm", decision="merged", site=None, reason="\u00e9t\u00e9 \"<\\n>\"")
+    log.close()
+    reference = _reference_clean({"t": 0.25, "kind": "flight", **fields})
+    assert event == reference
+    assert json.dumps(event) == json.dumps(reference)
+    lines = (tmp_path / "events.jsonl").read_text(encoding="utf-8").splitlines()
+    assert lines == [json.dumps(e, separators=(",", ":")) for e in log.events]
 
 
 def test_tree_recorder_logs_every_status_change_with_its_path():
