@@ -313,6 +313,30 @@ def largest_at(grid, i, j, di, dj):
     return out
 
 
+@njit(cache=True, nogil=True, error_model="numpy")
+def cells_at_least(grid, least):
+    """The cells where ``grid >= least`` in row-major order: their flat indices, rows and
+    columns, each (k,) int64 (``np.flatnonzero`` and ``np.nonzero`` in one go, without a
+    mask; numpy's ``nonzero`` of a 2-D mask costs several times the 1-D one)."""
+    n0, n1 = grid.shape
+    count = 0
+    for i in range(n0):
+        for j in range(n1):
+            count += grid[i, j] >= least
+    flat = np.empty(count, np.int64)
+    rows = np.empty(count, np.int64)
+    cols = np.empty(count, np.int64)
+    k = 0
+    for i in range(n0):
+        for j in range(n1):
+            if grid[i, j] >= least:
+                flat[k] = i * n1 + j
+                rows[k] = i
+                cols[k] = j
+                k += 1
+    return flat, rows, cols
+
+
 def select_sites(
     size: np.ndarray,
     quality: np.ndarray,

@@ -41,12 +41,13 @@ from typing import Any
 import cv2
 import numpy as np
 
-from lsd.elevation.map import ElevationMap, pooled_level
+from lsd.elevation.map import ElevationMap, cell_looks, pooled_level
 from lsd.elevation.projection import back_project, block_points, median32
 from lsd.elevation.settings import DetectorSettings, ElevationMapSettings
 from lsd.frames import DepthFrame
-from lsd.plane_fit import PlaneFit, copy_where, fit_planes
+from lsd.plane_fit import PlaneFit, fit_planes
 from lsd.site_selection import (
+    cells_at_least,
     largest_at,
     maximum_box,
     obstacle_altitude,
@@ -291,7 +292,7 @@ class ElevationDetector:
         # plus one ring (never safe), which gives the same sites as the whole grid.
         half = max(1, int(round(s.footprint_radius / r)))
         reach = int(np.ceil(s.footprint_radius / r - 1e-9))
-        box = _observed_box(m.observed, (max(half, reach) + 1) * pool)
+        box = _observed_box(m, (max(half, reach) + 1) * pool)
         self._last_analysis = None
         if box is None:
             self._analysis = None
@@ -313,8 +314,7 @@ class ElevationDetector:
             mean, variance, top, cell_variance = (
                 m.mean[window], m.variance[window], m.top[window], None
             )
-            looks = m.closest[window].astype(np.float32)
-            copy_where(looks, 0.0, np.isinf(looks))  # unobserved: no say
+            looks = cell_looks(m.closest[window])
         fit = fit_planes(
             mean,
             variance,
@@ -339,9 +339,9 @@ class ElevationDetector:
         # footprint (the smallest camera height each cell was seen from, largest over the
         # footprint).
         # Only cells large enough to be sites are ranked, so only they need a quality.
-        large = size >= s.footprint_radius
-        ranked_i, ranked_j = np.nonzero(large)
-        if len(ranked_i) == 0:
+        # (The grids are C-ordered: the ranked cells' values are gathered by flat index.)
+        ranked, ranked_i, ranked_j = cells_at_least(size, s.footprint_radius)
+        if len(ranked) == 0:
             return []
         f32 = np.float32
         farthest_look = maximum_box(looks, 2 * reach + 1)
@@ -350,17 +350,17 @@ class ElevationDetector:
             # redetects the site right below it), then the smoothest and most certain.
             # (Elementwise, so the same values as over the whole grid: numpy's exp rounds
             # each element alike wherever it lies in an array.)
-            quality = fit.roughness[ranked_i, ranked_j] * f32(-0.15 / s.max_roughness)
-            quality -= fit.sigma[ranked_i, ranked_j] * f32(0.15 / s.max_uncertainty)
+            quality = np.take(fit.roughness, ranked) * f32(-0.15 / s.max_roughness)
+            quality -= np.take(fit.sigma, ranked) * f32(0.15 / s.max_uncertainty)
             quality += f32(0.3)
-            quality += np.exp(farthest_look[ranked_i, ranked_j] * f32(-0.1)) * f32(0.7)
+            quality += np.exp(np.take(farthest_look, ranked) * f32(-0.1)) * f32(0.7)
         cv2.patchNaNs(quality, 0.0)
         # Low down, where sites are verified, a site also keeps as far as its block allows
         # from every step beyond max_step, forgiven by the noise tolerance or not: small
         # rocks read low in rendered, fused depth, so a forgiven step may be a rock.
         # Its room is only read where it is less than both the (capped) size and the doubt
         # ring's radius.
-        ranked_size = size[ranked_i, ranked_j]
+        ranked_size = np.take(size, ranked)
         room = None
         if m is self.fine_map:
             bound = np.maximum(np.minimum(ranked_size, size_cap(s, r)),
@@ -393,27 +393,30 @@ class ElevationDetector:
         # means anywhere in the footprint or the ring of look_margin around it.
         doubt = level[i, j] >= 1
         if room is not None:  # the sites' own rooms (the cells come in row-major order)
-            n1 = size.shape[1]
-            at = np.searchsorted(ranked_i * n1 + ranked_j, i * n1 + j)
+            at = np.searchsorted(ranked, i * size.shape[1] + j)
             doubt |= room[at] < s.footprint_radius + s.look_margin
         altitude = np.where(doubt, np.maximum(altitude, s.doubtful_altitude), altitude)
         label = f"{s.source}:{source}" if source else s.source
+        # Python floats by .tolist() (the same values as float() of each numpy scalar).
+        columns = zip(
+            xs[i].tolist(), ys[j].tolist(), z.tolist(), roughness.tolist(),
+            uncertainty.tolist(), size[i, j].tolist(), top.tolist(), altitude.tolist(),
+            strict=True,
+        )
         observations = [
             SiteObservation(
-                x=float(xs[a]),
-                y=float(ys[b]),
-                z=float(zz),
-                roughness=float(rr),
-                uncertainty=float(uu),
-                size=float(ss),
-                obstacle_altitude=float(max(oo, zz)),
-                observation_altitude=float(hh),
+                x=x,
+                y=y,
+                z=zz,
+                roughness=rr,
+                uncertainty=uu,
+                size=ss,
+                obstacle_altitude=max(oo, zz),
+                observation_altitude=hh,
                 timestamp=now,
                 source=label,
             )
-            for a, b, zz, rr, uu, ss, oo, hh in zip(
-                i, j, z, roughness, uncertainty, size[i, j], top, altitude, strict=True
-            )
+            for x, y, zz, rr, uu, ss, oo, hh in columns
         ]
         self._counters["observations_emitted"] += len(observations)
         return observations
@@ -468,7 +471,7 @@ class ElevationDetector:
             return "bad_depth_type"
         k = frame.intrinsics
         intrinsics = np.array([k.fx, k.fy, k.cx, k.cy], dtype=np.float64)
-        if not np.all(np.isfinite(intrinsics)) or k.fx <= 0 or k.fy <= 0:
+        if not np.isfinite(intrinsics).all() or k.fx <= 0 or k.fy <= 0:
             return "bad_intrinsics"
         if depth.shape != (k.height, k.width):
             return "shape_mismatch"
@@ -478,12 +481,11 @@ class ElevationDetector:
         rotation = np.asarray(frame.rotation, dtype=np.float64)
         if position.shape != (3,) or rotation.shape != (3, 3):
             return "bad_pose"
-        if not (np.all(np.isfinite(position)) and np.all(np.isfinite(rotation))):
+        if not (np.isfinite(position).all() and np.isfinite(rotation).all()):
             return "bad_pose"
         # np.allclose(rotation.T @ rotation, eye, atol=1e-3) written out (allclose's own
         # checks cost more than the test).
-        eye = np.eye(3)
-        if not np.all(np.abs(rotation.T @ rotation - eye) <= 1e-3 + 1e-5 * eye):
+        if not (np.abs(rotation.T @ rotation - _EYE) <= _ORTHONORMAL).all():
             return "bad_pose"
         if not math.isfinite(float(frame.timestamp)):
             return "bad_timestamp"
@@ -534,6 +536,8 @@ class ElevationDetector:
 # Largest side (px) of the pixel blocks fused as one point (see _pixel_block).
 _LARGEST_BLOCK = 8
 _NO_SIGMA = np.zeros((0, 0), np.float32)  # frames without a per-pixel depth error
+_EYE = np.eye(3)
+_ORTHONORMAL = 1e-3 + 1e-5 * _EYE  # np.allclose's bounds (atol=1e-3, rtol=1e-5) about eye
 
 
 def _rendered_part(frame: DepthFrame, rendered: np.ndarray) -> DepthFrame | None:
@@ -635,20 +639,15 @@ def _aligned(
     return out[0], out[1], out[2], out[3]
 
 
-def _observed_box(observed: np.ndarray, margin: int) -> tuple[int, int, int, int] | None:
-    """(i0, i1, j0, j1): the bounding box of the observed cells grown by ``margin`` cells
-    on each side and clipped to the grid, or None when no cell is observed."""
-    rows = np.flatnonzero(observed.any(axis=1))
-    if len(rows) == 0:
+def _observed_box(grid: ElevationMap, margin: int) -> tuple[int, int, int, int] | None:
+    """(i0, i1, j0, j1): the bounding box of ``grid``'s observed cells grown by ``margin``
+    cells on each side and clipped to the grid, or None when no cell is observed."""
+    bounds = grid.observed_bounds()
+    if bounds is None:
         return None
-    cols = np.flatnonzero(observed.any(axis=0))
-    n0, n1 = observed.shape
-    return (
-        max(int(rows[0]) - margin, 0),
-        min(int(rows[-1]) + 1 + margin, n0),
-        max(int(cols[0]) - margin, 0),
-        min(int(cols[-1]) + 1 + margin, n1),
-    )
+    i0, i1, j0, j1 = bounds
+    n0, n1 = grid.shape
+    return max(i0 - margin, 0), min(i1 + margin, n0), max(j0 - margin, 0), min(j1 + margin, n1)
 
 
 def _embedded(

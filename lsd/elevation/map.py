@@ -50,6 +50,29 @@ def _shift(grid: np.ndarray, di: int, dj: int, fill: float) -> None:
         grid[:, :-dj] = fill
 
 
+@njit(cache=True, nogil=True, error_model="numpy")
+def _finite_bounds(grid):
+    """(i0, i1, j0, j1) of :meth:`ElevationMap.observed_bounds` (i0 >= i1 when no cell is
+    finite), each row read from its ends only up to its first and last finite cell (a
+    map's rows are mostly observed or not at all)."""
+    n0, n1 = grid.shape
+    i0, i1, j0, j1 = n0, 0, n1, 0
+    for i in range(n0):
+        first = 0
+        while first < n1 and not np.isfinite(grid[i, first]):
+            first += 1
+        if first == n1:
+            continue
+        last = n1 - 1
+        while not np.isfinite(grid[i, last]):
+            last -= 1
+        i0 = min(i0, i)
+        i1 = i + 1
+        j0 = min(j0, first)
+        j1 = max(j1, last + 1)
+    return i0, i1, j0, j1
+
+
 class ElevationMap:
     """Fused terrain heights in a square window that follows the vehicle.
 
@@ -93,6 +116,12 @@ class ElevationMap:
     def observed(self) -> np.ndarray:
         """(n, n) bool: cells holding an estimate."""
         return np.isfinite(self.mean)
+
+    def observed_bounds(self) -> tuple[int, int, int, int] | None:
+        """(i0, i1, j0, j1): the smallest box ``[i0, i1) x [j0, j1)`` of cells holding every
+        observed cell, or None when no cell is observed."""
+        i0, i1, j0, j1 = _finite_bounds(self.mean)
+        return None if i0 >= i1 else (int(i0), int(i1), int(j0), int(j1))
 
     def cell_centres(self) -> tuple[np.ndarray, np.ndarray]:
         """World x of the cell centres along axis 0 and y along axis 1, each (n,) metres."""
@@ -348,9 +377,59 @@ def _weighted_terms(mean, variance, top, ref):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
+def cell_looks(closest: np.ndarray) -> np.ndarray:
+    """(n, m) float32 ``closest`` (a map window's), unobserved (infinite) cells as 0 (no
+    say in a largest look): ``closest.astype(np.float32)`` with its infinities zeroed, in
+    one pass."""
+    n0, n1 = closest.shape
+    out = np.empty((n0, n1), np.float32)
+    for i in range(n0):
+        for j in range(n1):
+            v = np.float32(closest[i, j])
+            out[i, j] = np.float32(0.0) if np.isinf(v) else v
+    return out
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
 def _block_looks(closest: np.ndarray, factor: int) -> np.ndarray:
     """(n / factor, m / factor) float64: each block's largest ``closest`` in single
-    precision, unobserved (infinite) cells counting as 0 and NaN winning (numpy's max)."""
+    precision, unobserved (infinite) cells counting as 0 and NaN winning (numpy's max).
+
+    Each band of ``factor`` rows is reduced down its columns first (vectorised), then
+    across each block's columns. A maximum is the same in any order but for the sign of
+    a zero: if the window holds a -0, the blocks are taken in row-major order, the first
+    of equals kept, as they always were."""
+    n0, n1 = closest.shape
+    m0, m1 = n0 // factor, n1 // factor
+    width = m1 * factor
+    column = np.empty(width, np.float32)
+    hidden = np.empty(width, np.bool_)
+    out = np.empty((m0, m1))
+    zero = np.float32(0.0)
+    signed_zero = False
+    for a in range(m0):
+        column[:] = -np.inf
+        hidden[:] = False
+        for i in range(a * factor, (a + 1) * factor):
+            for j in range(width):
+                v = np.float32(closest[i, j])
+                v = zero if np.isinf(v) else v
+                signed_zero |= v == 0 and np.signbit(v)
+                hidden[j] |= v != v
+                column[j] = v if v > column[j] else column[j]
+        for b in range(m1):
+            best = np.float32(-np.inf)
+            nan = False
+            for j in range(b * factor, (b + 1) * factor):
+                best = column[j] if column[j] > best else best
+                nan |= hidden[j]
+            out[a, b] = np.nan if nan else best
+    return _block_looks_in_order(closest, factor) if signed_zero else out
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _block_looks_in_order(closest: np.ndarray, factor: int) -> np.ndarray:
+    """:func:`_block_looks`, each block in row-major order."""
     n0, n1 = closest.shape
     out = np.zeros((n0 // factor, n1 // factor))
     for a in range(n0 // factor):

@@ -10,7 +10,7 @@ import pytest
 from pydantic import ValidationError
 
 from lsd.elevation.detector import ElevationDetector
-from lsd.elevation.map import ElevationMap
+from lsd.elevation.map import ElevationMap, cell_looks
 from lsd.elevation.settings import DetectorSettings, ElevationMapSettings
 from lsd.frames import DepthFrame, Intrinsics
 from sitl.sensors import DepthCamera, DepthCameraSettings
@@ -309,16 +309,18 @@ def test_bad_pixels_are_dropped_and_counted():
 def test_unusable_frames_are_skipped_with_a_reason():
     good = render(flat, (0.0, 0.0, 12.0))
     nan_pose = dataclasses.replace(good, position=np.array([0.0, np.nan, 12.0]))
+    inf_rotation = dataclasses.replace(good, rotation=np.where(np.eye(3) > 0, 1.0, 0.0))
+    inf_rotation.rotation[2, 0] = np.inf
     bad_rotation = dataclasses.replace(good, rotation=np.full((3, 3), 0.5))
     empty = dataclasses.replace(good, depth=np.zeros((0, 0), np.float32), sigma=None)
     all_nan = dataclasses.replace(good, depth=np.full_like(good.depth, np.nan))
     wrong_sigma = dataclasses.replace(good, sigma=np.ones((3, 3), np.float32))
     no_time = dataclasses.replace(good, timestamp=None)
     detector = ElevationDetector()
-    for frame in (nan_pose, bad_rotation, empty, all_nan, wrong_sigma, no_time):
+    for frame in (nan_pose, inf_rotation, bad_rotation, empty, all_nan, wrong_sigma, no_time):
         assert detector.process(frame) == []
     c = detector.counters()
-    assert c["frames_skipped_bad_pose"] == 2
+    assert c["frames_skipped_bad_pose"] == 3
     assert c["frames_skipped_empty_frame"] == 1
     assert c["frames_skipped_no_valid_depth"] == 1
     assert c["frames_skipped_shape_mismatch"] == 1
@@ -371,6 +373,22 @@ def test_recentring_keeps_heights_at_their_world_positions():
     )
     assert np.isfinite(after[still_inside]).mean() > 0.9
     assert np.isnan(after[~still_inside & (np.abs(xy[:, 0] - 6.3) > 10.5)]).all()
+
+
+def test_observed_bounds_and_looks_of_a_map_window():
+    emap = ElevationMap(ElevationMapSettings(size=10.0, resolution=0.5))
+    assert emap.observed_bounds() is None
+    rng = np.random.default_rng(3)
+    for _ in range(20):
+        emap.clear()
+        cells = rng.integers(0, 20, size=(int(rng.integers(1, 6)), 2))
+        emap.mean[cells[:, 0], cells[:, 1]] = 1.0
+        rows, cols = np.nonzero(emap.observed)
+        assert emap.observed_bounds() == (rows.min(), rows.max() + 1, cols.min(), cols.max() + 1)
+    closest = np.array([[2.5, np.inf], [1e40, np.nan]])[:, ::-1]  # a strided window
+    looks = cell_looks(closest)  # single precision, unobserved (and beyond float32) as 0
+    assert looks.dtype == np.float32 and looks[1, 1] == 0.0 and np.isnan(looks[1, 0])
+    assert looks[0, 0] == 0.0 and looks[0, 1] == np.float32(2.5)
 
 
 def test_sites_stay_put_when_the_vehicle_moves():

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from lsd.elevation.settings import DetectorSettings
-from lsd.site_selection import select_sites, site_size
+from lsd.site_selection import cells_at_least, select_sites, site_size
 
 RESOLUTION = 0.1  # m per cell
 
@@ -57,3 +57,14 @@ def test_no_ground_wide_enough_gives_no_site():
     size = site_size(_discs((80, 80), [(40, 40, 8)]), RESOLUTION)
     i, j = select_sites(size, np.zeros(size.shape, np.float32), (0, 0), RESOLUTION, settings)
     assert len(i) == len(j) == 0
+
+
+def test_cells_at_least_are_numpys_nonzero_in_row_major_order():
+    rng = np.random.default_rng(4)
+    grid = rng.uniform(0.0, 2.0, (37, 53))
+    grid[rng.random(grid.shape) < 0.1] = np.nan  # never at least anything
+    flat, rows, cols = cells_at_least(grid, 1.0)
+    want_rows, want_cols = np.nonzero(grid >= 1.0)
+    assert np.array_equal(rows, want_rows) and np.array_equal(cols, want_cols)
+    assert np.array_equal(flat, np.flatnonzero(grid >= 1.0))
+    assert all(len(a) == 0 for a in cells_at_least(grid, 3.0))
