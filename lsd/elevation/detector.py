@@ -42,7 +42,7 @@ import cv2
 import numpy as np
 
 from lsd.elevation.map import ElevationMap, cell_looks, pooled_level
-from lsd.elevation.projection import back_project, block_points, median32
+from lsd.elevation.projection import back_project, block_points, median32, valid_points
 from lsd.elevation.settings import DetectorSettings, ElevationMapSettings
 from lsd.frames import DepthFrame
 from lsd.plane_fit import PlaneFit, fit_planes
@@ -218,17 +218,23 @@ class ElevationDetector:
         now = float(frame.timestamp)
         self._last_skip = None
         everything = n_valid == depth.size
-        pick = None if everything else np.flatnonzero(valid)
+        # The valid pixels' points, one per pixel (views of the grids if all are valid).
+        grids = (east, north, drop, variance)
+        if everything:
+            points = tuple(a.reshape(-1) for a in grids)
+        else:
+            points = valid_points(valid, *grids, n_valid)
         # Height above the ground from a subsample of the points (a median is robust).
         step = max(1, n_valid // 4096)
-        drops = drop.reshape(-1)[:: step] if everything else drop.reshape(-1)[pick[:: step]]
-        self.agl = -float(median32(np.ascontiguousarray(drops)))
+        self.agl = -float(median32(np.ascontiguousarray(points[2][:: step])))
         ground_per_pixel = max(self.agl, 0.0) / max(k.fx, k.fy)
         # In place, east, north and drop become world x, y and z (single precision keeps
-        # better than a millimetre within kilometres of home, ample for cells of 1 cm+).
-        east += f32(position[0])
-        north += f32(position[1])
-        drop += f32(position[2])
+        # better than a millimetre within kilometres of home, ample for cells of 1 cm+);
+        # the grids (for the pixel blocks) and the valid pixels' copies of them alike.
+        for x, y, z in (grids[:3], points[:3]) if not everything else (grids[:3],):
+            x += f32(position[0])
+            y += f32(position[1])
+            z += f32(position[2])
         maps = (self.map, self.fine_map) if self.low else (self.map,)
         blocks: dict[int, tuple] = {}
         for index, grid in enumerate(maps):
@@ -251,11 +257,8 @@ class ElevationDetector:
                 if block not in blocks:  # both maps may take the same blocks
                     blocks[block] = block_points(east, north, drop, variance, valid, block)
                 x, y, z, var, count = blocks[block]
-            elif everything:
-                x, y, z, var = (a.reshape(-1) for a in (east, north, drop, variance))
-                count = None
             else:
-                x, y, z, var = (a.reshape(-1)[pick] for a in (east, north, drop, variance))
+                x, y, z, var = points
                 count = None
             fused = grid.fuse_columns(
                 x, y, z, var, now, camera_height=float(position[2]), count=count

@@ -67,6 +67,28 @@ def back_project(depth, placement, sigma, rotation, xn, yn, min_var):
     return east, north, drop, variance
 
 
+@njit(cache=True, nogil=True, error_model="numpy")
+def valid_points(valid, east, north, drop, variance, count):
+    """The ``count`` pixels where ``valid`` ((H, W) bool) holds, of the four (H, W) grids,
+    in row-major order, each as a (count,) array (``a.reshape(-1)[np.flatnonzero(valid)]``
+    for all four in one pass)."""
+    x = np.empty(count, east.dtype)
+    y = np.empty(count, north.dtype)
+    z = np.empty(count, drop.dtype)
+    var = np.empty(count, variance.dtype)
+    height, width = valid.shape
+    k = 0
+    for i in range(height):
+        for j in range(width):
+            if valid[i, j]:
+                x[k] = east[i, j]
+                y[k] = north[i, j]
+                z[k] = drop[i, j]
+                var[k] = variance[i, j]
+                k += 1
+    return x, y, z, var
+
+
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def median32(sample):

@@ -7,7 +7,7 @@ import cv2
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from lsd.elevation.projection import back_project, block_points, median32
+from lsd.elevation.projection import back_project, block_points, median32, valid_points
 
 
 def test_back_projection_is_numpys_single_precision_arithmetic_bit_for_bit():
@@ -100,3 +100,13 @@ def test_pixel_blocks_are_opencvs_block_means_bit_for_bit():
         want = _opencv_block_points(east, north, drop, variance, valid, block)
         for a, b in zip(got, want, strict=True):
             assert a.dtype == b.dtype == np.float32 and a.tobytes() == b.tobytes(), trial
+
+
+def test_valid_points_are_the_grids_at_the_valid_pixels_in_row_major_order():
+    rng = np.random.default_rng(21)
+    grids = [rng.normal(0.0, 1.0, (37, 41)).astype(np.float32) for _ in range(4)]
+    valid = rng.random((37, 41)) < 0.8
+    got = valid_points(valid, *grids, int(np.count_nonzero(valid)))
+    pick = np.flatnonzero(valid)
+    for a, b in zip(got, grids, strict=True):
+        assert a.dtype == np.float32 and np.array_equal(a, b.reshape(-1)[pick])
