@@ -54,9 +54,21 @@ _OBS_FIELDS = attrgetter(
 _BATCH = 1024  # observations processed per lock acquisition by the worker
 _MAX_COORDINATE = 1e7  # m: farther from home than any mission's local frame reaches
 _KEY_STRIDE = 1 << 32  # spatial-hash key = ix * stride + iy (|iy| < 2**31 cells)
-_SMALL_BATCH = 32  # observations below which per-row Python beats numpy's per-call cost
+_SMALL_BATCH = 32  # rows below which per-row Python beats numpy's per-call cost
+# Bounds of the (n, 9) observation values that pass every range check of _validate: a row
+# is finite and in range iff every value lies within them (unbounded fields end at the
+# largest double, so inf and NaN fail too).
+_BIG = float(np.finfo(np.float64).max)
+_LOWEST = np.array([-_MAX_COORDINATE] * 3 + [0.0, 0.0, 0.0, -_BIG, 0.0, -_BIG])
+_HIGHEST = np.array([_MAX_COORDINATE] * 3 + [1.0, 1.0, _BIG, _BIG, _BIG, _BIG])
 _TREE_K = 2  # nearest snapshot entries examined per observation
 _FEW_SITES = 8  # snapshots this small are examined whole instead of queried (see below)
+# Snapshots of at most this many sites are searched by one numpy distance matrix per batch
+# (the k-d tree only for the rows its answer could differ on; see _snapshot_candidates).
+_BRUTE_SITES = 256
+# Relative gap under which the 2nd and 3rd nearest snapshot entries count as tied (far above
+# the rounding of a k-d tree's distances, far below any real difference).
+_TIE_GAP = 1e-9
 _SNAPSHOT_MIN = 64  # changed sites tolerated in the hash before the k-d tree is rebuilt
 
 
@@ -174,13 +186,16 @@ class LandingSiteManager:
         self._version: list[int] = [0] * cap  # heap entries of older versions are stale
         self._free: list[int] = list(range(cap - 1, -1, -1))
         self._slot_of: dict[int, int] = {}
-        # Redetection lookup: a k-d tree over a snapshot of site positions, queried for a
-        # whole batch at once, plus a spatial hash of the sites inserted or moved since that
-        # snapshot (their tree entries are stale: the slot version changed). Hash cells are
-        # 2 match radii wide, so a match circle overlaps at most 2 x 2 cells.
+        # Redetection lookup: a snapshot of site positions (and a k-d tree over it, built
+        # when first queried), searched for a whole batch at once, plus a spatial hash of the
+        # sites inserted or moved since that snapshot (their snapshot entries are stale: the
+        # slot version changed). Hash cells are 2 match radii wide, so a match circle
+        # overlaps at most 2 x 2 cells.
         self._tree: cKDTree | None = None
-        self._tree_slots = np.zeros(0, dtype=np.int64)
-        self._tree_versions = np.zeros(0, dtype=np.int64)
+        self._snap_xy = np.zeros((0, 2))
+        self._snap_slots = np.zeros(0, dtype=np.int64)
+        self._snap_versions = np.zeros(0, dtype=np.int64)
+        self._snap_lists: tuple[list[int], list[int]] | None = None  # the two, as lists
         self._cells: dict[int, list[int]] = {}
         self._dirty_key: list[int | None] = [None] * cap
         self._dirty_count = 0
@@ -332,9 +347,9 @@ class LandingSiteManager:
             slot = self._slot_of.get(int(site_id))
             if slot is None:
                 return None
-            # The loss as a ranking computes it; the rest read at the slot of the whole
-            # columns (no eleven one-element copies).
-            loss = float(self._losses(np.array([slot]))[0])
+            # The loss as a ranking computes it (the scalar form makes the same doubles);
+            # the rest read at the slot of the whole columns (no eleven one-element copies).
+            loss = self._loss_of_slot(slot)
             return _site_at(self._columns(slice(None), None), slot, self._sources[slot], loss)
 
     def is_verified(self, site: LandingSite) -> bool:
@@ -463,75 +478,135 @@ class LandingSiteManager:
         return math.floor(x / c) * _KEY_STRIDE + math.floor(y / c)
 
     def _match_keys(self, xy: np.ndarray) -> list[int]:
-        """Key of the lower-left of the 2 x 2 cells each match circle can overlap."""
+        """Key of the lower-left of the 2 x 2 cells each match circle can overlap, for a
+        large batch at once (the same floor of the same quotient as the per-row form in
+        _nearest_within_match)."""
         r, c = self.settings.match_radius, self._cell_size
-        if len(xy) <= _SMALL_BATCH:
-            # The same floor of the same double quotient, without numpy's per-call cost.
-            keys = []
-            for x, y in xy[:, :2].tolist():
-                try:
-                    keys.append(math.floor((x - r) / c) * _KEY_STRIDE + math.floor((y - r) / c))
-                except (ValueError, OverflowError):  # NaN or inf: the row is rejected anyway
-                    keys.append(0)
-            return keys
         with np.errstate(invalid="ignore"):  # rows with NaN are rejected anyway
             ix = np.floor((xy[:, 0] - r) / c).astype(np.int64)
             iy = np.floor((xy[:, 1] - r) / c).astype(np.int64)
         return (ix * _KEY_STRIDE + iy).tolist()
 
-    def _snapshot_tree(self) -> None:
-        """Index every site in a fresh k-d tree and empty the hash of changed sites."""
+    def _snapshot(self) -> None:
+        """Snapshot every site's position (its k-d tree is built when first queried) and
+        empty the hash of changed sites."""
         slots = self._active_slots()
-        self._tree = cKDTree(self._pos[slots, :2]) if len(slots) else None
-        self._tree_slots = slots
-        self._tree_versions = np.array(self._version, dtype=np.int64)[slots]
+        self._snap_xy = self._pos[slots, :2]
+        self._tree = None
+        self._snap_slots = slots
+        self._snap_versions = np.array(self._version, dtype=np.int64)[slots]
+        self._snap_lists = None
         self._cells.clear()
         self._dirty_key = [None] * self.settings.capacity
         self._dirty_count = 0
 
-    def _tree_candidates(self, xy: np.ndarray) -> tuple[list, list] | None:
-        """The _TREE_K nearest snapshot sites within the match radius of each observation,
-        as flat (slots, versions, k) lists, row i at [i * k, (i + 1) * k); -1 where there are
-        fewer (k = _TREE_K; with few sites, every site and k their number)."""
+    def _snapshot_candidates(self, vals: np.ndarray, accepted: list[int]
+                             ) -> tuple[list[int], list[int], list[int], list[int], list[bool]]:
+        """The snapshot entries each row of the batch examines in
+        :meth:`_nearest_within_match`: flat lists of slots and snapshot versions, and per
+        row the range [lo, hi) of its entries and whether they are the k-d tree's _TREE_K
+        nearest (slot -1 past the last).
+
+        The lookup's rule (kept since it was a k-d tree query per row): examine the
+        _TREE_K nearest snapshot entries within the match radius, all of them if the
+        snapshot holds at most _FEW_SITES; all examined stale -> search every site. That
+        equals the nearest site within the radius (ties to the smaller id) among the
+        snapshot's unchanged entries and the hash, unless the _TREE_K-th and the next
+        nearest entry are tied, where the tree's pick among the tied decides. So small
+        snapshots compute every row's distances at once (the same doubles as the per-row
+        test) and examine the entries within a padded radius; rows with such a tie, and
+        large snapshots, take the tree's _TREE_K entries. (Flat lists: per-row lists of a
+        1,024-row batch would wake the garbage collector.)"""
+        n_rows = len(vals)
+        n = len(self._snap_slots)
+        if not n or not accepted:
+            return [], [], [0] * n_rows, [0] * n_rows, [False] * n_rows
+        if n > _BRUTE_SITES and n > _FEW_SITES:
+            lo = self._rows_at(accepted, n_rows, np.arange(0, len(accepted) * _TREE_K, _TREE_K))
+            slots, versions = self._tree_candidates(vals, accepted)
+            return slots, versions, lo, [i + _TREE_K for i in lo], [True] * n_rows
+        obs = vals[accepted] if len(accepted) < n_rows else vals
+        snap = self._snap_xy
+        dx = snap[None, :, 0] - obs[:, None, 0]
+        dy = snap[None, :, 1] - obs[:, None, 1]
+        d2 = dx * dx + dy * dy
+        # Padded well beyond the tree's bound: every entry the tree could return is in.
+        reach = self.settings.match_radius * (1 + 1e-6) + 1e-9
+        rows, cols = np.nonzero(d2 <= reach * reach)
+        counts = np.bincount(rows, minlength=len(accepted))
+        stops = np.cumsum(counts)
+        lo = self._rows_at(accepted, n_rows, stops - counts)
+        hi = self._rows_at(accepted, n_rows, stops)
+        queried = [False] * n_rows
+        slots = self._snap_slots[cols].tolist()
+        versions = self._snap_versions[cols].tolist()
+        if n > _FEW_SITES:
+            crowded = np.flatnonzero(counts > _TREE_K).tolist()
+            if crowded:
+                tied = []
+                for row in crowded:
+                    i = accepted[row]
+                    ranked = sorted(d2[row, cols[lo[i]:hi[i]]].tolist())
+                    if ranked[_TREE_K] - ranked[_TREE_K - 1] <= (
+                            _TIE_GAP * ranked[_TREE_K] + 1e-12):
+                        tied.append(i)
+                if tied:
+                    tree_slots, tree_versions = self._tree_candidates(vals, tied)
+                    for j, i in enumerate(tied):
+                        lo[i] = len(slots) + j * _TREE_K
+                        hi[i] = lo[i] + _TREE_K
+                        queried[i] = True
+                    slots += tree_slots
+                    versions += tree_versions
+        return slots, versions, lo, hi, queried
+
+    @staticmethod
+    def _rows_at(accepted: list[int], n_rows: int, values: np.ndarray) -> list[int]:
+        """``values`` of the accepted rows, as a list over every row of the batch (0 at
+        rejected rows, which are never looked up)."""
+        if len(accepted) == n_rows:
+            return values.tolist()
+        out = np.zeros(n_rows, dtype=np.int64)
+        out[accepted] = values
+        return out.tolist()
+
+    def _tree_candidates(self, vals: np.ndarray, rows: list[int]
+                         ) -> tuple[list[int], list[int]]:
+        """The _TREE_K nearest snapshot entries within the match radius of these rows from
+        the k-d tree, _TREE_K per row (slot -1 where there are fewer): flat slots, versions."""
         if self._tree is None:
-            return None
-        n = len(self._tree_slots)
-        if n <= _FEW_SITES:
-            # A few sites: every snapshot entry is a candidate of every row (the query's
-            # set-up costs more than looking at them all). The nearest valid entry within
-            # the match radius is the same (_nearest_within_match's exact d2 test and
-            # tie rule do not depend on the order), and a row whose entries are all stale
-            # is searched in full as when its nearest ones are.
-            slots, versions = self._tree_slots.tolist(), self._tree_versions.tolist()
-            return slots * len(xy), versions * len(xy), n
-        with np.errstate(invalid="ignore"):
-            # The bound is strict and the tree's distances are rounded: pad it; the exact
-            # d2 <= r2 test in _nearest_within_match decides.
-            bound = self.settings.match_radius * (1 + 1e-9) + 1e-12
-            _, idx = self._tree.query(np.nan_to_num(xy), k=_TREE_K, distance_upper_bound=bound)
+            self._tree = cKDTree(self._snap_xy)
+        n = len(self._snap_slots)
+        # The bound is strict and the tree's distances are rounded: pad it; the exact
+        # d2 <= r2 test in _nearest_within_match decides.
+        bound = self.settings.match_radius * (1 + 1e-9) + 1e-12
+        _, idx = self._tree.query(vals[rows, :2], k=_TREE_K, distance_upper_bound=bound)
         found = idx < n
         idx = np.minimum(idx, n - 1)
-        slots = np.where(found, self._tree_slots[idx], -1)
-        versions = np.where(found, self._tree_versions[idx], -1)
-        return slots.ravel().tolist(), versions.ravel().tolist(), _TREE_K
+        slots = np.where(found, self._snap_slots[idx], -1)
+        versions = np.where(found, self._snap_versions[idx], -1)
+        return slots.ravel().tolist(), versions.ravel().tolist()
 
-    def _nearest_within_match(self, x: float, y: float, key: int, tree_slots: list | None,
-                              tree_versions: list | None, row: int = 0,
-                              k: int = _TREE_K) -> int | None:
+    def _nearest_within_match(self, x: float, y: float, slots: list[int],
+                              versions: list[int], lo: int, hi: int, queried: bool,
+                              key: int | None = None) -> int | None:
         """The retained site within match_radius nearest to (x, y); ties go to the older
-        (smaller id) site. None when there is none."""
-        r2 = self.settings.match_radius * self.settings.match_radius
-        best, best_d2 = None, r2
+        (smaller id) site. None when there is none. The row's snapshot entries are
+        ``slots[lo:hi]`` (:meth:`_snapshot_candidates`); the sites changed since the
+        snapshot are in the hash, around ``key`` (:meth:`_match_keys`; None: computed
+        here)."""
+        r = self.settings.match_radius
+        best, best_d2 = None, r * r
         xy = self._xy
         ids = self._ids
-        if tree_slots is not None:
+        if lo < hi:
             version = self._version
             any_valid = False
-            for j in range(row * k, (row + 1) * k):
-                slot = tree_slots[j]
+            for j in range(lo, hi):
+                slot = slots[j]
                 if slot < 0:
                     break
-                if version[slot] != tree_versions[j]:
+                if version[slot] != versions[j]:
                     continue  # changed since the snapshot: in the hash if still retained
                 any_valid = True
                 sx, sy = xy[slot]
@@ -539,10 +614,15 @@ class LandingSiteManager:
                 if d2 < best_d2 or (d2 == best_d2 and (best is None or ids[slot] < ids[best])):
                     best, best_d2 = slot, d2
             else:
-                if not any_valid:
+                if queried and not any_valid:
                     # Every near snapshot entry is stale and more may lie beyond: search all.
                     return self._nearest_by_scan(x, y)
         cells = self._cells
+        if not cells:
+            return best
+        if key is None:
+            c = self._cell_size
+            key = math.floor((x - r) / c) * _KEY_STRIDE + math.floor((y - r) / c)
         for k in (key, key + 1, key + _KEY_STRIDE, key + _KEY_STRIDE + 1):
             members = cells.get(k)
             if not members:
@@ -565,7 +645,7 @@ class LandingSiteManager:
         return int(slots[np.lexsort((self._ids[slots], d2))[0]])
 
     def _hash_add(self, slot: int) -> None:
-        """Record a site inserted or moved since the tree snapshot."""
+        """Record a site inserted or moved since the snapshot."""
         x, y = self._xy[slot]
         key = self._cell_key(x, y)
         self._cells.setdefault(key, []).append(slot)
@@ -686,9 +766,6 @@ class LandingSiteManager:
             except Exception:
                 reasons[i] = "malformed"
                 rows.append((0.0,) * 9)
-        if n < _SMALL_BATCH and all(type(v) is float for row in rows for v in row):
-            return np.array(rows, dtype=np.float64).reshape(n, 9), self._small_reasons(
-                rows, reasons)
         try:
             vals = np.array(rows, dtype=np.float64).reshape(n, 9)
         except (TypeError, ValueError):
@@ -699,6 +776,8 @@ class LandingSiteManager:
                     vals[i] = np.array(row, dtype=np.float64)
                 except (TypeError, ValueError):
                     reasons[i] = "malformed"
+        if ((vals >= _LOWEST) & (vals <= _HIGHEST)).all():
+            return vals, self._zone_reasons(vals, reasons, np.zeros(n, dtype=bool))
         finite = np.isfinite(vals).all(axis=1)
         checks = (
             ("non_finite", ~finite),
@@ -717,6 +796,12 @@ class LandingSiteManager:
                 if reasons[i] is None:
                     reasons[i] = reason
             bad |= mask
+        return vals, self._zone_reasons(vals, reasons, bad)
+
+    def _zone_reasons(self, vals: np.ndarray, reasons: list[str | None], bad: np.ndarray
+                      ) -> list[str | None]:
+        """:meth:`_validate`'s last two checks, on the rows not rejected yet: inside a ban
+        zone, beyond max_distance from the drone."""
         if len(self._bans):
             dx = vals[:, None, 0] - self._bans[None, :, 0]
             dy = vals[:, None, 1] - self._bans[None, :, 1]
@@ -728,41 +813,10 @@ class LandingSiteManager:
         if self._drone is not None:
             dx, dy = vals[:, 0] - self._drone[0], vals[:, 1] - self._drone[1]
             far = np.sqrt(dx * dx + dy * dy) > self.settings.max_distance
-            for i in np.flatnonzero(far & ~bad).tolist():
-                if reasons[i] is None:
-                    reasons[i] = "beyond_max_distance"
-        return vals, reasons
-
-    def _small_reasons(self, rows: list[tuple], reasons: list[str | None]) -> list[str | None]:
-        """:meth:`_validate`'s verdicts for a few rows of Python floats, row by row: the
-        same checks in the same order on the same doubles (numpy's per-call cost is most
-        of the vectorised checks of a handful of rows)."""
-        finite = math.isfinite
-        bans = self._bans.tolist() if len(self._bans) else ()
-        drone = self._drone
-        limit = self.settings.max_distance
-        for i, row in enumerate(rows):
-            if reasons[i] is not None:
-                continue
-            x, y, z, rough, unc, size, _, obs_alt, _ = row
-            if not all(finite(v) for v in row):
-                reasons[i] = "non_finite"
-            elif abs(x) > _MAX_COORDINATE or abs(y) > _MAX_COORDINATE or abs(
-                    z) > _MAX_COORDINATE:
-                reasons[i] = "position_out_of_range"
-            elif rough < 0 or rough > 1:
-                reasons[i] = "roughness_out_of_range"
-            elif unc < 0 or unc > 1:
-                reasons[i] = "uncertainty_out_of_range"
-            elif size < 0:
-                reasons[i] = "negative_size"
-            elif obs_alt < 0:
-                reasons[i] = "negative_observation_altitude"
-            elif any((x - bx) * (x - bx) + (y - by) * (y - by) <= r * r for bx, by, r in bans):
-                reasons[i] = "banned_zone"
-            elif drone is not None and math.sqrt(
-                    (x - drone[0]) * (x - drone[0]) + (y - drone[1]) * (y - drone[1])) > limit:
-                reasons[i] = "beyond_max_distance"
+            if far.any():
+                for i in np.flatnonzero(far & ~bad).tolist():
+                    if reasons[i] is None:
+                        reasons[i] = "beyond_max_distance"
         return reasons
 
     def _process_batch(self, batch: list) -> None:
@@ -770,20 +824,19 @@ class LandingSiteManager:
         self._counts["received"] += len(batch)
         rows = vals.tolist()
         if self._dirty_count > max(_SNAPSHOT_MIN, len(self._slot_of) // 8):
-            self._snapshot_tree()
-        keys = self._match_keys(vals)
-        candidates = self._tree_candidates(vals[:, :2])
-        cand_slots, cand_versions, k = candidates if candidates else (None, None, _TREE_K)
+            self._snapshot()
+        accepted = [i for i, reason in enumerate(reasons) if reason is None]
+        slots, versions, lo, hi, queried = self._snapshot_candidates(vals, accepted)
+        # A large batch keys its rows at once; a small one row by row, where the hash has
+        # entries (numpy's per-call cost is most of keying a few rows).
+        keys = self._match_keys(vals) if len(batch) > _SMALL_BATCH else [None] * len(batch)
         nearest = self._nearest_within_match
         for i, reason in enumerate(reasons):
             row = rows[i]
             if reason is not None:
                 self._reject(reason, row[8] if reason != "malformed" else 0.0)
                 continue
-            if cand_slots is None:
-                slot = nearest(row[0], row[1], keys[i], None, None)
-            else:
-                slot = nearest(row[0], row[1], keys[i], cand_slots, cand_versions, i, k)
+            slot = nearest(row[0], row[1], slots, versions, lo[i], hi[i], queried[i], keys[i])
             if slot is None:
                 self._insert(row, batch[i].source)
             elif row[7] < self._veralt[slot]:
@@ -796,7 +849,8 @@ class LandingSiteManager:
                 if self._on_decision is not None:
                     self._decide("merged", int(self._ids[slot]), "", row[8])
         self._flush_redetections()
-        self._maybe_rekey()
+        # No far-site check here: the drone moves only in set_drone_position, which makes
+        # it under this lock.
 
     def _insert(self, row: list[float], source: str) -> None:
         x, y, z, rough, unc, size, obst, obs_alt, t = row

@@ -112,7 +112,7 @@ step = st.one_of(
 @pytest.fixture(params=["hash", "tree"])
 def lookup(request, monkeypatch):
     """Run the property both with the redetection lookup in the spatial hash only (small
-    stores) and through the k-d tree snapshot rebuilt at every batch."""
+    stores) and through the snapshot of sites rebuilt at every batch."""
     if request.param == "tree":
         monkeypatch.setattr(lsm.manager, "_SNAPSHOT_MIN", -1)
     return request.param
