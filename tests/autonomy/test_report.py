@@ -202,29 +202,3 @@ def test_report_png_with_and_without_terrain(tmp_path):
     for name in ("a.png", "b.png"):
         assert (tmp_path / name).read_bytes()[:4] == b"\x89PNG"
 
-
-def test_the_maps_hill_shading_is_matplotlibs_light_source_bit_for_bit():
-    """The page's and report.png's shaded map is what matplotlib's LightSource(315, 45)
-    overlay shading gives, value for value: on generated worlds (a whole one and a window
-    strided as a large one is), a flat one (a constant slope is not rescaled) and noise."""
-    import numpy as np
-    from matplotlib.colors import LightSource
-
-    from autonomy.report.plot import _ground_colours, shaded_terrain
-    from sitl.terrain import make_terrain
-
-    worlds = [make_terrain({"kind": kind, "size": [80.0, 60.0], "cell_size": 0.4}, seed=seed)
-              for kind, seed in (("mars", 3), ("rubble", 1), ("flat", 0))]
-    noise = make_terrain({"kind": "flat", "size": [40.0, 40.0], "cell_size": 0.5}, seed=0)
-    noise.grid[...] = np.random.default_rng(2).normal(size=noise.grid.shape) * 3
-    # (terrain, window, at most so many pixels a side, the stride that makes)
-    cases = [*((w, (-40, 40, -30, 30), 600, 1) for w in worlds),
-             (worlds[0], (-30, 35, -25, 20), 60, 2), (noise, (-20, 20, -20, 20), 600, 1)]
-    for terrain, window, pixels, step in cases:
-        rgba, _, grid = shaded_terrain(terrain, window, pixels)
-        spacing = terrain.cell_size * step
-        lo, hi = float(grid.min()), float(grid.max())
-        expected = LightSource(azdeg=315, altdeg=45).shade(
-            grid, cmap=_ground_colours(), blend_mode="overlay", vmin=lo - 0.5,
-            vmax=max(hi, lo + 5.0), vert_exag=1.0, dx=spacing, dy=spacing)
-        assert rgba.shape == expected.shape and rgba.tobytes() == expected.tobytes()
