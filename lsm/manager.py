@@ -615,8 +615,9 @@ class LandingSiteManager:
                     best, best_d2 = slot, d2
             else:
                 if queried and not any_valid:
-                    # Every near snapshot entry is stale and more may lie beyond: search all.
-                    return self._nearest_by_scan(x, y)
+                    # Every near snapshot entry is stale and more may lie beyond: examine
+                    # every one within the radius (with the hash below, every site there).
+                    best, best_d2 = self._nearest_in_ball(x, y)
         cells = self._cells
         if not cells:
             return best
@@ -634,15 +635,23 @@ class LandingSiteManager:
                     best, best_d2 = slot, d2
         return best
 
-    def _nearest_by_scan(self, x: float, y: float) -> int | None:
-        slots = self._active_slots()
-        d = self._pos[slots, :2] - (x, y)
-        d2 = d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1]
-        inside = d2 <= self.settings.match_radius * self.settings.match_radius
-        if not inside.any():
-            return None
-        slots, d2 = slots[inside], d2[inside]
-        return int(slots[np.lexsort((self._ids[slots], d2))[0]])
+    def _nearest_in_ball(self, x: float, y: float) -> tuple[int | None, float]:
+        """The unchanged snapshot site within match_radius nearest to (x, y), ties to the
+        smaller id, and its squared distance (None and r**2 when there is none): every
+        snapshot entry within the radius from the k-d tree, by the per-row test."""
+        r = self.settings.match_radius
+        best, best_d2 = None, r * r
+        xy, ids, version = self._xy, self._ids, self._version
+        slots, versions = self._snap_slots, self._snap_versions
+        for j in self._tree.query_ball_point((x, y), r * (1 + 1e-9) + 1e-12):
+            slot = int(slots[j])
+            if version[slot] != versions[j]:
+                continue
+            sx, sy = xy[slot]
+            d2 = (sx - x) * (sx - x) + (sy - y) * (sy - y)
+            if d2 < best_d2 or (d2 == best_d2 and (best is None or ids[slot] < ids[best])):
+                best, best_d2 = slot, d2
+        return best, best_d2
 
     def _hash_add(self, slot: int) -> None:
         """Record a site inserted or moved since the snapshot."""
