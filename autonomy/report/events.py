@@ -13,27 +13,14 @@ import math
 import operator
 import threading
 from collections.abc import Callable
-from json.encoder import c_make_encoder, encode_basestring_ascii
 from pathlib import Path
 from typing import IO, Any
 
 import numpy as np
 import py_trees
 
-
-def _event_encoder() -> Callable[[Any], str]:
-    """``json.dumps(event, separators=(",", ":"))`` made once: ``JSONEncoder.encode`` builds
-    its C encoder again for every call, half the cost of encoding an event. Without
-    circular-reference checks (markers None): an event is a fresh cleaned copy."""
-    plain = json.JSONEncoder(separators=(",", ":"))
-    if c_make_encoder is None:  # a Python without the json accelerator
-        return plain.encode
-    encode = c_make_encoder(None, plain.default, encode_basestring_ascii, None, ":", ",",
-                            False, False, True)
-    return lambda event: "".join(encode(event, 0))
-
-
-_ENCODE = _event_encoder()
+# json.dumps(event, separators=(",", ":")) without building an encoder per event.
+_ENCODE = json.JSONEncoder(separators=(",", ":")).encode
 
 
 def _clean(value: Any) -> Any:
