@@ -231,7 +231,8 @@ class ElevationDetector:
         # In place, east, north and drop become world x, y and z (single precision keeps
         # better than a millimetre within kilometres of home, ample for cells of 1 cm+);
         # the grids (for the pixel blocks) and the valid pixels' copies of them alike.
-        for x, y, z in (grids[:3], points[:3]) if not everything else (grids[:3],):
+        # (When every pixel is valid the points are views of the grids: translated once.)
+        for x, y, z in [grids[:3]] if everything else [grids[:3], points[:3]]:
             x += f32(position[0])
             y += f32(position[1])
             z += f32(position[2])

@@ -201,4 +201,3 @@ def test_report_png_with_and_without_terrain(tmp_path):
                      tmp_path / "b.png")
     for name in ("a.png", "b.png"):
         assert (tmp_path / name).read_bytes()[:4] == b"\x89PNG"
-
