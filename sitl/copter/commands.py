@@ -119,9 +119,10 @@ class Commands:
             interval = 0.0
         else:
             interval = us * 1e-6
-        if server.can_stream(msgid):
-            link.set_interval(msgid, interval, server.time)
-        return ACCEPTED  # ArduPilot ACKs every interval request
+        if not server.can_stream(msgid):
+            return self._cannot_send(msgid, stream=True)
+        link.set_interval(msgid, interval, server.time)
+        return ACCEPTED
 
     def _get_message_interval(self, link: Link, r: CommandRequest) -> int:
         msgid = r.integer(1)
@@ -135,10 +136,21 @@ class Commands:
         link.mav.send(mavlink.MAVLink_message_interval_message(msgid, us))
         return ACCEPTED
 
+    def _cannot_send(self, msgid: int | None, stream: bool) -> int:
+        """The answer to a request for a message this vehicle does not send. ArduPilot fails
+        both kinds (an interval with "No ap_message for mavlink id (N)"); PX4 fails an
+        interval and denies a single message (MavlinkReceiver)."""
+        if self.autopilot.name == "px4":
+            return FAILED if stream else DENIED
+        if stream:
+            text = f"No ap_message for mavlink id ({msgid})"
+            self.autopilot.text(mavlink.MAV_SEVERITY_INFO, text)
+        return FAILED
+
     def _request_message(self, link: Link, r: CommandRequest) -> int:
         msgid = r.integer(1)
         if msgid is None or not self.server.can_build(msgid):
-            return UNSUPPORTED
+            return self._cannot_send(msgid, stream=False)
         link.once.append(msgid)
         return ACCEPTED
 

@@ -40,6 +40,7 @@ _DATA_STREAMS: dict[int, tuple[int, ...]] = {
         mavlink.MAVLINK_MSG_ID_LOCAL_POSITION_NED,
     ),
     mavlink.MAV_DATA_STREAM_EXTRA1: (mavlink.MAVLINK_MSG_ID_ATTITUDE,),
+    mavlink.MAV_DATA_STREAM_EXTRA2: (mavlink.MAVLINK_MSG_ID_VFR_HUD,),  # the HUD
     mavlink.MAV_DATA_STREAM_EXTRA3: (
         mavlink.MAVLINK_MSG_ID_BATTERY_STATUS,
         mavlink.MAVLINK_MSG_ID_DISTANCE_SENSOR,

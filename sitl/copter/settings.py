@@ -136,6 +136,9 @@ class MessageRates(BaseModel):
     ekf_status_report: float = Field(
         0.0, ge=0, le=MAX_STREAM_RATE, description="ArduPilot only, when asked; " + _RATE
     )
+    attitude_quaternion: float = Field(
+        0.0, ge=0, le=MAX_STREAM_RATE, description="when asked; " + _RATE
+    )
 
 
 class SitlSettings(BaseModel):

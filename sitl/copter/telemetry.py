@@ -35,6 +35,7 @@ STREAMS: dict[int, str] = {
     mavlink.MAVLINK_MSG_ID_MISSION_CURRENT: "mission_current",
     mavlink.MAVLINK_MSG_ID_EKF_STATUS_REPORT: "ekf_status_report",
     mavlink.MAVLINK_MSG_ID_VFR_HUD: "vfr_hud",
+    mavlink.MAVLINK_MSG_ID_ATTITUDE_QUATERNION: "attitude_quaternion",
 }
 # Messages only one personality sends (EKF_STATUS_REPORT is ArduPilot's dialect).
 ONLY = {mavlink.MAVLINK_MSG_ID_EKF_STATUS_REPORT: "ardupilot"}
@@ -147,6 +148,7 @@ class Telemetry:
             mavlink.MAVLINK_MSG_ID_MISSION_CURRENT: self.mission_current,
             mavlink.MAVLINK_MSG_ID_EKF_STATUS_REPORT: self._ekf_status_report,
             mavlink.MAVLINK_MSG_ID_VFR_HUD: self._vfr_hud,
+            mavlink.MAVLINK_MSG_ID_ATTITUDE_QUATERNION: self._attitude_quaternion,
         }
         for msgid, personality in ONLY.items():
             if ap.name != personality:
@@ -197,6 +199,18 @@ class Telemetry:
         (msg.time_boot_ms, msg.roll, msg.pitch, msg.yaw, msg.rollspeed, msg.pitchspeed,
          msg.yawspeed) = self._attitude_values()
         return msg
+
+    def _attitude_quaternion(self):
+        """ATTITUDE as a quaternion (w, x, y, z; roll, pitch, yaw applied z-y-x), which MAVSDK's
+        attitude_quaternion reads; no display offset (repr_offset_q all zero)."""
+        t, roll, pitch, yaw, p, q, r = self._attitude_values()
+        cr, sr = math.cos(roll / 2), math.sin(roll / 2)
+        cp, sp = math.cos(pitch / 2), math.sin(pitch / 2)
+        cy, sy = math.cos(yaw / 2), math.sin(yaw / 2)
+        return mavlink.MAVLink_attitude_quaternion_message(
+            t, cr * cp * cy + sr * sp * sy, sr * cp * cy - cr * sp * sy,
+            cr * sp * cy + sr * cp * sy, cr * cp * sy - sr * sp * cy, p, q, r, [0.0] * 4,
+        )
 
     def _global_position_int(self):
         ap = self.autopilot

@@ -75,9 +75,12 @@ def test_every_interval_request_is_acked_and_streams_at_that_rate():
     gcs.heartbeat()
     gcs.set_interval(mavlink.MAVLINK_MSG_ID_GLOBAL_POSITION_INT, 10)
     gcs.set_interval(mavlink.MAVLINK_MSG_ID_EXTENDED_SYS_STATE, 2)
-    gcs.set_interval(4242, 5)  # no such message: still ACCEPTED, like ArduPilot
+    gcs.set_interval(4242, 5)  # no such message: FAILED and said why, as ArduPilot does
     run(sim, gcs, 10.0)
-    assert gcs.acks(mavlink.MAV_CMD_SET_MESSAGE_INTERVAL) == [mavlink.MAV_RESULT_ACCEPTED] * 3
+    assert gcs.acks(mavlink.MAV_CMD_SET_MESSAGE_INTERVAL) == [mavlink.MAV_RESULT_ACCEPTED] * 2 + [
+        mavlink.MAV_RESULT_FAILED
+    ]
+    assert "No ap_message for mavlink id (4242)" in gcs.texts()
     assert 98 <= gcs.counts["GLOBAL_POSITION_INT"] <= 102
     assert 19 <= gcs.counts["EXTENDED_SYS_STATE"] <= 21
     gcs.set_interval(mavlink.MAVLINK_MSG_ID_GLOBAL_POSITION_INT, -1)
@@ -410,4 +413,6 @@ def test_px4_does_not_send_ardupilot_messages():
     gcs.command(mavlink.MAV_CMD_REQUEST_MESSAGE, mavlink.MAVLINK_MSG_ID_EKF_STATUS_REPORT)
     run(sim, gcs, 2.0)
     assert "EKF_STATUS_REPORT" not in gcs.last
-    assert gcs.acks(mavlink.MAV_CMD_REQUEST_MESSAGE) == [mavlink.MAV_RESULT_UNSUPPORTED]
+    # PX4 fails an interval and denies a single message it has no stream for.
+    assert gcs.acks(mavlink.MAV_CMD_SET_MESSAGE_INTERVAL) == [mavlink.MAV_RESULT_FAILED]
+    assert gcs.acks(mavlink.MAV_CMD_REQUEST_MESSAGE) == [mavlink.MAV_RESULT_DENIED]
