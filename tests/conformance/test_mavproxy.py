@@ -89,6 +89,9 @@ def test_mavproxy_parameters_and_no_false_alarms(start_vehicle, mavproxy, autopi
     monitor = Monitor(f"udpin:127.0.0.1:{out}", keep=("SYS_STATUS",))
     try:
         check_parameters(mp, vehicle, autopilot)
+        # MAVProxy asks ArduPilot for every data stream (PX4 streams anyway), its HUD (and
+        # QGroundControl's) included: VFR_HUD, the EXTRA2 group.
+        monitor.wait(lambda m: m.get("VFR_HUD"), vehicle.wall(10), "VFR_HUD")
         # Give the ground station 20 s of the vehicle's own time on the ground to complain.
         start = monitor.wait(lambda m: m.boot_seconds(), vehicle.wall(10), "vehicle time")
         monitor.wait(

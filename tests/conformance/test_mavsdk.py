@@ -19,7 +19,7 @@ from mavsdk import System
 from mavsdk.action import ActionError
 from mavsdk.mission import MissionItem, MissionPlan
 from mavsdk.mission_raw import MissionItem as RawItem
-from mavsdk.telemetry import LandedState
+from mavsdk.telemetry import LandedState, TelemetryError
 
 pytestmark = pytest.mark.timeout(600)
 
@@ -73,6 +73,7 @@ async def connect(vehicle, mavsdk_server) -> System:
 
 @pytest.mark.parametrize("autopilot", AUTOPILOTS)
 def test_mavsdk_reads_and_sets_a_parameter(start_vehicle, mavsdk_server, autopilot):
+    """A parameter read, set and read back; the takeoff altitude; the attitude quaternion."""
     vehicle = start_vehicle(autopilot)
     name, new_value = FLOAT_PARAM[autopilot]
 
@@ -91,6 +92,17 @@ def test_mavsdk_reads_and_sets_a_parameter(start_vehicle, mavsdk_server, autopil
         await within(drone.action.set_takeoff_altitude(12.0), vehicle.wall(20), "takeoff alt")
         alt = await within(drone.action.get_takeoff_altitude(), vehicle.wall(20), "takeoff alt")
         assert alt == pytest.approx(12.0, abs=1e-4)
+
+        # The attitude as a quaternion (ATTITUDE_QUATERNION), which both autopilots stream.
+        tel = drone.telemetry
+        await within(tel.set_rate_attitude_quaternion(5.0), vehicle.wall(10), "quaternion rate")
+        q = await until(tel.attitude_quaternion(), lambda q: True, vehicle.wall(10), "quaternion")
+        assert math.isclose(math.hypot(q.w, q.x, q.y, q.z), 1.0, abs_tol=1e-3), q
+        if autopilot == "ardupilot":
+            # A rate ArduPilot cannot stream (no HIL_STATE_QUATERNION) is refused, so MAVSDK
+            # says so instead of waiting forever (PX4 streams it).
+            with pytest.raises(TelemetryError):
+                await within(tel.set_rate_ground_truth(5.0), vehicle.wall(10), "ground truth")
 
     asyncio.run(scenario())
     vehicle.alive()

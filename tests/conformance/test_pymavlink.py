@@ -121,3 +121,108 @@ def test_sys_status_is_consistent(start_vehicle, autopilot):
                 continue
             assert present & enabled & health & bit, f"{name} not present+enabled+healthy: {s}"
     vehicle.alive()
+
+
+# A command no autopilot streams or sends (a ground station's message): what a request for a
+# message the vehicle does not have looks like.
+NOT_SENT = mavlink.MAVLINK_MSG_ID_COMMAND_LONG
+# REQUEST_MESSAGE for such a message: ArduPilot fails it, PX4 denies it (SET_MESSAGE_INTERVAL
+# fails on both, ArduPilot saying "No ap_message for mavlink id (76)").
+NOT_SENT_REQUEST = {"ardupilot": mavlink.MAV_RESULT_FAILED, "px4": mavlink.MAV_RESULT_DENIED}
+NO_SUCH_COMMAND = 54321  # in no dialect
+
+
+@pytest.mark.parametrize("autopilot", ["ardupilot", "px4"])
+def test_ground_station_connection_sequence(start_vehicle, autopilot):
+    """What QGroundControl asks of a vehicle it has just met, each answer checked: the
+    autopilot's version and capabilities, telemetry rates (the message interval protocol and
+    the legacy data streams, whose EXTRA2 group is the HUD's VFR_HUD), the mission, fence and
+    rally lists (empty ones answered with a count of 0, not silence), TIMESYNC, the full
+    parameter list, and a COMMAND_ACK matched by command id for every command, including
+    those the vehicle cannot do: a rate it cannot stream is refused, not ACCEPTED and never
+    sent."""
+    vehicle = start_vehicle(autopilot)
+    if autopilot == "px4":  # where PX4 SITL sends its ground-station link
+        gcs = Monitor(f"udpin:127.0.0.1:{vehicle.gcs_port}", heartbeat=True,
+                      keep=("COMMAND_ACK", "MISSION_COUNT", "PARAM_VALUE", "TIMESYNC"))
+    else:
+        gcs = Monitor(f"tcp:127.0.0.1:{vehicle.tcp_port}", heartbeat=True,
+                      keep=("COMMAND_ACK", "MISSION_COUNT", "PARAM_VALUE", "TIMESYNC"))
+    w = vehicle.wall
+
+    def command(cmd: int, *params: float):
+        """Send COMMAND_LONG; the COMMAND_ACK for it (by command id)."""
+        n = len([a for a in gcs.kept["COMMAND_ACK"] if a.command == cmd])
+        p = list(params) + [0.0] * (7 - len(params))
+        gcs.conn.mav.command_long_send(1, 1, cmd, 0, *p)
+        acks = gcs.wait(
+            lambda m: [a for a in m.kept["COMMAND_ACK"] if a.command == cmd][n:],
+            w(5),
+            f"COMMAND_ACK for command {cmd}",
+        )
+        return acks[0]
+
+    try:
+        gcs.wait(lambda m: m.get("HEARTBEAT"), w(5), "HEARTBEAT")
+        # pymavlink switches to MAVLink 2 (a new encoder) on the first packet it reads; use
+        # that one, as QGroundControl speaks MAVLink 2 (mission_type is a MAVLink 2 field).
+        mav = gcs.conn.mav
+        ack = command(mavlink.MAV_CMD_REQUEST_MESSAGE, mavlink.MAVLINK_MSG_ID_AUTOPILOT_VERSION)
+        assert ack.result == mavlink.MAV_RESULT_ACCEPTED, ack
+        version = gcs.wait(lambda m: m.get("AUTOPILOT_VERSION"), w(5), "AUTOPILOT_VERSION")
+        assert version.capabilities & mavlink.MAV_PROTOCOL_CAPABILITY_MAVLINK2, version
+
+        # Rates: what the vehicle has it streams; what it does not have it refuses.
+        ack = command(mavlink.MAV_CMD_SET_MESSAGE_INTERVAL,
+                      mavlink.MAVLINK_MSG_ID_ATTITUDE_QUATERNION, 100_000)
+        assert ack.result == mavlink.MAV_RESULT_ACCEPTED, ack
+        q = gcs.wait(lambda m: m.get("ATTITUDE_QUATERNION"), w(5), "ATTITUDE_QUATERNION")
+        assert abs(q.q1**2 + q.q2**2 + q.q3**2 + q.q4**2 - 1.0) < 1e-3, q
+        ack = command(mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, NOT_SENT, 100_000)
+        assert ack.result == mavlink.MAV_RESULT_FAILED, ack
+        ack = command(mavlink.MAV_CMD_REQUEST_MESSAGE, NOT_SENT)
+        assert ack.result == NOT_SENT_REQUEST[autopilot], ack
+        ack = command(NO_SUCH_COMMAND, 1)
+        assert ack.result == mavlink.MAV_RESULT_UNSUPPORTED, ack
+        # QGroundControl asks ArduPilot for the legacy groups (PX4 ignores them and streams
+        # VFR_HUD anyway).
+        for stream in (mavlink.MAV_DATA_STREAM_EXTENDED_STATUS, mavlink.MAV_DATA_STREAM_POSITION,
+                       mavlink.MAV_DATA_STREAM_EXTRA1, mavlink.MAV_DATA_STREAM_EXTRA2,
+                       mavlink.MAV_DATA_STREAM_EXTRA3):
+            mav.request_data_stream_send(1, 1, stream, 4, 1)
+        gcs.wait(lambda m: m.get("VFR_HUD"), w(5), "VFR_HUD (data stream EXTRA2)")
+
+        mav.timesync_send(0, 123_456_789)
+        sync = gcs.wait(lambda m: m.kept["TIMESYNC"], w(5), "TIMESYNC answer")[0]
+        assert sync.ts1 == 123_456_789 and sync.tc1 > 0, sync
+
+        for mission_type in (mavlink.MAV_MISSION_TYPE_MISSION, mavlink.MAV_MISSION_TYPE_FENCE,
+                             mavlink.MAV_MISSION_TYPE_RALLY):
+            mav.mission_request_list_send(1, 1, mission_type)
+            count = gcs.wait(
+                lambda m, t=mission_type: [c for c in m.kept["MISSION_COUNT"]
+                                           if c.mission_type == t],
+                w(5),
+                f"MISSION_COUNT of mission type {mission_type}",
+            )[0]
+            if mission_type != mavlink.MAV_MISSION_TYPE_MISSION:
+                assert count.count == 0, count
+            # End the download as a ground station does (nothing to fetch or home only).
+            mav.mission_ack_send(1, 1, mavlink.MAV_MISSION_ACCEPTED, mission_type)
+
+        mav.param_request_list_send(1, 1)
+
+        def complete(m):
+            values = m.kept["PARAM_VALUE"]
+            return values and len({p.param_index for p in values}) >= values[0].param_count
+
+        gcs.wait(complete, w(30), "every PARAM_VALUE of the list")
+        values = gcs.kept["PARAM_VALUE"]
+        total = values[0].param_count
+        assert {p.param_count for p in values} == {total}, "param_count changed"
+        assert {p.param_index for p in values} == set(range(total))
+        assert len({p.param_id for p in values}) == total, "a name under two indices"
+        assert all(1 <= p.param_type <= 10 for p in values), "a PARAM_VALUE without a type"
+    finally:
+        gcs.close()
+    vehicle.alive()
