@@ -146,3 +146,34 @@ def test_obstacle_altitude_at_sites_is_the_largest_top_of_each_square():
     flat[9, 3] = 0.0
     first = obstacle_altitude(flat, variance, 0.1, 1.0, sites=(np.array([8]), np.array([8])))
     assert first[0] == 0 and np.signbit(first[0])
+
+
+def test_column_distances_in_int16_are_the_int32_ones_and_numpys():
+    """Maps take the int16 column pass (grids up to 2048 cells a side); the int32 one stays
+    for grids too large for it: both give each cell's distance to the nearest outside cell
+    of its column, capped, and the same transforms."""
+    from lsd.distance_transform import (
+        _column_distances,
+        _row_distances,
+        _short_column_distances,
+        distance_to_outside,
+    )
+
+    rng = np.random.default_rng(11)
+    for shape, share in [((40, 23), 0.1), ((1, 9), 0.5), ((30, 1), 0.05), ((25, 25), 0.0)]:
+        inside = rng.random(shape) >= share
+        rows = np.arange(shape[0])[:, None]
+        for far in (3, 50):
+            expected = np.full(shape, far)
+            for j in range(shape[1]):
+                outside = np.flatnonzero(~inside[:, j])
+                if len(outside):
+                    nearest = np.abs(rows[:, 0, None] - outside[None, :]).min(axis=1)
+                    expected[:, j] = np.minimum(nearest, far)
+            short = _short_column_distances(inside, far)
+            assert short.dtype == np.int16 and np.array_equal(short, expected)
+            assert np.array_equal(_column_distances(inside, far), expected)
+        if not inside.all():
+            far = sum(shape)
+            assert np.array_equal(_row_distances(_column_distances(inside, far), 0.1),
+                                  distance_to_outside(inside, 0.1))
