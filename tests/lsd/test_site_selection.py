@@ -68,3 +68,17 @@ def test_cells_at_least_are_numpys_nonzero_in_row_major_order():
     assert np.array_equal(rows, want_rows) and np.array_equal(cols, want_cols)
     assert np.array_equal(flat, np.flatnonzero(grid >= 1.0))
     assert all(len(a) == 0 for a in cells_at_least(grid, 3.0))
+
+
+def test_maximum_box_is_scipys_maximum_filter():
+    from scipy import ndimage
+
+    from lsd.site_selection import maximum_box
+
+    rng = np.random.default_rng(5)
+    for shape, size in [((40, 33), 21), ((7, 90), 5), ((64, 64), 3), ((5, 5), 11)]:
+        values = rng.normal(0.0, 10.0, shape).astype(np.float32)
+        values[rng.random(shape) < 0.1] = -np.inf
+        for grid in (values, rng.integers(0, 3, shape).astype(np.uint8)):
+            expected = ndimage.maximum_filter(grid, size=size, mode="nearest")
+            assert np.array_equal(maximum_box(grid, size), expected)
