@@ -218,26 +218,29 @@ def tile_brackets(pyramid, ext, parent_lo, parent_hi, ratio, passes, start, extr
     hi_out = np.empty((rows, cols))
     for i in range(rows):
         for j in range(cols):
-            du_min, du_max = ext[0, i, j], ext[1, i, j]
-            dv_min, dv_max = ext[2, i, j], ext[3, i, j]
-            z_lo, z_hi = ext[4, i, j], ext[5, i, j]
             if ratio == 0:
-                lo = max(0.0, (oz - top_all) / -z_lo)
-                hi = (oz - bottom_all) / -z_hi
+                lo_out[i, j] = max(0.0, (oz - top_all) / -ext[4, i, j])
+                hi_out[i, j] = (oz - bottom_all) / -ext[5, i, j]
             else:
-                lo = parent_lo[i // ratio, j // ratio]
-                hi = parent_hi[i // ratio, j // ratio]
-            for _ in range(passes):
+                lo_out[i, j] = parent_lo[i // ratio, j // ratio]
+                hi_out[i, j] = parent_hi[i // ratio, j // ratio]
+    # Pass by pass over all the tiles (not tile by tile): a tile's passes are a chain of
+    # dependent lookups and divisions, the tiles of one pass are independent.
+    for _ in range(passes):
+        for i in range(rows):
+            for j in range(cols):
+                du_min, du_max = ext[0, i, j], ext[1, i, j]
+                dv_min, dv_max = ext[2, i, j], ext[3, i, j]
+                lo, hi = lo_out[i, j], hi_out[i, j]
                 u0 = u_o + min(du_min * lo, du_min * hi)
                 u1 = u_o + max(du_max * lo, du_max * hi)
                 v0 = v_o + min(dv_min * lo, dv_min * hi)
                 v1 = v_o + max(dv_max * lo, dv_max * hi)
                 top, bottom = box_bounds(high, low, width, offset, scale, levels, 0.0,
                                          top_u, top_v, u0, u1, v0, v1)
-                lo = max(lo, (oz - top) / -z_lo)
-                hi = max(lo, min(hi, (oz - bottom) / -z_hi))
-            lo_out[i, j] = lo
-            hi_out[i, j] = hi
+                lo = max(lo, (oz - top) / -ext[4, i, j])
+                lo_out[i, j] = lo
+                hi_out[i, j] = max(lo, min(hi, (oz - bottom) / -ext[5, i, j]))
     return lo_out, hi_out
 
 
