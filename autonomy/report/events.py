@@ -81,23 +81,36 @@ class EventLog:
         self.events: list[dict[str, Any]] = []
         self._path = path
         self._file: IO[str] | None = None  # opened at the first event: no empty files
+        self._unflushed = False
         self._lock = threading.Lock()  # live flights log from the LSM worker thread too
 
     def add(self, kind: str, **fields: Any) -> dict[str, Any]:
-        """Record one event of ``kind`` now; returns it."""
+        """Record one event of ``kind`` now; returns it. It reaches the file at the next
+        :meth:`flush` (the runner flushes after every tick) or :meth:`close`."""
         event = _clean_dict({"t": self._now(), "kind": kind, **fields})
         with self._lock:
             self.events.append(event)
             if self._path is not None:
                 if self._file is None:
-                    # Line-buffered: each event is on disk at once (a live flight is
-                    # followed with tail -f, and a killed run keeps what it logged).
-                    self._file = self._path.open("w", encoding="utf-8", buffering=1)
+                    self._file = self._path.open("w", encoding="utf-8")
                 self._file.write(_ENCODE(event) + "\n")
+                self._unflushed = True
         return event
+
+    def flush(self) -> None:
+        """Write the events added since the last flush to the file. Once per tick rather
+        than once per event (a Mars flight logs some 7000, mostly the LSM's, in bursts): a
+        live flight is still followed with tail -f, and a killed run keeps every tick's
+        events but those of the tick it was killed in."""
+        if self._unflushed:
+            with self._lock:
+                if self._file is not None:
+                    self._file.flush()
+                self._unflushed = False
 
     def close(self) -> None:
         with self._lock:
+            self._unflushed = False
             if self._file is not None:
                 self._file.close()
                 self._file = None

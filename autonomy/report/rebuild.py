@@ -1,7 +1,7 @@
 """report.html for a flight that never wrote its report (the process was killed): rebuilt
 from the logs it left, which are written as the flight goes.
 
-events.jsonl (line-buffered) gives the phases, the LSM's and the detector's events and the
+events.jsonl (flushed every tick) gives the phases, the LSM's and the detector's events and the
 touchdown; flight.tlog the track (the vehicle's LOCAL_POSITION_NED, converted to ENU as the
 driver does) and the battery (SYS_STATUS); tree.btlog, read to its last whole transition, the
 tree's timeline. What only the end of a flight knows (the retained sites and their losses,

@@ -249,6 +249,7 @@ class Flight:
             if self.console is not None:
                 self.console.phase(now, phase, None if xyz is None else xyz[2],
                                    len(self.lsm), loss, battery)
+        self.log.flush()  # this tick's events on disk (tail -f, a killed run)
 
     def _track_touchdown(self, now: float, truth: Any, state: Any) -> None:
         if truth is not None:

@@ -36,6 +36,19 @@ def test_event_log_streams_json_lines_stamped_with_the_clock(tmp_path):
     assert events[1]["t"] == 1.5
 
 
+def test_event_log_writes_its_events_at_each_flush_and_close(tmp_path):
+    # The runner flushes after every tick: a tick's events are then on disk (tail -f, a
+    # killed run), without a write to the file per event.
+    log = EventLog(lambda: 0.0, tmp_path / "events.jsonl")
+    log.add("lsm", decision="inserted", site=1)
+    log.add("lsm", decision="merged", site=1)
+    log.flush()
+    assert read_events(tmp_path / "events.jsonl") == log.events
+    log.add("flight", event="end")
+    log.close()
+    assert read_events(tmp_path / "events.jsonl") == log.events
+
+
 def _reference_clean(value):
     """The event log's cleaning as first written: one isinstance chain for every value."""
     import numpy as np

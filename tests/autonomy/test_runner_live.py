@@ -64,7 +64,7 @@ def test_a_live_flight_runs_on_the_vehicles_time_at_any_speedup(served_sitl, tmp
     done = threading.Event()
 
     def follow_events():
-        # events.jsonl is written line by line: tail it and stamp each phase with the
+        # events.jsonl is written tick by tick: tail it and stamp each phase with the
         # simulator's own time.
         offset = 0
         while not done.is_set():
