@@ -136,9 +136,8 @@ class MessageRates(BaseModel):
     ekf_status_report: float = Field(
         0.0, ge=0, le=MAX_STREAM_RATE, description="ArduPilot only, when asked; " + _RATE
     )
-    attitude_quaternion: float = Field(
-        0.0, ge=0, le=MAX_STREAM_RATE, description="when asked; " + _RATE
-    )
+    attitude_quaternion: float = Field(10.0, ge=0, le=MAX_STREAM_RATE, description=_RATE)
+    altitude: float = Field(1.0, ge=0, le=MAX_STREAM_RATE, description="PX4 only; " + _RATE)
 
 
 class SitlSettings(BaseModel):

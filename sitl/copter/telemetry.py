@@ -36,9 +36,14 @@ STREAMS: dict[int, str] = {
     mavlink.MAVLINK_MSG_ID_EKF_STATUS_REPORT: "ekf_status_report",
     mavlink.MAVLINK_MSG_ID_VFR_HUD: "vfr_hud",
     mavlink.MAVLINK_MSG_ID_ATTITUDE_QUATERNION: "attitude_quaternion",
+    mavlink.MAVLINK_MSG_ID_ALTITUDE: "altitude",
 }
-# Messages only one personality sends (EKF_STATUS_REPORT is ArduPilot's dialect).
-ONLY = {mavlink.MAVLINK_MSG_ID_EKF_STATUS_REPORT: "ardupilot"}
+# Messages only one personality sends (EKF_STATUS_REPORT is ArduPilot's dialect; ArduPilot
+# has no ALTITUDE).
+ONLY = {
+    mavlink.MAVLINK_MSG_ID_EKF_STATUS_REPORT: "ardupilot",
+    mavlink.MAVLINK_MSG_ID_ALTITUDE: "px4",
+}
 
 _S = mavlink
 _SENSORS = (
@@ -149,6 +154,7 @@ class Telemetry:
             mavlink.MAVLINK_MSG_ID_EKF_STATUS_REPORT: self._ekf_status_report,
             mavlink.MAVLINK_MSG_ID_VFR_HUD: self._vfr_hud,
             mavlink.MAVLINK_MSG_ID_ATTITUDE_QUATERNION: self._attitude_quaternion,
+            mavlink.MAVLINK_MSG_ID_ALTITUDE: self._altitude,
         }
         for msgid, personality in ONLY.items():
             if ap.name != personality:
@@ -210,6 +216,17 @@ class Telemetry:
         return mavlink.MAVLink_attitude_quaternion_message(
             t, cr * cp * cy + sr * sp * sy, sr * cp * cy - cr * sp * sy,
             cr * sp * cy + sr * cp * sy, cr * cp * sy - sr * sp * cy, p, q, r, [0.0] * 4,
+        )
+
+    def _altitude(self):
+        """PX4's ALTITUDE (MAVSDK's telemetry.altitude): AMSL, above home (the local frame's
+        origin), and the terrain below from the rangefinder's height above it."""
+        ap = self.autopilot
+        rel = ap.model.z - ap.home_z
+        amsl = ap.settings.home.alt + rel
+        agl = self.server.agl()
+        return mavlink.MAVLink_altitude_message(
+            int(self.server.time * 1e6), amsl, amsl, rel, rel, amsl - agl, agl
         )
 
     def _global_position_int(self):

@@ -93,16 +93,22 @@ def test_mavsdk_reads_and_sets_a_parameter(start_vehicle, mavsdk_server, autopil
         alt = await within(drone.action.get_takeoff_altitude(), vehicle.wall(20), "takeoff alt")
         assert alt == pytest.approx(12.0, abs=1e-4)
 
-        # The attitude as a quaternion (ATTITUDE_QUATERNION), which both autopilots stream.
+        # The attitude as a quaternion (ATTITUDE_QUATERNION): ArduPilot streams it when asked,
+        # PX4 unasked (10 Hz on its normal links).
         tel = drone.telemetry
-        await within(tel.set_rate_attitude_quaternion(5.0), vehicle.wall(10), "quaternion rate")
+        if autopilot == "ardupilot":
+            await within(tel.set_rate_attitude_quaternion(5.0), vehicle.wall(10), "q rate")
         q = await until(tel.attitude_quaternion(), lambda q: True, vehicle.wall(10), "quaternion")
         assert math.isclose(math.hypot(q.w, q.x, q.y, q.z), 1.0, abs_tol=1e-3), q
-        if autopilot == "ardupilot":
-            # A rate ArduPilot cannot stream (no HIL_STATE_QUATERNION) is refused, so MAVSDK
-            # says so instead of waiting forever (PX4 streams it).
+        # ALTITUDE: PX4 streams it unasked; ArduPilot has no such message and refuses its
+        # rate, so MAVSDK says so instead of waiting forever.
+        if autopilot == "px4":
+            alt = await until(tel.altitude(), lambda a: True, vehicle.wall(10), "altitude")
+            assert alt.altitude_amsl_m == pytest.approx(HOME[2], abs=1.0), alt
+            assert abs(alt.altitude_relative_m) < 1.0, alt
+        else:
             with pytest.raises(TelemetryError):
-                await within(tel.set_rate_ground_truth(5.0), vehicle.wall(10), "ground truth")
+                await within(tel.set_rate_altitude(1.0), vehicle.wall(10), "altitude rate")
 
     asyncio.run(scenario())
     vehicle.alive()
