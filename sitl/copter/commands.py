@@ -96,6 +96,7 @@ class Commands:
             c.MAV_CMD_DO_REPOSITION: self._do_reposition,
             c.MAV_CMD_DO_CHANGE_SPEED: self._do_change_speed,
             c.MAV_CMD_MISSION_START: self._mission_start,
+            c.MAV_CMD_DO_LAND_START: self._do_land_start,
             c.MAV_CMD_DO_SET_MISSION_CURRENT: self._set_mission_current,
             c.MAV_CMD_CONDITION_YAW: self._condition_yaw,
         }
@@ -231,6 +232,16 @@ class Commands:
     def _mission_start(self, link: Link, r: CommandRequest) -> int:
         first = r.integer(1, 0)
         return self.autopilot.mission_start(first or None)
+
+    def _do_land_start(self, link: Link, r: CommandRequest) -> int:
+        """MAV_CMD_DO_LAND_START (MAVProxy's `land`): fly the mission's landing sequence, from
+        its DO_LAND_START item, in the mission mode; FAILED when it has none (ArduPilot)."""
+        store = self.autopilot.mission
+        items = store.items
+        for seq in range(store.first, len(items)):
+            if items[seq].command == mavlink.MAV_CMD_DO_LAND_START:
+                return self.autopilot.mission_start(seq)
+        return FAILED
 
     def _set_mission_current(self, link: Link, r: CommandRequest) -> int:
         seq = r.integer(1)

@@ -263,6 +263,40 @@ def test_mission_upload_then_download_gives_it_back(autopilot):
             assert getattr(got, field) == pytest.approx(getattr(sent, field)), field
 
 
+@pytest.mark.parametrize("autopilot", ["ardupilot", "px4"])
+def test_do_land_start_flies_the_landing_sequence(autopilot):
+    """MAV_CMD_DO_LAND_START (MAVProxy's `land`): FAILED without a landing sequence, as
+    ArduPilot answers; with one, the mission mode from its DO_LAND_START item to the landing."""
+    sim, gcs = connect(autopilot)
+    airborne(sim, gcs)
+    gcs.command(C.MAV_CMD_DO_LAND_START)
+    run(sim, gcs, 0.2)
+    assert last_ack(gcs, C.MAV_CMD_DO_LAND_START) == C.MAV_RESULT_FAILED
+    items = square_mission(sim, gcs, home_first=autopilot == "ardupilot")
+    land_start = len(items) - 1  # before the NAV_LAND, after the waypoints
+    items.insert(land_start, gcs.mission_item(land_start, C.MAV_CMD_DO_LAND_START,
+                                              *latlon(sim, 0.0, 30.0)))
+    items[-1].seq = len(items) - 1
+    gcs.upload_mission(items)
+    assert run(sim, gcs, 5, until=lambda: "MISSION_ACK" in gcs.last)
+    assert gcs.last["MISSION_ACK"].type == C.MAV_MISSION_ACCEPTED
+    gcs.command(C.MAV_CMD_DO_LAND_START)
+    run(sim, gcs, 0.2)
+    assert last_ack(gcs, C.MAV_CMD_DO_LAND_START) == C.MAV_RESULT_ACCEPTED
+    assert sim.truth.mode == ("AUTO" if autopilot == "ardupilot" else "AUTO.MISSION")
+    track = []
+
+    def landed() -> bool:
+        track.append(sim.truth.position[:2])
+        return not sim.truth.armed
+
+    assert run(sim, gcs, 120, until=landed)
+    # Straight to the landing: the waypoint east of home (30, 0) is skipped.
+    assert min(math.hypot(e - 30.0, n) for e, n in track) > 10.0
+    east, north = sim.truth.position[:2]
+    assert math.hypot(east - 0.0, north - 30.0) < 1.0
+
+
 def test_ardupilot_reports_home_as_item_zero_even_without_a_mission():
     sim, gcs = connect()
     gcs.download_mission()
