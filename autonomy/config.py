@@ -18,6 +18,7 @@ is the next step.
 from __future__ import annotations
 
 import copy
+import difflib
 import functools
 import math
 import os
@@ -576,6 +577,11 @@ def parse_mission(text: str, name: str = "<mission>", base_dir: Path | None = No
         mark = exc.problem_mark or exc.context_mark
         line = mark.line + 1 if mark is not None else 1
         what = one_line(exc.problem or exc.context or "malformed YAML")
+        lines = text.splitlines()
+        line_text = lines[mark.line][: mark.column + 1] if (
+            mark is not None and mark.line < len(lines)) else ""
+        if "tab" not in what and "\t" in line_text:
+            what += " (a tab: YAML indents with spaces only)"
         raise MissionFileError([f"{name}:{line}: YAML syntax error: {what}"]) from None
     except yaml.YAMLError as exc:
         raise MissionFileError([f"{name}:1: YAML error: {one_line(str(exc))}"]) from None
@@ -763,6 +769,8 @@ def _describe(err: Mapping[str, Any], root: Any, children: Any, model: Any = Non
     kind = str(err.get("type"))
     msg = _REASONS[kind](err.get("ctx") or {}) if kind in _REASONS else msg
     roots = [Mission] if model is None else list(_models_in(model))
+    if kind == "extra_forbidden" and loc:
+        msg += _did_you_mean(str(loc[-1]), loc[:-1], roots)
     if kind == "int_parsing_size":  # pydantic gives no bound: the field has it
         high = _upper_bound(_field_info(loc, roots))
         if high is not None:
@@ -818,6 +826,25 @@ _BOUND_ERRORS = frozenset({
     "greater_than", "greater_than_equal", "less_than", "less_than_equal", "too_long",
     "too_short", "string_too_long", "string_too_short",
 })
+
+
+def _did_you_mean(key: str, parent: Sequence[Any], roots: Sequence[type[BaseModel]]) -> str:
+    """``; did you mean NAME?`` when ``key`` looks like a typo of a setting of the section
+    at ``parent`` (the settings of the section's kind, for a section with kinds)."""
+    models: list[type[BaseModel]] = list(roots)
+    for item in parent:
+        if not isinstance(item, str):
+            continue
+        owner = next((m for m in models if item in m.model_fields), None)
+        if owner is not None:
+            models = list(_models_in(owner.model_fields[item].annotation))
+            continue
+        tagged = [m for m in models if item in typing.get_args(
+            getattr(m.model_fields.get("kind"), "annotation", None))]
+        models = tagged or models  # the kind pydantic adds to locations in a tagged union
+    names = {info.alias or name for m in models for name, info in m.model_fields.items()}
+    close = difflib.get_close_matches(key, sorted(names), n=1, cutoff=0.75)
+    return f"; did you mean {close[0]}?" if close else ""
 
 
 def _field_description(loc: Sequence[Any], roots: Sequence[type[BaseModel]]) -> str | None:

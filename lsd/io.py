@@ -85,11 +85,20 @@ def _quiet() -> Iterator[None]:
         yield
 
 
+def _check_file(p: Path) -> None:
+    """Refuse a path that is not a readable regular file, saying what it is instead."""
+    if p.is_dir():
+        raise DataFileError(f"{p}: a directory, not a file")
+    if not p.exists():
+        raise DataFileError(f"{p}: no such file")
+    if not p.is_file():
+        raise DataFileError(f"{p}: not a regular file")
+
+
 def read_point_cloud(path: str | Path) -> CloudData:
     """Read a cloud by extension: ``.npy`` (N, >=3), ``.ply``, ``.las``/``.laz``."""
     p = Path(path)
-    if not p.is_file():
-        raise DataFileError(f"{p}: no such file")
+    _check_file(p)
     ext = p.suffix.lower()
     with _quiet():
         if ext == ".npy":
@@ -179,6 +188,8 @@ def read_ply(path: str | Path) -> CloudData:
         prop_names = [n for n, _ in props]
         if not {"x", "y", "z"} <= set(prop_names):
             raise DataFileError(f"{p}: PLY vertex element lacks x, y, z")
+        if count == 0:
+            raise DataFileError(f"{p}: the PLY file holds no points (element vertex 0)")
         if fmt == "ascii":
             skip = sum(c for _, c, _ in elements[:vi])
             for _ in range(skip):
@@ -281,8 +292,7 @@ def open_las(path: str | Path):
     """``with open_las(path) as (reader, georef)``: a laspy reader whose header was checked
     (scales, point count against the file size) and the file's :class:`Georeference`."""
     p = Path(path)
-    if not p.is_file():
-        raise DataFileError(f"{p}: no such file")
+    _check_file(p)
     try:
         import laspy  # optional: pip install 'landing-autonomy[las]'
     except ImportError:
@@ -343,8 +353,7 @@ def read_depth_image(path: str | Path) -> np.ndarray:
     """Read a depth image: ``.npy`` (H, W) metres, or a 16-bit single-channel ``.png`` in
     millimetres. Returns (H, W) float32 metres; 0, negative or NaN = no depth."""
     p = Path(path)
-    if not p.is_file():
-        raise DataFileError(f"{p}: no such file")
+    _check_file(p)
     ext = p.suffix.lower()
     if ext == ".npy":
         with _quiet():

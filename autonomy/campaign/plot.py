@@ -15,6 +15,7 @@ import numpy as np
 
 from autonomy.campaign.spec import Variant
 from autonomy.campaign.summary import OUTCOME_TITLES, OUTCOMES, outcome_class
+from autonomy.report.plot import quiet_missing_glyphs
 
 OUTCOME_COLOURS = {
     "landed": "#2ca02c",
@@ -55,6 +56,7 @@ def _zoom_to_touchdowns(ax: Any, records: Sequence[dict[str, Any]], terrain: Any
     ax.set_aspect("equal")
 
 
+@quiet_missing_glyphs()
 def plot_campaign(
     path: str | os.PathLike[str],
     records: Sequence[dict[str, Any]],

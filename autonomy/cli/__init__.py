@@ -16,7 +16,9 @@ shows the traceback).
 from __future__ import annotations
 
 import argparse
+import errno
 import importlib
+import io
 import os
 import sys
 
@@ -38,6 +40,10 @@ COMMAND_MODULES: tuple[str, ...] = (
     "autonomy.cli.flow",
 )
 EXIT_INTERNAL_ERROR = 70  # sysexits.h EX_SOFTWARE
+# A file the machine refuses (a full disk, a read-only or forbidden folder) is a problem of
+# where the input or output is, not a bug: one line naming the file, exit 2.
+FULL_OR_READ_ONLY = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EROFS})
+FILE_REFUSALS = FULL_OR_READ_ONLY | {errno.EACCES, errno.EPERM}
 TRACEBACK_ENV = "LANDER_TRACEBACK"
 
 
@@ -60,7 +66,16 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _replace_unencodable_output() -> None:
+    """A terminal that cannot show a character (PYTHONIOENCODING=ascii, a Latin-1 locale)
+    gets an escape for it instead of the command failing on a mission's or a path's name."""
+    for stream in (sys.stdout, sys.stderr):
+        if isinstance(stream, io.TextIOWrapper) and stream.errors == "strict":
+            stream.reconfigure(errors="backslashreplace")
+
+
 def main(argv: list[str] | None = None) -> int:
+    _replace_unencodable_output()
     parser = build_parser()
     try:
         args = parser.parse_args(argv)
@@ -83,15 +98,29 @@ def main(argv: list[str] | None = None) -> int:
         devnull = os.open(os.devnull, os.O_WRONLY)
         os.dup2(devnull, sys.stdout.fileno())
         return 141
+    except OSError as exc:
+        if exc.errno not in FILE_REFUSALS:
+            return _internal_error(args.command, exc)
+        where = f"{exc.filename}: " if exc.filename else ""
+        partial = ("; what it was writing may be incomplete"
+                   if exc.errno in FULL_OR_READ_ONLY else "")
+        print(f"lander {args.command}: error: {where}{exc.strerror or exc}{partial}",
+              file=sys.stderr)
+        return 2
     except Exception as exc:  # a bug: one line, not a traceback (unless asked for)
-        if os.environ.get(TRACEBACK_ENV):
-            raise
-        print(
-            f"lander {args.command}: internal error: {type(exc).__name__}: "
-            f"{one_line(str(exc), 300)} (a bug; {TRACEBACK_ENV}=1 shows where it happened)",
-            file=sys.stderr,
-        )
-        return EXIT_INTERNAL_ERROR
+        return _internal_error(args.command, exc)
+
+
+def _internal_error(command: str, exc: Exception) -> int:
+    """A bug: one line, not a traceback (unless asked for)."""
+    if os.environ.get(TRACEBACK_ENV):
+        raise exc
+    print(
+        f"lander {command}: internal error: {type(exc).__name__}: "
+        f"{one_line(str(exc), 300)} (a bug; {TRACEBACK_ENV}=1 shows where it happened)",
+        file=sys.stderr,
+    )
+    return EXIT_INTERNAL_ERROR
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -9,8 +9,12 @@
 from __future__ import annotations
 
 import argparse
+import sys
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
+from autonomy.campaign.store import RunLog
 from autonomy.cli import args as types
 from autonomy.errors import UserError
 
@@ -75,8 +79,22 @@ def _names(paths: list[str]) -> list[str]:
     return names
 
 
+@contextmanager
+def _resumable(out: Path) -> Iterator[None]:
+    """On Ctrl-C, say what is kept and how to go on before the CLI's "interrupted" line."""
+    try:
+        yield
+    except KeyboardInterrupt:
+        logs = sorted(out.glob("**/runs.jsonl"))
+        kept = sum(len(RunLog(log.parent).load()) for log in logs)
+        print(f"{kept} finished run(s) kept in {', '.join(map(str, logs)) or out}; the same "
+              "command flies the rest", file=sys.stderr)
+        raise
+
+
 def run(args: argparse.Namespace) -> int:
     from autonomy.campaign import compare_campaigns, run_campaign
+    from autonomy.cli.outdir import check_campaign_folder, writing_into
     from autonomy.config import load_mission
 
     if args.compare is not None:
@@ -90,11 +108,14 @@ def run(args: argparse.Namespace) -> int:
         missions = [(name, load_mission(path)) for name, path in zip(names, args.compare,
                                                                      strict=True)]
         out = args.out or str(Path("campaigns") / ("compare-" + "-vs-".join(names)))
-        result = compare_campaigns(
-            missions, runs=args.runs, out_dir=out, seed=args.seed, workers=args.workers,
-            scheduler=args.scheduler, connect_timeout=args.connect_timeout,
-            retry_errors=args.retry_errors, quiet=args.quiet, pages=not args.no_pages,
-        )
+        for name in names:
+            check_campaign_folder(Path(out) / name, "--out folder")
+        with writing_into(Path(out), "the campaigns' results"), _resumable(Path(out)):
+            result = compare_campaigns(
+                missions, runs=args.runs, out_dir=out, seed=args.seed, workers=args.workers,
+                scheduler=args.scheduler, connect_timeout=args.connect_timeout,
+                retry_errors=args.retry_errors, quiet=args.quiet, pages=not args.no_pages,
+            )
         for name, campaign in zip(names, result.campaigns, strict=True):
             print(f"{name}:")
             print(campaign.table())
@@ -108,12 +129,14 @@ def run(args: argparse.Namespace) -> int:
         raise UserError("a mission file is required (or --compare A.yaml B.yaml ...)")
     mission = load_mission(args.mission)
     out = args.out or str(Path("campaigns") / (Path(args.mission).stem or "mission"))
-    result = run_campaign(
-        mission, runs=args.runs, out_dir=out, seed=args.seed, vary=args.vary,
-        workers=args.workers, scheduler=args.scheduler, connect_timeout=args.connect_timeout,
-        retry_errors=args.retry_errors, quiet=args.quiet, name=Path(args.mission).stem,
-        pages=not args.no_pages,
-    )
+    check_campaign_folder(Path(out))
+    with writing_into(Path(out), "the campaign's results"), _resumable(Path(out)):
+        result = run_campaign(
+            mission, runs=args.runs, out_dir=out, seed=args.seed, vary=args.vary,
+            workers=args.workers, scheduler=args.scheduler,
+            connect_timeout=args.connect_timeout, retry_errors=args.retry_errors,
+            quiet=args.quiet, name=Path(args.mission).stem, pages=not args.no_pages,
+        )
     print(result.table())
     errors = sum(row["error"] for row in result.rows)
     note = f"; {errors} run(s) raised, see 'error' in runs.jsonl" if errors else ""

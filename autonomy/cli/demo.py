@@ -30,6 +30,7 @@ def demo_mission_path() -> Path:
 
 
 def run(args: argparse.Namespace) -> int:
+    from autonomy.cli.outdir import check_flight_folder, writing_into
     from autonomy.cli.validate import load_or_explain
     from autonomy.runner import fly
 
@@ -38,8 +39,10 @@ def run(args: argparse.Namespace) -> int:
     if mission is None:
         return 2
     out = Path(args.out)
+    check_flight_folder(out)
     print(f"flying {path} on the embedded SITL (lockstep); report in {out}/")
-    result = fly(mission, out_dir=out, console=True)
+    with writing_into(out, "the flight's report"):
+        result = fly(mission, out_dir=out, console=True)
     print(what_happened(result.summary, mission.landing.verification_altitude))
     return result.exit_code
 

@@ -145,6 +145,15 @@ def _write_outputs(
     return rows
 
 
+def _remove_stale_geojson(out_dir: Path) -> None:
+    """A sites.geojson of an earlier run into the same folder would sit beside this run's
+    sites.csv as if it were its own: remove it (this run has no CRS to write one)."""
+    stale = out_dir / "sites.geojson"
+    if stale.is_file():
+        stale.unlink()
+        print(f"removed {stale}: an earlier run's (this input has no CRS for one)")
+
+
 def _print_table(rows: list[dict], limit: int) -> None:
     if not rows:
         return
@@ -328,6 +337,8 @@ def run_lidar(args: argparse.Namespace, out_dir: Path) -> int:
     if georef is not None and georef.crs is not None:
         _write_geojson(out_dir / "sites.geojson", rows, georef)
         wrote.append(out_dir / "sites.geojson")
+    else:
+        _remove_stale_geojson(out_dir)
     _overlay_cloud(out_dir / "overlay.png", raw if raw is not None else np.empty((0, 3)), obs,
                    args.seed, georef)
     wrote.append(out_dir / "overlay.png")
@@ -468,6 +479,7 @@ def run_depth(args: argparse.Namespace, out_dir: Path) -> int:
     )
     rows = _write_outputs(out_dir, obs, score[order], [])
     _overlay_depth(out_dir / "overlay.png", frame, obs)
+    _remove_stale_geojson(out_dir)
     print(f"{n} sites (score = mean decision-map value J, eq. 7)")
     _print_table(rows, args.limit)
     print(f"wrote {out_dir / 'sites.csv'} and {out_dir / 'overlay.png'}")

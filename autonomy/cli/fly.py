@@ -9,6 +9,7 @@ from typing import Any
 import yaml
 
 from autonomy.cli import args as types
+from autonomy.cli.outdir import check_flight_folder, writing_into
 from autonomy.cli.validate import load_or_explain
 from autonomy.config import apply_overrides, read_yaml_value
 from autonomy.errors import UserError
@@ -43,10 +44,12 @@ def run(args: argparse.Namespace) -> int:
     if overrides:
         mission = apply_overrides(mission, overrides)
     out = Path(args.out) if args.out else Path("out") / Path(args.mission).stem
+    check_flight_folder(out)
     from autonomy.runner import fly
 
-    result = fly(mission, seed=args.seed, out_dir=out, console=not args.quiet,
-                 on_interrupt=args.on_interrupt)
+    with writing_into(out, "the flight's report"):
+        result = fly(mission, seed=args.seed, out_dir=out, console=not args.quiet,
+                     on_interrupt=args.on_interrupt)
     if args.quiet:
         print(f"{result.outcome} (exit {result.exit_code}): report {out / 'report.png'}")
     return result.exit_code

@@ -33,9 +33,11 @@ def find_page(folder: Path) -> Path:
         if (folder / name).is_file():
             return folder / name
     if (folder / "events.jsonl").is_file():  # a flight killed before it wrote its report
+        from autonomy.cli.outdir import writing_into
         from autonomy.report.rebuild import rebuild_page
 
-        page = rebuild_page(folder)
+        with writing_into(folder, "the rebuilt report.html"):
+            page = rebuild_page(folder)
         print(f"{folder}: the flight did not write its report; {page.name} rebuilt from its "
               "logs (track, phases, events, tree log to its last transition)", file=sys.stderr)
         return page

@@ -50,7 +50,10 @@ def _home(text: str):
 def _udp_out(text: str) -> tuple[tuple[str, int], tuple[str, int]]:
     """``[LOCAL_HOST:LOCAL_PORT>]HOST:PORT`` -> (local address, peer address)."""
     local, sep, peer = text.rpartition(">")
-    return (_address("--udp-out", local) if sep else ("0.0.0.0", 0)), _address("--udp-out", peer)
+    address = _address("--udp-out", peer)
+    if address[1] == 0:  # port 0 means "any free port" to listen on, but nowhere to send to
+        raise UserError(f"--udp-out: {peer}: port 0 is not an address to send to (1..65535)")
+    return (_address("--udp-out", local) if sep else ("0.0.0.0", 0)), address
 
 
 def _signing_key(variable: str | None) -> bytes | None:

@@ -4,6 +4,7 @@ BehaviorTree.CPP v4 XML for Groot2."""
 from __future__ import annotations
 
 import argparse
+import os
 
 import numpy as np
 
@@ -23,6 +24,29 @@ class _OfflineVehicle:
     arm = disarm = set_mode = takeoff = goto = set_velocity = hold = land = _refuse
 
 
+def _same_file(a: str, b: str) -> bool:
+    try:
+        return os.path.samefile(a, b)
+    except (OSError, ValueError):  # one of them does not exist (yet)
+        return os.path.abspath(a) == os.path.abspath(b)
+
+
+def _refuse_overwriting_inputs(args: argparse.Namespace, tree_file: str | None) -> None:
+    """--dot and --xml write files: never over the mission file, its tree file or each
+    other (the mission would be lost, or one output replaced by the other)."""
+    inputs = [("the mission file", str(args.mission))]
+    if tree_file:
+        inputs.append(("the mission's tree file", str(tree_file)))
+    for flag, target in (("--xml", args.xml), ("--dot", args.dot)):
+        if not target:
+            continue
+        for what, path in inputs:
+            if _same_file(target, path):
+                raise UserError(f"{flag} {target}: is {what}; writing would replace it; "
+                                "choose another file")
+        inputs.append((f"the {flag} output", target))
+
+
 def run(args: argparse.Namespace) -> int:
     from autonomy.cli.validate import load_or_explain
     from autonomy.runner.services import build_services, service_names
@@ -34,6 +58,7 @@ def run(args: argparse.Namespace) -> int:
     mission = load_or_explain("tree", args.mission)
     if mission is None:
         return 2
+    _refuse_overwriting_inputs(args, mission.tree)
     document = load_tree_file(mission.tree)
     tree = build_mission_tree(
         mission.plan(), _OfflineVehicle(), LandingSiteManager(mission.lsm, mission.weights),

@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import functools
+import warnings
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -13,6 +16,15 @@ from autonomy.report.data import FlightData
 # no report.png does not pay for pyplot at start-up.
 
 _MAX_PIXELS = 600  # map raster side after striding the terrain grid
+
+
+@contextmanager
+def quiet_missing_glyphs() -> Iterator[None]:
+    """A name in a script the font lacks (CJK, emoji) is drawn as boxes: no reason to print
+    matplotlib's warning about each glyph on the user's terminal (usable as a decorator)."""
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", r"Glyph \d+ .* missing from font", UserWarning)
+        yield
 
 
 @functools.cache
@@ -93,6 +105,7 @@ def plot_moving(ax, moving) -> None:
         ax.plot([start.x[k]], [start.y[k]], "o", color=colours[kind], markersize=4)
 
 
+@quiet_missing_glyphs()
 def write_report_png(data: FlightData, path: Path, *, outcome: str = "") -> None:
     """Draw the two-panel flight report into ``path`` (PNG)."""
     import matplotlib

@@ -142,6 +142,8 @@ def check_url(url: str) -> str:
                              "udpin:0.0.0.0:14550)")
         if any(c.isspace() for c in host):
             raise ValueError(f"host {host!r} contains white space")
+        if int(port) == 0 and scheme in ("udpout", "tcp"):  # 0: any port to listen on only
+            raise ValueError(f"port 0 is not an address to reach ({scheme}:HOST:1..65535)")
         return url
     serial = _SERIAL.match(url)
     if serial is not None:

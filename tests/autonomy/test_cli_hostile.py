@@ -1,0 +1,210 @@
+"""What a careless or hostile user does to the command line, beyond the fuzz suite: outputs
+pointed at inputs or at another command's results, a full disk, typos, tabs, a terminal that
+cannot show a name. Each case goes through ``lander`` (autonomy.cli.main) and checks the one
+line it prints and that nothing was lost."""
+
+from __future__ import annotations
+
+import errno
+import io
+import json
+import sys
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from autonomy.cli import main
+from autonomy.cli.demo import mission_path
+
+SCRIPTED = mission_path("demo.yaml")
+SKIP_SEARCH = mission_path("skip_search.yaml")
+
+
+def _error(capsys) -> str:
+    (line,) = capsys.readouterr().err.strip().splitlines()
+    return line
+
+
+# -- outputs over inputs or over another command's results ---------------------------------
+
+
+@pytest.mark.parametrize("flag", ["--dot", "--xml"])
+def test_tree_never_writes_over_the_mission_file(tmp_path, capsys, flag):
+    mission = tmp_path / "m.yaml"
+    mission.write_text(SCRIPTED.read_text())
+    before = mission.read_bytes()
+    assert main(["tree", str(mission), flag, str(tmp_path / "." / "m.yaml")]) == 2
+    assert f"{flag} " in (line := _error(capsys)) and "is the mission file" in line
+    assert mission.read_bytes() == before
+
+
+def test_tree_never_writes_over_the_mission_s_tree_file_or_its_other_output(tmp_path, capsys):
+    mission = tmp_path / SKIP_SEARCH.name  # a copy: the repository's file stays safe
+    mission.write_text(SKIP_SEARCH.read_text())
+    tree_file = tmp_path / "skip_search.xml"
+    tree_file.write_bytes(before := SKIP_SEARCH.with_suffix(".xml").read_bytes())
+    assert "tree: skip_search.xml" in mission.read_text()
+    assert main(["tree", str(mission), "--xml", str(tree_file)]) == 2
+    assert "is the mission's tree file" in _error(capsys)
+    assert tree_file.read_bytes() == before
+    same = str(tmp_path / "t.out")
+    assert main(["tree", str(SCRIPTED), "--xml", same, "--dot", same]) == 2
+    assert "--dot" in (line := _error(capsys)) and "is the --xml output" in line
+
+
+def _campaign_folder(folder: Path) -> None:
+    folder.mkdir()
+    (folder / "runs.jsonl").write_text('{"run_id": "r0", "mission": "x"}\n')
+    (folder / "summary.json").write_text(json.dumps({"variants": []}))
+
+
+def test_fly_refuses_a_campaign_folder_and_leaves_it_alone(tmp_path, capsys):
+    out = tmp_path / "campaign"
+    _campaign_folder(out)
+    before = (out / "summary.json").read_text()
+    assert main(["fly", str(SCRIPTED), "--out", str(out), "--quiet"]) == 2
+    assert "holds a campaign (runs.jsonl)" in _error(capsys)
+    assert (out / "summary.json").read_text() == before
+    assert sorted(p.name for p in out.iterdir()) == ["runs.jsonl", "summary.json"]
+
+
+def test_campaign_refuses_a_flight_report_folder(tmp_path, capsys):
+    out = tmp_path / "flight"
+    out.mkdir()
+    summary = json.dumps({"mission": "demo", "outcome": "landed"})
+    (out / "summary.json").write_text(summary)
+    assert main(["campaign", str(SCRIPTED), "--runs", "1", "--out", str(out), "--quiet"]) == 2
+    assert "holds a flight's report (summary.json)" in _error(capsys)
+    assert (out / "summary.json").read_text() == summary
+    assert not (out / "runs.jsonl").exists()
+
+
+def test_fly_refuses_a_folder_with_report_files_of_its_own_and_a_file_as_out(tmp_path,
+                                                                            capsys):
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "report.png").write_bytes(b"my picture")
+    assert main(["fly", str(SCRIPTED), "--out", str(mine), "--quiet"]) == 2
+    assert "holds report.png, not from a flight" in _error(capsys)
+    assert (mine / "report.png").read_bytes() == b"my picture"
+    assert main(["fly", str(SCRIPTED), "--out", str(SCRIPTED), "--quiet"]) == 2
+    assert "exists and is not a folder" in _error(capsys)
+
+
+def test_a_full_disk_is_one_line_naming_the_report_folder(tmp_path, capsys, monkeypatch):
+    import autonomy.runner
+
+    def full_disk(*args, **kwargs):
+        raise OSError(errno.ENOSPC, "No space left on device")  # as a buffered close does
+
+    monkeypatch.setattr(autonomy.runner, "fly", full_disk)
+    out = tmp_path / "out"
+    assert main(["fly", str(SCRIPTED), "--out", str(out), "--quiet"]) == 2
+    line = _error(capsys)
+    assert line.startswith(f"lander fly: error: {out}: cannot write the flight's report")
+    assert "No space left on device" in line and "incomplete" in line
+
+
+def test_replay_that_cannot_write_its_rebuilt_page_is_one_line(tmp_path, capsys, monkeypatch):
+    import autonomy.report.rebuild
+
+    (tmp_path / "events.jsonl").write_text('{"t": 0}\n')
+
+    def refused(folder):
+        raise PermissionError(errno.EACCES, "Permission denied", str(folder / "report.html"))
+
+    monkeypatch.setattr(autonomy.report.rebuild, "rebuild_page", refused)
+    assert main(["replay", str(tmp_path), "--print"]) == 2
+    assert _error(capsys) == (f"lander replay: error: {tmp_path / 'report.html'}: "
+                              "Permission denied")
+
+
+def test_detect_removes_an_earlier_run_s_geojson_it_does_not_replace(tmp_path, capsys):
+    cloud = tmp_path / "cloud.npy"
+    x, y = np.meshgrid(np.arange(0, 10, 0.5), np.arange(0, 10, 0.5))
+    np.save(cloud, np.c_[x.ravel(), y.ravel(), np.zeros(x.size)])
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "sites.geojson").write_text('{"type": "FeatureCollection", "features": []}')
+    assert main(["detect", "--lidar", str(cloud), "--out", str(out), "--quiet"]) == 0
+    assert "removed" in capsys.readouterr().out
+    assert sorted(p.name for p in out.iterdir()) == ["overlay.png", "sites.csv"]
+
+
+# -- files that are not what they seem -------------------------------------------------
+
+
+def test_detect_names_a_directory_and_an_empty_ply(tmp_path, capsys):
+    assert main(["detect", "--lidar", str(tmp_path)]) == 2
+    assert _error(capsys).endswith(f"{tmp_path}: a directory, not a file")
+    ply = tmp_path / "empty.ply"
+    ply.write_text("ply\nformat ascii 1.0\nelement vertex 0\nproperty float x\n"
+                   "property float y\nproperty float z\nend_header\n")
+    assert main(["detect", "--lidar", str(ply), "--out", str(tmp_path / "o")]) == 2
+    assert _error(capsys).endswith("the PLY file holds no points (element vertex 0)")
+
+
+# -- mission files and overrides --------------------------------------------------------
+
+
+def test_a_misspelt_setting_is_refused_with_the_name_it_resembles(tmp_path, capsys):
+    path = tmp_path / "typo.yaml"
+    path.write_text("waypoints: [[10, 0, 30]]\ncruise_altitud: 30\n"
+                    "landing: {verification_altitde: 3}\nworld: {kind: mars, rock_densty: 1}\n"
+                    "zzz: 1\n")
+    assert main(["validate", str(path)]) == 2
+    assert capsys.readouterr().err.splitlines() == [
+        f"lander validate: error: {path}:2: cruise_altitud: unknown setting; did you mean "
+        "cruise_altitude?",
+        f"lander validate: error: {path}:3: landing.verification_altitde: unknown setting; "
+        "did you mean verification_altitude?",
+        f"lander validate: error: {path}:4: world.rock_densty: unknown setting; did you mean "
+        "rock_density?",
+        f"lander validate: error: {path}:5: zzz: unknown setting",
+    ]
+    assert main(["fly", str(SCRIPTED), "--set", "landing.centring_radios=1"]) == 2
+    assert _error(capsys).endswith("unknown setting; did you mean centring_radius?")
+
+
+def test_a_tab_in_the_indentation_is_named(tmp_path, capsys):
+    path = tmp_path / "tab.yaml"
+    path.write_text("name: t\nwaypoints:\n\t- [1, 2, 30]\n")
+    assert main(["validate", str(path)]) == 2
+    assert _error(capsys).endswith("(a tab: YAML indents with spaces only)")
+
+
+# -- links ------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("argv", [
+    ["link", "udpout:127.0.0.1:0", "--duration", "1"],
+    ["sitl", "--udp-out", "127.0.0.1:0", "--duration", "1"],
+])
+def test_port_0_is_no_address_to_send_to(capsys, argv):
+    assert main(argv) == 2
+    assert "port 0 is not an address" in _error(capsys)
+
+
+# -- the terminal -----------------------------------------------------------------------
+
+
+def test_a_terminal_that_cannot_show_a_name_gets_escapes_not_a_crash(tmp_path, monkeypatch):
+    path = tmp_path / "mission ü 火星.yaml"
+    path.write_text(SCRIPTED.read_text())
+    raw = io.BytesIO()
+    monkeypatch.setattr(sys, "stdout", io.TextIOWrapper(raw, encoding="ascii"))
+    assert main(["validate", str(path)]) == 0
+    sys.stdout.flush()
+    assert b"mission \\xfc \\u706b\\u661f.yaml" in raw.getvalue()
+
+
+def test_a_mission_named_in_a_script_the_font_lacks_draws_without_warnings(tmp_path, capsys):
+    path = tmp_path / "m.yaml"
+    path.write_text(SCRIPTED.read_text().replace("name: demo", 'name: "火星 ✈"'))
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        assert main(["fly", str(path), "--out", str(tmp_path / "out"), "--quiet"]) == 0
+    assert [str(w.message) for w in caught if "Glyph" in str(w.message)] == []
+    assert (tmp_path / "out" / "report.png").is_file()
