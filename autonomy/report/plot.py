@@ -59,7 +59,9 @@ def shaded_terrain(terrain, window, max_pixels: int = _MAX_PIXELS):
     i0, i1 = np.searchsorted(ys, [window[2], window[3]])
     if j1 - j0 < 2 or i1 - i0 < 2:
         return None
-    step = max(1, int(max(i1 - i0, j1 - j0) // max_pixels))
+    # The smallest stride that keeps both sides within max_pixels (a floor division let a
+    # side reach nearly twice that, and the shading's cost with its area).
+    step = max(1, -(-max(i1 - i0, j1 - j0) // max_pixels))
     grid = np.asarray(terrain.grid[i0:i1:step, j0:j1:step], dtype=np.float64)
     lo, hi = float(grid.min()), float(grid.max())
     from matplotlib.colors import LightSource

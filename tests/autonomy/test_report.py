@@ -214,3 +214,19 @@ def test_report_png_with_and_without_terrain(tmp_path):
                      tmp_path / "b.png")
     for name in ("a.png", "b.png"):
         assert (tmp_path / name).read_bytes()[:4] == b"\x89PNG"
+
+
+def test_the_report_map_keeps_within_its_pixel_budget():
+    """The hill-shaded map is strided to at most ``max_pixels`` a side (its shading costs
+    with its area): a 1000-cell world over a 512-pixel budget gives 500 pixels, not 1000."""
+    import numpy as np
+
+    from autonomy.report.plot import shaded_terrain
+    from sitl.terrain.grid import Terrain
+
+    heights = np.add.outer(np.arange(1000.0), np.arange(1000.0)).astype(np.float32) * 0.01
+    terrain = Terrain(heights, cell_size=0.2)
+    for budget, side in ((512, 500), (1000, 1000), (999, 500), (300, 250)):
+        shaded, extent, grid = shaded_terrain(terrain, (0.0, 200.0, 0.0, 200.0), budget)
+        assert shaded.shape == (side, side, 4) and grid.shape == (side, side)
+        assert extent[0] == 0.0 and extent[1] <= 200.0
