@@ -15,6 +15,7 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
+from pymavlink.quaternion import QuaternionBase
 
 if TYPE_CHECKING:
     from .server import MavlinkServer
@@ -207,16 +208,11 @@ class Telemetry:
         return msg
 
     def _attitude_quaternion(self):
-        """ATTITUDE as a quaternion (w, x, y, z; roll, pitch, yaw applied z-y-x), which MAVSDK's
-        attitude_quaternion reads; no display offset (repr_offset_q all zero)."""
+        """ATTITUDE as a quaternion (w, x, y, z; pymavlink's from roll, pitch, yaw), which
+        MAVSDK's attitude_quaternion reads; no display offset (repr_offset_q all zero)."""
         t, roll, pitch, yaw, p, q, r = self._attitude_values()
-        cr, sr = math.cos(roll / 2), math.sin(roll / 2)
-        cp, sp = math.cos(pitch / 2), math.sin(pitch / 2)
-        cy, sy = math.cos(yaw / 2), math.sin(yaw / 2)
-        return mavlink.MAVLink_attitude_quaternion_message(
-            t, cr * cp * cy + sr * sp * sy, sr * cp * cy - cr * sp * sy,
-            cr * sp * cy + sr * cp * sy, cr * cp * sy - sr * sp * cy, p, q, r, [0.0] * 4,
-        )
+        w, x, y, z = (float(v) for v in QuaternionBase([roll, pitch, yaw]).q)
+        return mavlink.MAVLink_attitude_quaternion_message(t, w, x, y, z, p, q, r, [0.0] * 4)
 
     def _altitude(self):
         """PX4's ALTITUDE (MAVSDK's telemetry.altitude): AMSL, above home (the local frame's
