@@ -1,5 +1,5 @@
 """Readers for recorded sensor data: point clouds (.npy, PLY ascii/binary, LAS/LAZ) and depth
-images (.npy metres, 16-bit PNG millimetres).
+images (.npy metres, 16-bit PNG in depth units, float or 16-bit TIFF).
 
 Every reader raises :class:`DataFileError` with a one-line reason naming the file when the
 file is not what its extension says; the command line turns it into a user error.
@@ -349,9 +349,23 @@ def _las_arrays(points, georef: Georeference) -> tuple[np.ndarray, np.ndarray | 
     return xyz, codes
 
 
-def read_depth_image(path: str | Path) -> np.ndarray:
-    """Read a depth image: ``.npy`` (H, W) metres, or a 16-bit single-channel ``.png`` in
-    millimetres. Returns (H, W) float32 metres; 0, negative or NaN = no depth."""
+DEPTH_UNIT = 0.001
+"""Metres per unit of an integer depth image unless told otherwise: millimetres, as
+RealSense, Azure Kinect and OAK cameras write 16-bit depth (TUM RGB-D and Kinect v1
+recordings use 1/5000 m)."""
+
+
+def read_depth_image(path: str | Path, unit: float = DEPTH_UNIT) -> np.ndarray:
+    """Read a depth image: ``.npy`` (H, W) metres; a single-channel 16-bit ``.png``; or a
+    single-channel ``.tif``/``.tiff``, 32-bit float in metres or 16-bit (as Pillow reads
+    them: 64-bit float TIFFs are not).
+
+    Args:
+        path: the image file.
+        unit: metres per unit of an integer (16-bit) image; float images are metres.
+
+    Returns (H, W) float32 metres; 0, negative or NaN = no depth.
+    """
     p = Path(path)
     _check_file(p)
     ext = p.suffix.lower()
@@ -369,34 +383,53 @@ def read_depth_image(path: str | Path) -> np.ndarray:
             return depth.astype(np.float32)
     if ext == ".png":
         width, height = _png_size(p)
-        if width * height > MAX_IMAGE_PIXELS:
-            raise DataFileError(f"{p}: a {width} x {height} image, more than "
-                                f"{MAX_IMAGE_PIXELS:,} pixels")
-        img = _read_png(p)
+        _check_pixels(p, width, height)
+        img = _read_image(p, "PNG")
         if img.dtype != np.uint16 or img.ndim != 2:
             raise DataFileError(
-                f"{p}: expected a 16-bit single-channel PNG (millimetres), got "
+                f"{p}: expected a 16-bit single-channel PNG (depth units of {unit:g} m), got "
                 f"{img.dtype} with shape {img.shape}"
             )
-        return img.astype(np.float32) / 1000.0
-    raise DataFileError(f"{p}: unknown depth-image extension {ext!r} (use .npy or .png)")
+        return (img * unit).astype(np.float32)
+    if ext in (".tif", ".tiff"):
+        img = _read_image(p, "TIFF")
+        img = img.astype(img.dtype.newbyteorder("="), copy=False)  # big-endian TIFFs too
+        if img.ndim != 2 or img.dtype not in (np.float32, np.float64, np.uint16):
+            raise DataFileError(
+                f"{p}: expected a single-channel TIFF of float metres or 16-bit depth units, "
+                f"got {img.dtype} with shape {img.shape}"
+            )
+        if img.dtype == np.uint16:
+            return (img * unit).astype(np.float32)
+        with _quiet():
+            return img.astype(np.float32)
+    raise DataFileError(
+        f"{p}: unknown depth-image extension {ext!r} (use .npy, .png, .tif or .tiff)"
+    )
 
 
-def _read_png(p: Path) -> np.ndarray:
-    """The pixels of a PNG, decoded by Pillow (libpng, under OpenCV, prints its complaints
-    about a damaged file to the terminal; Pillow raises them). Pillow comes with matplotlib,
-    a dependency that requires it."""
+def _check_pixels(p: Path, width: int, height: int) -> None:
+    if width * height > MAX_IMAGE_PIXELS:
+        raise DataFileError(f"{p}: a {width} x {height} image, more than "
+                            f"{MAX_IMAGE_PIXELS:,} pixels")
+
+
+def _read_image(p: Path, kind: str) -> np.ndarray:
+    """The pixels of a PNG or TIFF image, decoded by Pillow (libpng, under OpenCV, prints its
+    complaints about a damaged file to the terminal; Pillow raises them), its size checked
+    before decoding. Pillow comes with matplotlib, a dependency that requires it."""
     from PIL import Image
 
     try:
         with _quiet(), Image.open(p) as image:
-            if image.format != "PNG":
-                raise DataFileError(f"{p}: not a readable PNG image")
+            if image.format != kind:
+                raise DataFileError(f"{p}: not a readable {kind} image")
+            _check_pixels(p, *image.size)
             return np.array(image)
     except DataFileError:
         raise
     except (OSError, SyntaxError, ValueError, EOFError, MemoryError, Image.DecompressionBombError):
-        raise DataFileError(f"{p}: not a readable PNG image") from None
+        raise DataFileError(f"{p}: not a readable {kind} image") from None
 
 
 def _png_size(p: Path) -> tuple[int, int]:

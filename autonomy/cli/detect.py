@@ -1,7 +1,8 @@
 """``lander detect``: run a landing-site detector offline on recorded data.
 
     lander detect --lidar CLOUD.{npy,ply,las,laz} [--judge] [--roofs] [--out DIR]
-    lander detect --depth DEPTH.{npy,png} --fx F --fy F --cx C --cy C [--pose x,y,z,yaw]
+    lander detect --depth DEPTH.{npy,png,tif} (--camera-info FILE | --fx F --fy F --cx C --cy C)
+                  [--depth-scale M] [--pose x,y,z,yaw]
 
 Prints a table of sites (best first) and writes ``sites.csv`` and ``overlay.png`` (points or
 depth coloured by height, sites drawn with their radii) into ``--out``; a LAS/LAZ file with
@@ -425,17 +426,28 @@ def _write_geojson(path: Path, rows: list[dict], georef) -> None:
 
 
 def run_depth(args: argparse.Namespace, out_dir: Path) -> int:
+    from lsd.camera_info import read_camera_info
     from lsd.depth_costmap.detector import DepthCostmapDetector, DepthCostmapSettings
     from lsd.frames import DepthFrame, Intrinsics
     from lsd.io import DataFileError, read_depth_image
 
-    for flag in ("fx", "fy", "cx", "cy"):
+    info = None
+    if args.camera_info is not None:
+        try:
+            info = read_camera_info(args.camera_info)
+        except DataFileError as exc:
+            raise UserError(str(exc)) from None
+    intrinsics = {}
+    for flag in ("fx", "fy", "cx", "cy"):  # flags given override the calibration file
         value = getattr(args, flag)
+        if value is None and info is not None:
+            value = getattr(info, flag)
         if value is None:
-            raise UserError(f"--{flag}: required with --depth")
+            raise UserError(f"--{flag}: required with --depth (or --camera-info FILE)")
         if not math.isfinite(value) or (flag in ("fx", "fy") and value <= 0):
             raise UserError(f"--{flag}: must be {'positive' if flag in ('fx', 'fy') else 'finite'}"
                             f", got {value}")
+        intrinsics[flag] = value
     settings = _settings(
         DepthCostmapSettings,
         {
@@ -450,16 +462,26 @@ def run_depth(args: argparse.Namespace, out_dir: Path) -> int:
         },
     )
     try:
-        depth = read_depth_image(args.depth)
+        depth = read_depth_image(args.depth, **(
+            {} if args.depth_scale is None else {"unit": args.depth_scale}))
     except DataFileError as exc:
         raise UserError(str(exc)) from None
     h, w = depth.shape
+    if info is not None and info.width is not None and info.height is not None:
+        if (info.width, info.height) != (w, h):
+            raise UserError(
+                f"{args.camera_info}: calibrated for {info.width} x {info.height} images, "
+                f"but {args.depth} is {w} x {h}"
+            )
+    if info is not None and info.distorted:
+        print(f"note: {args.camera_info} has lens distortion coefficients; the detector takes "
+              "the depth image as rectified (pinhole), as depth cameras stream it")
     with np.errstate(invalid="ignore"):
         usable = np.isfinite(depth) & (depth > 0)
     if not usable.any():
         raise UserError(f"{args.depth}: no valid depth (every pixel is zero, negative or NaN)")
     position, rotation = parse_pose(args.pose)
-    k = Intrinsics(args.fx, args.fy, args.cx, args.cy, w, h)
+    k = Intrinsics(intrinsics["fx"], intrinsics["fy"], intrinsics["cx"], intrinsics["cy"], w, h)
     frame = DepthFrame(depth, None, k, position, rotation)
     det = DepthCostmapDetector(settings)
     det.process(frame)
@@ -514,7 +536,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="find landing sites in a recorded point cloud or depth image",
         description="Run the LiDAR PCA detector on a point cloud (.npy Nx3, .ply, .las/.laz "
         "with the 'las' extra) or the depth-costmap detector on a depth image (.npy metres, "
-        "16-bit .png millimetres). Prints the sites and writes sites.csv and overlay.png.",
+        "16-bit .png or .tif in --depth-scale units, float .tif metres). Prints the sites and "
+        "writes sites.csv and overlay.png.",
     )
     src = parser.add_argument_group("input (one of)")
     src.add_argument("--lidar", metavar="FILE", help="point cloud in the world frame")
@@ -563,6 +586,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                        help="the paper's checks only (no off-plane, off-the-data or obstacle "
                        "cuts of the radius)")
     depth = parser.add_argument_group("depth costmap detector")
+    depth.add_argument("--camera-info", metavar="FILE",
+                       help="intrinsics from a ROS camera_info YAML (ost.yaml or an echoed "
+                       "CameraInfo) or an OpenCV calibration file; --fx/--fy/--cx/--cy "
+                       "override it")
+    depth.add_argument("--depth-scale", type=types.number(0, 1e3, low_open=True),
+                       metavar="M",
+                       help="metres per unit of a 16-bit depth image, default 0.001 "
+                       "(millimetres; TUM RGB-D and Kinect v1: 0.0002)")
     for flag in ("fx", "fy"):
         depth.add_argument(f"--{flag}", type=types.number(0, 1e6, low_open=True),
                            help="focal length (pixels)")

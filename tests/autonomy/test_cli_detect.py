@@ -146,6 +146,100 @@ def test_depth_pose_as_4x4_matrix(tmp_path):
     assert read_sites(tmp_path / "a") == read_sites(tmp_path / "b")
 
 
+K = {"fx": 320.0, "fy": 320.0, "cx": 319.5, "cy": 239.5}  # the intrinsics of INTRINSICS
+
+
+def write_calibrations(tmp_path, distortion=(0.0, 0.0, 0.0, 0.0, 0.0), size=(640, 480)):
+    """The same intrinsics as ROS camera_calibration's ost.yaml, a ROS 2 CameraInfo echoed
+    as YAML, and OpenCV calibration files written by cv::FileStorage (YAML and XML)."""
+    matrix = [K["fx"], 0.0, K["cx"], 0.0, K["fy"], K["cy"], 0.0, 0.0, 1.0]
+    w, h = size
+    (tmp_path / "ost.yaml").write_text(
+        f"image_width: {w}\nimage_height: {h}\ncamera_name: depth\n"
+        f"camera_matrix:\n  rows: 3\n  cols: 3\n  data: {matrix}\n"
+        "distortion_model: plumb_bob\n"
+        f"distortion_coefficients:\n  rows: 1\n  cols: 5\n  data: {list(distortion)}\n"
+    )
+    (tmp_path / "info.yaml").write_text(  # `ros2 topic echo --once .../camera_info`
+        "header:\n  stamp:\n    sec: 1\n    nanosec: 0\n  frame_id: depth_optical\n"
+        f"height: {h}\nwidth: {w}\ndistortion_model: plumb_bob\n"
+        + "d:\n" + "".join(f"- {c}\n" for c in distortion)
+        + "k:\n" + "".join(f"- {c}\n" for c in matrix)
+        + "binning_x: 0\nbinning_y: 0\n---\n"
+    )
+    for name in ("calib.yml", "calib.xml"):
+        fs = cv2.FileStorage(str(tmp_path / name), cv2.FILE_STORAGE_WRITE)
+        fs.write("image_width", w)
+        fs.write("image_height", h)
+        fs.write("camera_matrix", np.array(matrix).reshape(3, 3))
+        fs.write("distortion_coefficients", np.array([distortion], dtype=float))
+        fs.release()
+    return [tmp_path / n for n in ("ost.yaml", "info.yaml", "calib.yml", "calib.xml")]
+
+
+def test_intrinsics_from_ros_and_opencv_calibration_files(tmp_path, capsys):
+    np.save(tmp_path / "d.npy", nadir_depth())
+    pose = ("--pose", "10,5,20,0")
+    assert lander("--depth", tmp_path / "d.npy", *INTRINSICS, *pose, "--out", tmp_path / "a") == 0
+    expected = read_sites(tmp_path / "a")
+    assert expected
+    for calibration in write_calibrations(tmp_path):
+        out = tmp_path / calibration.name.replace(".", "_")
+        assert lander("--depth", tmp_path / "d.npy", "--camera-info", calibration, *pose,
+                      "--out", out) == 0, calibration.name
+        assert read_sites(out) == expected, calibration.name
+    assert "distortion" not in capsys.readouterr().out  # all coefficients zero
+    # A flag overrides the file: a different focal length gives other sites.
+    assert lander("--depth", tmp_path / "d.npy", "--camera-info", tmp_path / "ost.yaml",
+                  "--fx", 400, "--fy", 400, *pose, "--out", tmp_path / "f") == 0
+    assert read_sites(tmp_path / "f") != expected
+
+
+def test_a_calibration_with_distortion_is_named_and_one_for_another_size_refused(
+    tmp_path, capsys
+):
+    np.save(tmp_path / "d.npy", nadir_depth())
+    ost = write_calibrations(tmp_path, distortion=(0.1, -0.2, 0.0, 0.0, 0.0))[0]
+    assert lander("--depth", tmp_path / "d.npy", "--camera-info", ost,
+                  "--out", tmp_path / "a") == 0
+    assert f"note: {ost} has lens distortion coefficients" in capsys.readouterr().out
+    other = tmp_path / "other"
+    other.mkdir()
+    ost = write_calibrations(other, size=(1280, 720))[0]
+    assert lander("--depth", tmp_path / "d.npy", "--camera-info", ost,
+                  "--out", tmp_path / "b") == 2
+    err = capsys.readouterr().err
+    assert "calibrated for 1280 x 720 images, but" in err and "is 640 x 480" in err
+
+
+def test_depth_scale_and_tiff_depth_images(tmp_path):
+    depth = nadir_depth() / 2  # 10 m down: 50,000 units at 5000 per metre fit 16 bits
+    pose = ("--pose", "10,5,10,0")
+    assert lander("--depth", _save(tmp_path, "d.npy", depth), *INTRINSICS, *pose,
+                  "--out", tmp_path / "a") == 0
+    expected = read_sites(tmp_path / "a")
+    # TUM RGB-D and Kinect v1 write 5000 units per metre; a float TIFF holds metres.
+    tum = np.round(depth * 5000).astype(np.uint16)
+    assert cv2.imwrite(str(tmp_path / "tum.png"), tum)
+    assert cv2.imwrite(str(tmp_path / "tum.tif"), tum)
+    assert cv2.imwrite(str(tmp_path / "metres.tif"), depth)
+    for name, scale in (("tum.png", ["--depth-scale", 0.0002]),
+                        ("tum.tif", ["--depth-scale", 0.0002]), ("metres.tif", [])):
+        out = tmp_path / name.replace(".", "_")
+        assert lander("--depth", tmp_path / name, *scale, *INTRINSICS, *pose,
+                      "--out", out) == 0, name
+        assert read_sites(out) == expected, name
+    # Read as millimetres, the same image is ground 50 m down: other sites.
+    assert lander("--depth", tmp_path / "tum.png", *INTRINSICS, *pose,
+                  "--out", tmp_path / "mm") == 0
+    assert read_sites(tmp_path / "mm") != expected
+
+
+def _save(tmp_path, name, array):
+    np.save(tmp_path / name, array)
+    return tmp_path / name
+
+
 def make_bad(tmp_path):
     """Name -> (argv, expected words in the one error line)."""
     (tmp_path / "text.ply").write_text("hello, not a cloud\n")
@@ -162,6 +256,13 @@ def make_bad(tmp_path):
     np.save(tmp_path / "depth.npy", nadir_depth())
     cv2.imwrite(str(tmp_path / "eight.png"), np.zeros((48, 64), dtype=np.uint8))
     (tmp_path / "fake.png").write_text("not an image")
+    (tmp_path / "fake.tif").write_bytes(b"II*\0 not a TIFF")
+    cv2.imwrite(str(tmp_path / "rgb.tif"), np.zeros((48, 64, 3), dtype=np.uint8))
+    (tmp_path / "nomatrix.yaml").write_text("width: 640\nheight: 480\n")
+    (tmp_path / "uncalibrated.yaml").write_text("k: [0, 0, 0, 0, 0, 0, 0, 0, 0]\n")
+    (tmp_path / "short.yaml").write_text("camera_matrix:\n  rows: 3\n  data: [1, 2, 3]\n")
+    (tmp_path / "broken.yaml").write_text("k: [1, 0\n  width: : 3\n")
+    (tmp_path / "broken.xml").write_text("<?xml version='1.0'?>\n<opencv_storage><x>1")
     depth = tmp_path / "depth.npy"
     return {
         "ply magic": (["--lidar", tmp_path / "text.ply"], "not a PLY file"),
@@ -181,6 +282,21 @@ def make_bad(tmp_path):
         "fy negative": (["--depth", depth, "--fx", 1, "--fy", -3, "--cx", 1, "--cy", 1],
                         "--fy"),
         "no intrinsics": (["--depth", depth], "--fx: required"),
+        "fake tif": (["--depth", tmp_path / "fake.tif", *INTRINSICS], "not a readable TIFF"),
+        "rgb tif": (["--depth", tmp_path / "rgb.tif", *INTRINSICS], "single-channel TIFF"),
+        "no matrix": (["--depth", depth, "--camera-info", tmp_path / "nomatrix.yaml"],
+                      "no camera matrix"),
+        "uncalibrated": (["--depth", depth, "--camera-info", tmp_path / "uncalibrated.yaml"],
+                         "k: all zeros"),
+        "short matrix": (["--depth", depth, "--camera-info", tmp_path / "short.yaml"],
+                         "camera_matrix.data: expected a 3 x 3 matrix (9 numbers), got 3"),
+        "broken yaml": (["--depth", depth, "--camera-info", tmp_path / "broken.yaml"],
+                        "broken.yaml: line 2"),
+        "broken xml": (["--depth", depth, "--camera-info", tmp_path / "broken.xml"],
+                       "not a readable OpenCV calibration file"),
+        "no calibration": (["--depth", depth, "--camera-info", tmp_path / "none.yaml"],
+                           "cannot read"),
+        "scale": (["--depth", depth, *INTRINSICS, "--depth-scale", -1], "--depth-scale"),
         "bad pose": (["--depth", depth, *INTRINSICS, "--pose", "1,2"], "--pose"),
         "both": (["--depth", depth, "--lidar", tmp_path / "empty.npy"], "exactly one"),
         "neither": ([], "exactly one"),
