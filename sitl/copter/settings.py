@@ -236,10 +236,6 @@ class SitlSettings(BaseModel):
         1.0, gt=0, le=60, description="PX4 leaves OFFBOARD when setpoints stop this long, s, "
         "up to a minute"
     )
-    offboard_min_rate: float = Field(
-        2.0, gt=0, le=MAX_STREAM_RATE, description="PX4 needs setpoints at least this often "
-        "(Hz, up to 100) to enter OFFBOARD"
-    )
     crash_speed: float = Field(
         2.0, gt=0, le=100, description="touching down faster than this (vertical, m/s, up to "
         "100) is a crash"
