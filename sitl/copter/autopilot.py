@@ -297,6 +297,11 @@ class Autopilot:
             self.descent_limit = min(speed, m.max_descent_speed)
         return ACCEPTED
 
+    def terminate(self, on: bool) -> int:
+        """MAV_CMD_DO_FLIGHTTERMINATION: ``on`` stops the motors at once, wherever the vehicle
+        is (it falls)."""
+        return UNSUPPORTED
+
     def point_yaw(self, heading: float, relative: bool, direction: float) -> int:
         """MAV_CMD_CONDITION_YAW in guided flight: turn to ``heading`` (rad clockwise from
         north), or by it when ``relative``."""

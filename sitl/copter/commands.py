@@ -99,6 +99,7 @@ class Commands:
             c.MAV_CMD_DO_LAND_START: self._do_land_start,
             c.MAV_CMD_DO_SET_MISSION_CURRENT: self._set_mission_current,
             c.MAV_CMD_CONDITION_YAW: self._condition_yaw,
+            c.MAV_CMD_DO_FLIGHTTERMINATION: self._flight_termination,
         }
 
     def handle(self, link: Link, request: CommandRequest) -> int:
@@ -175,6 +176,11 @@ class Commands:
         if arm == 0.0:
             return ap.disarm(force=magic == FORCE_DISARM)
         return DENIED
+
+    def _flight_termination(self, link: Link, r: CommandRequest) -> int:
+        """MAVSDK's terminate(): param1 > 0.5 stops the motors, in the air too."""
+        value = r.value(1)
+        return self.autopilot.terminate(value is not None and value > 0.5)
 
     def _takeoff(self, link: Link, r: CommandRequest) -> int:
         return self.autopilot.takeoff(r.params[6] if r.value(7) is not None else math.nan)

@@ -146,6 +146,15 @@ class ArduCopter(Autopilot):
     def return_to_launch(self) -> int:
         return self.set_mode("RTL")
 
+    def terminate(self, on: bool) -> int:
+        # GCS_MAVLINK_Copter::handle_flight_termination (no advanced failsafe): a disarm,
+        # in flight too; param1 <= 0.5 fails.
+        if not on:
+            return FAILED
+        if self.armed:
+            self._disarm("Disarming motors")
+        return ACCEPTED
+
     def position_target(self, setpoint: Setpoint) -> None:
         # Honoured in GUIDED only; a takeoff in progress is overridden, as on ArduPilot.
         if self.mode != "GUIDED":
@@ -275,6 +284,7 @@ class Px4Copter(Autopilot):
     def __init__(self, *args, **kwargs) -> None:
         super().__init__(*args, **kwargs)
         self.last_setpoint_time = -math.inf
+        self.terminated = False  # a flight termination holds until reboot
         self.offboard = Setpoint(position=self.model.position, hold_ground=True)
 
     @property
@@ -296,6 +306,9 @@ class Px4Copter(Autopilot):
             self.text(_CRITICAL, "Arming denied: vehicle crashed")
             return TEMPORARILY_REJECTED
         if not force:
+            if self.terminated:
+                self.text(_CRITICAL, "Preflight Fail: Flight termination active")
+                return TEMPORARILY_REJECTED
             if not self.settled:
                 self.text(_CRITICAL, "Preflight Fail: ekf2 not ready")
                 return TEMPORARILY_REJECTED
@@ -368,6 +381,17 @@ class Px4Copter(Autopilot):
 
     def return_to_launch(self) -> int:
         return self.set_mode("AUTO.RTL")
+
+    def terminate(self, on: bool) -> int:
+        # Commander, DO_FLIGHTTERMINATION: param1 > 0.5 sets the outputs to their failsafe
+        # values (motors off) until reboot; the vehicle stays armed until the land detector's
+        # auto-disarm. param1 <= 0.5 lifts it. Accepted either way.
+        self.terminated = on
+        if on:
+            self.model.motors_on = False
+        elif self.armed:
+            self.model.motors_on = True
+        return ACCEPTED
 
     def position_target(self, setpoint: Setpoint) -> None:
         # Recorded in any mode (that is how OFFBOARD sees the stream); flown in OFFBOARD.

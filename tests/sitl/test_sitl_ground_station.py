@@ -500,6 +500,32 @@ def test_change_speed_limits_guided_flight():
     assert math.hypot(*sim.truth.velocity[:2]) == pytest.approx(3.0, abs=0.2)
 
 
+@pytest.mark.parametrize("autopilot", ["ardupilot", "px4"])
+def test_flight_termination_stops_the_motors_in_the_air(autopilot):
+    sim, gcs = connect(autopilot)
+    airborne(sim, gcs)
+    gcs.command(C.MAV_CMD_DO_FLIGHTTERMINATION, 1)
+    run(sim, gcs, 0.2)
+    assert last_ack(gcs, C.MAV_CMD_DO_FLIGHTTERMINATION) == C.MAV_RESULT_ACCEPTED
+    # ArduPilot Copter disarms; PX4 cuts the outputs and disarms once landed.
+    assert sim.truth.armed == (autopilot == "px4")
+    assert run(sim, gcs, 10, until=lambda: sim.truth.landed)
+    run(sim, gcs, 3)
+    assert not sim.truth.armed
+    gcs.arm()
+    run(sim, gcs, 0.2)
+    if autopilot == "px4":  # until reboot
+        assert last_ack(gcs, C.MAV_CMD_COMPONENT_ARM_DISARM) != C.MAV_RESULT_ACCEPTED
+
+
+def test_ardupilot_flight_termination_needs_param1():
+    sim, gcs = connect()
+    settle(sim, gcs)
+    gcs.command(C.MAV_CMD_DO_FLIGHTTERMINATION, 0)
+    run(sim, gcs, 0.2)
+    assert last_ack(gcs, C.MAV_CMD_DO_FLIGHTTERMINATION) == C.MAV_RESULT_FAILED
+
+
 def test_body_frame_velocity_moves_along_the_heading():
     sim, gcs = connect()
     airborne(sim, gcs)
