@@ -282,6 +282,15 @@ class Autopilot:
         vehicle is not in the mode that takes it."""
         return False
 
+    def speed_command(self, kind: int | None, speed: float | None) -> int:
+        """MAV_CMD_DO_CHANGE_SPEED from a ground station: ``speed`` None or -1 keeps the
+        current speed (PX4)."""
+        if speed is None or speed == -1.0:
+            return ACCEPTED
+        if speed <= 0.0 or kind not in (0, 1, 2, 3):
+            return DENIED
+        return self.change_speed(kind, speed)
+
     def change_speed(self, kind: int, speed: float) -> int:
         """MAV_CMD_DO_CHANGE_SPEED: ``kind`` 0/1 horizontal, 2 climb, 3 descent; m/s. Holds
         until the next mode change; a speed below ArduPilot's floor (WPNAV_WP_SPEED_MIN,

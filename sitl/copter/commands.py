@@ -227,13 +227,7 @@ class Commands:
 
     def _do_change_speed(self, link: Link, r: CommandRequest) -> int:
         """param1 speed type (0 air, 1 ground, 2 climb, 3 descent), param2 m/s (-1: unchanged)."""
-        kind = r.integer(1, 1)
-        speed = r.value(2)
-        if speed is None or speed == -1.0:
-            return ACCEPTED
-        if speed <= 0.0 or kind not in (0, 1, 2, 3):
-            return DENIED
-        return self.autopilot.change_speed(kind, speed)
+        return self.autopilot.speed_command(r.integer(1, 1), r.value(2))
 
     def _mission_start(self, link: Link, r: CommandRequest) -> int:
         first = r.integer(1, 0)

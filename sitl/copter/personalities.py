@@ -64,6 +64,7 @@ class ArduCopter(Autopilot):
     _needs_position = frozenset(
         {"GUIDED", "AUTO", "LOITER", "RTL", "SMART_RTL", "POSHOLD", "BRAKE"}
     )
+    _speed_modes = frozenset({"AUTO", "GUIDED", "RTL", "SMART_RTL"})
 
     @property
     def base_mode(self) -> int:
@@ -145,6 +146,16 @@ class ArduCopter(Autopilot):
 
     def return_to_launch(self) -> int:
         return self.set_mode("RTL")
+
+    def speed_command(self, kind: int | None, speed: float | None) -> int:
+        # GCS_MAVLINK_Copter::handle_MAV_CMD_DO_CHANGE_SPEED: a speed that is not positive
+        # (-1, NaN) is denied; only AUTO, GUIDED and RTL (SMART_RTL is an RTL) have a speed
+        # to set (Mode::set_speed_xy_cms and its kin), every other mode fails it.
+        if speed is None or speed <= 0.0 or kind == 4:  # 4: SPEED_TYPE_ENUM_END
+            return DENIED
+        if kind not in (0, 1, 2, 3) or self.mode not in self._speed_modes:
+            return FAILED
+        return self.change_speed(kind, speed)
 
     def terminate(self, on: bool) -> int:
         # GCS_MAVLINK_Copter::handle_flight_termination (no advanced failsafe): a disarm,

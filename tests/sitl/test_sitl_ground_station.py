@@ -500,6 +500,20 @@ def test_change_speed_limits_guided_flight():
     assert math.hypot(*sim.truth.velocity[:2]) == pytest.approx(3.0, abs=0.2)
 
 
+def test_ardupilot_change_speed_only_where_a_mode_has_a_speed():
+    # GCS_MAVLINK_Copter::handle_MAV_CMD_DO_CHANGE_SPEED: LOITER has no speed to set
+    # (FAILED, so MAVSDK's set_current_speed reports it); -1 is not a speed (DENIED).
+    sim, gcs = connect()
+    airborne(sim, gcs)
+    gcs.command(C.MAV_CMD_DO_CHANGE_SPEED, 1, -1, -1, 0)
+    run(sim, gcs, 0.2)
+    assert last_ack(gcs, C.MAV_CMD_DO_CHANGE_SPEED) == C.MAV_RESULT_DENIED
+    gcs.set_mode(ARDUPILOT_LOITER)
+    gcs.command(C.MAV_CMD_DO_CHANGE_SPEED, 1, 3.0, -1, 0)
+    run(sim, gcs, 0.2)
+    assert last_ack(gcs, C.MAV_CMD_DO_CHANGE_SPEED) == C.MAV_RESULT_FAILED
+
+
 @pytest.mark.parametrize("autopilot", ["ardupilot", "px4"])
 def test_flight_termination_stops_the_motors_in_the_air(autopilot):
     sim, gcs = connect(autopilot)
