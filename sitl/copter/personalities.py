@@ -99,6 +99,7 @@ class ArduCopter(Autopilot):
                 self.text(_CRITICAL, "Arm: Need Position Estimate")
                 return FAILED
         self._arm()
+        self.text(_INFO, "Arming motors")  # AP_Arming_Copter::arm, in SITL builds
         return ACCEPTED
 
     def set_mode(self, name: str) -> int:

@@ -107,6 +107,7 @@ def test_arming_denied_with_prearm_text_until_settled():
     assert gcs.acks(mavlink.MAV_CMD_COMPONENT_ARM_DISARM)[-1] == mavlink.MAV_RESULT_ACCEPTED
     assert sim.truth.armed
     assert gcs.last["HEARTBEAT"].base_mode & mavlink.MAV_MODE_FLAG_SAFETY_ARMED
+    assert gcs.texts()[-1] == "Arming motors"  # what ArduPilot's SITL builds say
 
 
 def test_guided_refused_until_the_position_estimate_settles():
