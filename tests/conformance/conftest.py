@@ -28,15 +28,17 @@ from conformance_support import start_vehicle as _start_vehicle  # noqa: E402
 
 @pytest.fixture
 def start_vehicle(tmp_path):
-    """start_vehicle("ardupilot"|"px4", px4_speedup=None) -> Vehicle, in a temporary folder;
-    stopped (its whole process group) after the test. ``px4_speedup`` caps the speed-up of a
-    real PX4 SITL (CONFORMANCE_PX4)."""
+    """start_vehicle("ardupilot"|"px4", px4_speedup=None, speedup=None) -> Vehicle, in a
+    temporary folder; stopped (its whole process group) after the test. ``px4_speedup`` caps
+    the speed-up of a real PX4 SITL (CONFORMANCE_PX4), ``speedup`` the embedded SITL's."""
     started: list[Vehicle] = []
 
-    def start(autopilot: str, px4_speedup: float | None = None) -> Vehicle:
+    def start(
+        autopilot: str, px4_speedup: float | None = None, speedup: float | None = None
+    ) -> Vehicle:
         workdir = tmp_path / f"vehicle{len(started)}"
         workdir.mkdir()
-        vehicle = _start_vehicle(autopilot, workdir, px4_speedup)
+        vehicle = _start_vehicle(autopilot, workdir, px4_speedup, speedup)
         started.append(vehicle)
         return vehicle
 

@@ -34,6 +34,7 @@ Timeouts are stated in simulated seconds and turned into generous wall-clock lim
 
 from __future__ import annotations
 
+import asyncio
 import math
 import os
 import re
@@ -186,7 +187,7 @@ class Vehicle:
             )
 
 
-def start_embedded(autopilot: str, workdir: Path) -> Vehicle:
+def start_embedded(autopilot: str, workdir: Path, speedup: float = SPEEDUP) -> Vehicle:
     tcp = free_port()
     sdk = gcs = None
     log = workdir / f"lander-sitl-{autopilot}.log"
@@ -194,14 +195,14 @@ def start_embedded(autopilot: str, workdir: Path) -> Vehicle:
         sys.executable, "-m", "autonomy", "sitl",
         "--autopilot", autopilot,
         "--tcp", f"127.0.0.1:{tcp}",
-        "--speedup", f"{SPEEDUP:g}",
+        "--speedup", f"{speedup:g}",
         "--home", ",".join(str(v) for v in HOME),
     ]  # fmt: skip
     if autopilot == "px4":
         sdk, gcs = free_port(socket.SOCK_DGRAM), free_port(socket.SOCK_DGRAM)
         argv += ["--udp-out", f"127.0.0.1:{sdk}", "--udp-out", f"127.0.0.1:{gcs}"]
     proc = start_process(argv, workdir, log)
-    vehicle = Vehicle(autopilot, False, tcp, sdk, gcs, SPEEDUP, workdir, log, proc)
+    vehicle = Vehicle(autopilot, False, tcp, sdk, gcs, speedup, workdir, log, proc)
     wait_for_tcp(tcp, 60, proc, log)
     return vehicle
 
@@ -281,15 +282,21 @@ def start_px4(workdir: Path, speedup: float = PX4_SPEEDUP) -> Vehicle:
     return vehicle
 
 
-def start_vehicle(autopilot: str, workdir: Path, px4_speedup: float | None = None) -> Vehicle:
+def start_vehicle(
+    autopilot: str,
+    workdir: Path,
+    px4_speedup: float | None = None,
+    speedup: float | None = None,
+) -> Vehicle:
     """The vehicle under test: the autopilot's own SITL if CONFORMANCE_ARDUCOPTER or
     CONFORMANCE_PX4 names it, else the embedded SITL in that personality. ``px4_speedup``
-    caps a real PX4's speed-up (the embedded SITL keeps ``CONFORMANCE_SPEEDUP``)."""
+    caps a real PX4's speed-up; ``speedup`` caps the embedded SITL's (``CONFORMANCE_SPEEDUP``),
+    for clients that stream at a fixed wall-clock rate (MAVSDK's offboard setpoints, 20 Hz)."""
     if autopilot == "ardupilot" and ARDUCOPTER:
         return start_arducopter(workdir)
     if autopilot == "px4" and PX4:
         return start_px4(workdir, min(PX4_SPEEDUP, px4_speedup or PX4_SPEEDUP))
-    return start_embedded(autopilot, workdir)
+    return start_embedded(autopilot, workdir, min(SPEEDUP, speedup or SPEEDUP))
 
 
 
@@ -304,6 +311,71 @@ def mavsdk_address(vehicle: Vehicle) -> str:
     if vehicle.autopilot == "px4":
         return f"udpin://127.0.0.1:{vehicle.sdk_port}"
     return f"tcpout://127.0.0.1:{vehicle.tcp_port}"
+
+
+async def within(aw, timeout: float, what: str):
+    """``await aw``, failing the test when it takes more than ``timeout`` wall seconds."""
+    try:
+        return await asyncio.wait_for(aw, timeout)
+    except asyncio.TimeoutError:
+        raise AssertionError(f"{what}: no answer within {timeout:.0f} s") from None
+
+
+async def until(stream, condition, timeout: float, what: str):
+    """First item of a telemetry stream that satisfies ``condition``."""
+    last = []
+
+    async def scan():
+        async for item in stream:
+            last[:] = [item]
+            if condition(item):
+                return item
+
+    try:
+        return await asyncio.wait_for(scan(), timeout)
+    except asyncio.TimeoutError:
+        seen = last[0] if last else "nothing"
+        raise AssertionError(f"{what}: not reached in {timeout:.0f} s; last seen: {seen}") from None
+
+
+async def connect(vehicle: Vehicle, mavsdk_server):
+    """A MAVSDK System connected (through the ``mavsdk_server`` fixture) to ``vehicle``."""
+    from mavsdk import System
+
+    host, port = mavsdk_server(mavsdk_address(vehicle))
+    drone = System(mavsdk_server_address=host, port=port)
+    await within(drone.connect(), vehicle.wall(10), "gRPC connection to mavsdk_server")
+    await until(
+        drone.core.connection_state(),
+        lambda s: s.is_connected,
+        vehicle.wall(30),
+        f"MAVSDK discovers {vehicle.name}",
+    )
+    return drone
+
+
+async def arm_and_takeoff(drone, vehicle: Vehicle) -> None:
+    """Arm and take off to MAVSDK's takeoff altitude. While the estimator settles the
+    autopilot refuses (ArduPilot passes its pre-arm check in STABILIZE before GUIDED, which
+    takeoff needs, has a position estimate, and disarms again if left on the ground): retry,
+    within limits."""
+    from mavsdk.action import ActionError
+
+    w, tel = vehicle.wall, drone.telemetry
+    loop = asyncio.get_running_loop()
+    deadline, refusals = loop.time() + w(90), []
+    while True:
+        try:
+            if not await until(tel.armed(), lambda a: True, w(10), "armed state"):
+                await within(drone.action.arm(), w(10), "arm")
+                await until(tel.armed(), lambda a: a, w(10), "armed")
+            await within(drone.action.takeoff(), w(20), "takeoff")
+            return
+        except ActionError as exc:
+            refusals.append(str(exc))
+            if loop.time() > deadline:
+                raise AssertionError(f"arm/takeoff refused until then: {refusals}") from None
+            await asyncio.sleep(vehicle.sim_sleep(2.0))
 
 
 def start_mavsdk_server(address: str, workdir: Path) -> tuple[subprocess.Popen, Path, int]:

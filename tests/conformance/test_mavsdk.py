@@ -14,9 +14,7 @@ import asyncio
 import math
 
 import pytest
-from conformance_support import HOME, distance, mavsdk_address, offset
-from mavsdk import System
-from mavsdk.action import ActionError
+from conformance_support import HOME, arm_and_takeoff, connect, distance, offset, until, within
 from mavsdk.mission import MissionItem, MissionPlan
 from mavsdk.mission_raw import MissionItem as RawItem
 from mavsdk.telemetry import LandedState, TelemetryError
@@ -32,43 +30,6 @@ MAV_FRAME_GLOBAL_RELATIVE_ALT_INT = 6
 MAV_CMD_NAV_WAYPOINT = 16
 # *_INT frames mean the same as their float twins (ArduPilot answers with the latter).
 SAME_FRAME = {5: 0, 6: 3, 11: 10}
-
-
-async def within(aw, timeout: float, what: str):
-    try:
-        return await asyncio.wait_for(aw, timeout)
-    except asyncio.TimeoutError:
-        raise AssertionError(f"{what}: no answer within {timeout:.0f} s") from None
-
-
-async def until(stream, condition, timeout: float, what: str):
-    """First item of a telemetry stream that satisfies ``condition``."""
-    last = []
-
-    async def scan():
-        async for item in stream:
-            last[:] = [item]
-            if condition(item):
-                return item
-
-    try:
-        return await asyncio.wait_for(scan(), timeout)
-    except asyncio.TimeoutError:
-        seen = last[0] if last else "nothing"
-        raise AssertionError(f"{what}: not reached in {timeout:.0f} s; last seen: {seen}") from None
-
-
-async def connect(vehicle, mavsdk_server) -> System:
-    host, port = mavsdk_server(mavsdk_address(vehicle))
-    drone = System(mavsdk_server_address=host, port=port)
-    await within(drone.connect(), vehicle.wall(10), "gRPC connection to mavsdk_server")
-    await until(
-        drone.core.connection_state(),
-        lambda s: s.is_connected,
-        vehicle.wall(30),
-        f"MAVSDK discovers {vehicle.name}",
-    )
-    return drone
 
 
 @pytest.mark.parametrize("autopilot", AUTOPILOTS)
@@ -196,23 +157,7 @@ def test_mavsdk_flies_goto_mission_and_return(start_vehicle, mavsdk_server, auto
         h_lat, h_lon, h_amsl = home.latitude_deg, home.longitude_deg, home.absolute_altitude_m
 
         await within(drone.action.set_takeoff_altitude(10.0), w(20), "set takeoff altitude")
-        # Arm and take off. While the estimator settles the autopilot refuses (ArduPilot
-        # passes its pre-arm check in STABILIZE before GUIDED, which takeoff needs, has a
-        # position estimate, and disarms again if left on the ground): retry, within limits.
-        loop = asyncio.get_running_loop()
-        deadline, refusals = loop.time() + w(90), []
-        while True:
-            try:
-                if not await until(tel.armed(), lambda a: True, w(10), "armed state"):
-                    await within(drone.action.arm(), w(10), "arm")
-                    await until(tel.armed(), lambda a: a, w(10), "armed")
-                await within(drone.action.takeoff(), w(20), "takeoff")
-                break
-            except ActionError as exc:
-                refusals.append(str(exc))
-                if loop.time() > deadline:
-                    raise AssertionError(f"arm/takeoff refused until then: {refusals}") from None
-                await asyncio.sleep(vehicle.sim_sleep(2.0))
+        await arm_and_takeoff(drone, vehicle)
         await until(tel.in_air(), lambda a: a, w(30), "in air")
         await until(
             tel.position(), lambda p: p.relative_altitude_m > 9.0, w(60), "climb to 10 m"
