@@ -447,8 +447,11 @@ class Px4Copter(Autopilot):
         if mode == "OFFBOARD":
             if self._stream_alive():
                 return self.offboard
-            self.text(_CRITICAL, "Failsafe: offboard signal lost, switching to Position")
-            self._enter("POSCTL")
+            # COM_OBL_RC_ACT 0 asks for Position, which needs manual control; with no RC the
+            # failsafe falls through Altitude and Stabilized to Hold (commander's
+            # FailsafeBase, its fallback chain).
+            self.text(_CRITICAL, "Failsafe: offboard signal lost, switching to Hold")
+            self._enter("AUTO.LOITER")
             mode = self.mode
         if mode == "AUTO.TAKEOFF":
             if self.takeoff_target is not None and m.z >= self.takeoff_target - TAKEOFF_REACHED:
