@@ -51,7 +51,8 @@ def start_vehicle(tmp_path):
 @pytest.fixture
 def mavsdk_server(tmp_path):
     """mavsdk_server(address) -> (host, grpc_port) of a mavsdk_server connected to
-    ``address``; stopped after the test."""
+    ``address``; stopped after the test. ``mavsdk_server.processes`` lists their processes
+    (a test may pause one to cut what it streams)."""
     started = []
 
     def start(address: str) -> tuple[str, int]:
@@ -59,8 +60,10 @@ def mavsdk_server(tmp_path):
         workdir.mkdir()
         proc, log, port = start_mavsdk_server(address, workdir)
         started.append((proc, log))
+        start.processes.append(proc)
         return "127.0.0.1", port
 
+    start.processes = []
     yield start
     for proc, log in started:
         stop_process(proc)

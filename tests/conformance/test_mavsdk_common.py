@@ -1,7 +1,8 @@
 """MAVSDK-Python's common copter calls beyond the basic flight, one scenario per autopilot:
 vehicle information, telemetry values, the return altitude, a geofence, offboard control,
 hold, the speed setting, a mission paused, resumed and skipped ahead that returns home, and
-the emergency stops (kill, terminate).
+the emergency stops (kill, terminate). On PX4 the offboard setpoints also stop for a while
+(mavsdk_server paused), and PX4 fails safe into Hold.
 
 What MAVSDK 3.10 sends (its C++ sources, tag v3.10.2): offboard.start() asks for GUIDED on
 ArduPilot and OFFBOARD on PX4 and stop() for Hold (LOITER, AUTO.LOITER); hold() and
@@ -17,9 +18,20 @@ from __future__ import annotations
 
 import asyncio
 import math
+import os
+import signal
 
 import pytest
-from conformance_support import HOME, arm_and_takeoff, connect, distance, offset, until, within
+from conformance_support import (
+    HOME,
+    Monitor,
+    arm_and_takeoff,
+    connect,
+    distance,
+    offset,
+    until,
+    within,
+)
 from mavsdk.action import ActionError
 from mavsdk.geofence import FenceType, GeofenceData, Point, Polygon
 from mavsdk.info import Version
@@ -43,6 +55,7 @@ MAV_CMD_NAV_WAYPOINT = 16
 MAV_CMD_NAV_RETURN_TO_LAUNCH = 20
 MAV_CMD_NAV_FENCE_POLYGON_VERTEX_INCLUSION = 5001
 MAV_MISSION_TYPE_FENCE = 1
+PX4_HOLD = (4 << 16) | (3 << 24)  # AUTO.LOITER in PX4's HEARTBEAT custom_mode
 
 
 def raw_item(seq: int, frame: int, command: int, lat=0.0, lon=0.0, alt=0.0, current=0):
@@ -62,6 +75,23 @@ def speed(v) -> float:
 
 async def mode(tel, name: str, timeout: float):
     return await until(tel.flight_mode(), lambda m: m.name == name, timeout, f"mode {name}")
+
+
+async def offboard_loss(vehicle, server) -> None:
+    """Pause ``server`` (a mavsdk_server streaming offboard setpoints) until the PX4 on
+    ``vehicle`` leaves OFFBOARD for Hold, seen on its ground-station port."""
+    monitor = Monitor(f"udpin:127.0.0.1:{vehicle.gcs_port}")
+    os.kill(server.pid, signal.SIGSTOP)
+    try:
+        await asyncio.to_thread(
+            monitor.wait,
+            lambda m: m.custom_mode() == PX4_HOLD and "offboard" in " ".join(m.texts).lower(),
+            vehicle.wall(10),
+            "Hold after the offboard setpoints stopped",
+        )
+    finally:
+        os.kill(server.pid, signal.SIGCONT)
+        monitor.close()
 
 
 @pytest.mark.parametrize("autopilot", ["ardupilot", "px4"])
@@ -155,6 +185,8 @@ def test_mavsdk_common_calls(start_vehicle, mavsdk_server, autopilot):
         await until(tel.position(), lambda p: p.relative_altitude_m > CRUISE - 1.0, w(60),
                     "climb")  # fmt: skip
         offboard = drone.offboard
+        if not ardupilot:  # room for a stall of MAVSDK's wall-clock stream on a busy machine
+            await within(drone.param.set_param_float("COM_OF_LOSS_T", 3.0), w(10), "loss time")
         # A setpoint first (MAVSDK then streams it), then the mode, as MAVSDK's examples do.
         await within(offboard.set_velocity_ned(VelocityNedYaw(0, 0, 0, 0)), w(10), "setpoint")
         loop = asyncio.get_running_loop()
@@ -176,6 +208,14 @@ def test_mavsdk_common_calls(start_vehicle, mavsdk_server, autopilot):
             w(30),
             f"offboard position {target}",
         )  # fmt: skip
+        if not ardupilot:
+            # The setpoints stop (mavsdk_server paused): after COM_OF_LOSS_T PX4 fails safe
+            # into Hold, as a listening ground station sees; MAVSDK, resumed, sees it too.
+            await offboard_loss(vehicle, mavsdk_server.processes[-1])
+            await mode(tel, "HOLD", w(10))
+            await within(offboard.set_velocity_ned(VelocityNedYaw(0, 0, 0, 0)), w(10), "again")
+            await within(offboard.start(), w(10), "offboard start again")
+            await mode(tel, "OFFBOARD", w(10))
         await within(
             offboard.set_velocity_body(VelocityBodyYawspeed(2.0, 0.0, 0.0, 0.0)), w(10), "vel"
         )
