@@ -230,6 +230,10 @@ class Commands:
         return self.autopilot.speed_command(r.integer(1, 1), r.value(2))
 
     def _mission_start(self, link: Link, r: CommandRequest) -> int:
+        """param1 the first item, param2 the last (0: all). ArduPilot Copter flies the whole
+        mission only and denies anything else (handle_MAV_CMD_MISSION_START)."""
+        if self.autopilot.name == "ardupilot" and not (r.params[0] == 0 and r.params[1] == 0):
+            return DENIED
         first = r.integer(1, 0)
         return self.autopilot.mission_start(first or None)
 

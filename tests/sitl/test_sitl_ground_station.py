@@ -409,6 +409,10 @@ def test_mission_start_and_return_to_launch_item():
         gcs.mission_item(3, C.MAV_CMD_NAV_RETURN_TO_LAUNCH),
     ])
     airborne(sim, gcs, 3.0)
+    gcs.command(C.MAV_CMD_MISSION_START, 2, 0)  # ArduPilot starts no mission part-way
+    run(sim, gcs, 0.2)
+    assert last_ack(gcs, C.MAV_CMD_MISSION_START) == C.MAV_RESULT_DENIED
+    assert sim.truth.mode == "GUIDED"
     gcs.command(C.MAV_CMD_MISSION_START, 0, 0)
     run(sim, gcs, 0.2)
     assert last_ack(gcs, C.MAV_CMD_MISSION_START) == C.MAV_RESULT_ACCEPTED
