@@ -382,7 +382,7 @@ class Autopilot:
         """Switch mode: capture the position to hold and reset phase state."""
         old = self.mode
         self.mode = name
-        self.hold = self.model.position
+        self.hold = self.stopping_point() if name in self.hold_modes else self.model.position
         self.hold_yaw = None
         self.speed_limit = self.climb_limit = self.descent_limit = None
         self.takeoff_target = None
@@ -393,6 +393,18 @@ class Autopilot:
             self.auto.pause()
         if name == self.auto_mode and name != old and self.armed:
             self.auto.start()
+
+    def stopping_point(self) -> tuple[float, float, float]:
+        """Where braking at the horizontal acceleration limit stops the vehicle: what a hold
+        mode holds when entered at speed (ArduPilot's LOITER init_target from the position
+        controller's stopping point; PX4's Hold from calculate_breaking_stop), so the vehicle
+        brakes ahead instead of turning back to where the mode began."""
+        m = self.model
+        speed = math.hypot(m.vx, m.vy)
+        if speed < 1e-3:
+            return m.position
+        ahead = speed / (2.0 * m.max_horizontal_acceleration)  # v^2 / 2a, over v
+        return m.x + m.vx * ahead, m.y + m.vy * ahead, m.z
 
     @property
     def land_final_speed(self) -> float:

@@ -519,6 +519,30 @@ def test_ardupilot_change_speed_only_where_a_mode_has_a_speed():
 
 
 @pytest.mark.parametrize("autopilot", ["ardupilot", "px4"])
+def test_hold_entered_at_speed_brakes_ahead_without_turning_back(autopilot):
+    # ArduPilot's LOITER and PX4's Hold hold the stopping point, not where the mode began.
+    sim, gcs = connect(autopilot)
+    airborne(sim, gcs)
+    if autopilot == "px4":
+        gcs.goto_ned(0.0, 200.0, -10.0)
+        gcs.set_mode(PX4_OFFBOARD, px4=True)
+        for _ in range(300):  # a stream, as PX4 wants in OFFBOARD
+            gcs.goto_ned(0.0, 200.0, -10.0)
+            run(sim, gcs, 0.05)
+    else:
+        gcs.goto_ned(0.0, 200.0, -10.0)
+        run(sim, gcs, 15)
+    assert sim.truth.velocity[0] > 9.0  # east, at full speed
+    gcs.set_mode(PX4_LOITER if autopilot == "px4" else ARDUPILOT_LOITER, px4=autopilot == "px4")
+    east = []
+    for _ in range(200):
+        run(sim, gcs, 0.05)
+        east.append(sim.truth.position[0])
+    assert max(east) - east[-1] < 0.1  # no way back
+    assert abs(sim.truth.velocity[0]) < 0.05
+
+
+@pytest.mark.parametrize("autopilot", ["ardupilot", "px4"])
 def test_flight_termination_stops_the_motors_in_the_air(autopilot):
     sim, gcs = connect(autopilot)
     airborne(sim, gcs)
