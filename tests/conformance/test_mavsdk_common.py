@@ -317,9 +317,7 @@ def test_mavsdk_common_calls(start_vehicle, mavsdk_server, autopilot):
         )
         await within(mission.pause_mission(), w(10), "pause mission")
         await mode(tel, "HOLD", w(10))
-        # (Both autopilots brake to a stop ahead; the SITL holds where Hold began, so it may
-        # come back a little: look once it has settled.)
-        await asyncio.sleep(vehicle.sim_sleep(4.0))
+        # Both autopilots brake to a stop ahead, and stay there.
         paused = await until(tel.velocity_ned(), lambda v: speed(v) < 0.2, w(20), "paused")
         held = await until(tel.position(), lambda p: True, w(10), "position")
         await asyncio.sleep(vehicle.sim_sleep(2.0))
