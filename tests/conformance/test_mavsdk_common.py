@@ -85,7 +85,7 @@ async def offboard_loss(vehicle, server) -> None:
     try:
         await asyncio.to_thread(
             monitor.wait,
-            lambda m: m.custom_mode() == PX4_HOLD and "offboard" in " ".join(m.texts).lower(),
+            lambda m: m.custom_mode() == PX4_HOLD,
             vehicle.wall(10),
             "Hold after the offboard setpoints stopped",
         )
