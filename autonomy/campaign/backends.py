@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import multiprocessing
 import os
+import signal
 import traceback
 import uuid
 from collections import deque
@@ -24,6 +25,8 @@ from autonomy.campaign.worker import error_record, fly_run, fly_with_page
 from autonomy.errors import UserError
 
 WORKER_DIED = "worker process died while flying this run"
+# The fork server imports it first: a Ctrl-C while the server starts ends it quietly.
+QUIET_CTRL_C_MODULE = "autonomy.campaign._quiet_ctrl_c"
 
 
 class Backend(Protocol):
@@ -59,6 +62,21 @@ def _start_context(preload: Sequence[str]) -> multiprocessing.context.BaseContex
     return multiprocessing.get_context("spawn")  # pragma: no cover - Windows
 
 
+def start_fork_server() -> None:
+    """Start the fork server with Ctrl-C held back, as the standard library starts its
+    resource tracker: a Ctrl-C while the server imports the flight stack (seconds) would
+    otherwise print its KeyboardInterrupt traceback. The server takes the held Ctrl-C once
+    it has imported :data:`QUIET_CTRL_C_MODULE`, and then ends quietly."""
+    from multiprocessing import forkserver, resource_tracker
+
+    resource_tracker.ensure_running()  # first: starting it unblocks Ctrl-C when it is done
+    previous = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        forkserver.ensure_running()
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
+
+
 class LocalPool:
     """A ``concurrent.futures.ProcessPoolExecutor`` of fresh worker processes.
 
@@ -80,11 +98,13 @@ class LocalPool:
         if self._context is None and tasks:
             flight_module = getattr(tasks[0].flight, "__module__", None)
             # The server imports these once; every worker forked from it starts with them.
-            preload = ["__main__", "autonomy.campaign.worker"]
+            preload = [QUIET_CTRL_C_MODULE, "__main__", "autonomy.campaign.worker"]
             preload += [flight_module] if flight_module else []
             if tasks[0].flight is fly_with_page:  # lander flights: the stack, warm
                 preload += preload_modules({id(t.mission): t.mission for t in tasks}.values())
             self._context = _start_context(preload)
+            if self._context.get_start_method() == "forkserver":
+                start_fork_server()  # not by the pool: Ctrl-C would reach it at once
         empty_breaks = 0
         while pending:
             suspects: list[RunTask] = []

@@ -76,9 +76,12 @@ def _replace_unencodable_output() -> None:
 
 def main(argv: list[str] | None = None) -> int:
     _replace_unencodable_output()
-    parser = build_parser()
     try:
+        parser = build_parser()  # imports every command's modules: seconds on a cold start
         args = parser.parse_args(argv)
+    except KeyboardInterrupt:
+        print("lander: interrupted", file=sys.stderr)
+        return 130
     except SystemExit as exc:  # --help, --version, or a bad flag (its line is printed)
         return exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 2)
     if not getattr(args, "func", None):

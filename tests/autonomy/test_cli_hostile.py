@@ -8,7 +8,11 @@ from __future__ import annotations
 import errno
 import io
 import json
+import os
+import signal
+import subprocess
 import sys
+import time
 import warnings
 from pathlib import Path
 
@@ -18,6 +22,7 @@ import pytest
 from autonomy.cli import main
 from autonomy.cli.demo import mission_path
 
+REPO = Path(__file__).resolve().parents[2]
 SCRIPTED = mission_path("demo.yaml")
 SKIP_SEARCH = mission_path("skip_search.yaml")
 
@@ -188,6 +193,63 @@ def test_port_0_is_no_address_to_send_to(capsys, argv):
 
 
 # -- the terminal -----------------------------------------------------------------------
+
+
+def _fork_server_of(pid: int) -> bool:
+    """Whether process ``pid`` has started its multiprocessing fork server (a child)."""
+    for entry in Path("/proc").iterdir():
+        try:
+            stat = (entry / "stat").read_text()
+            if int(stat.rsplit(")", 1)[1].split()[1]) == pid:
+                if b"forkserver" in (entry / "cmdline").read_bytes():
+                    return True
+        except (OSError, ValueError, IndexError):
+            continue
+    return False
+
+
+def test_ctrl_c_while_lander_imports_its_commands_is_one_line(capsys, monkeypatch):
+    import autonomy.cli
+
+    def ctrl_c():  # as a Ctrl-C during the seconds it takes to import the commands
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(autonomy.cli, "build_parser", ctrl_c)
+    assert main(["campaign", str(SCRIPTED), "--runs", "1"]) == 130
+    assert _error(capsys) == "lander: interrupted"
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="reads /proc")
+@pytest.mark.parametrize("after", [0.0, 0.5])
+def test_ctrl_c_while_a_campaign_starts_its_workers_is_one_line_not_a_traceback(tmp_path,
+                                                                                after):
+    # A terminal's Ctrl-C reaches lander and its fork server, which spends seconds importing
+    # the flight stack: whenever it lands there, lander says what is kept and exits 130.
+    out = tmp_path / "campaign"
+    process = subprocess.Popen(
+        [sys.executable, "-m", "autonomy", "campaign", str(SCRIPTED), "--runs", "50",
+         "--workers", "2", "--no-pages", "--out", str(out)],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=tmp_path,
+        env={**os.environ, "PYTHONPATH": str(REPO)}, start_new_session=True,
+    )
+    try:
+        deadline = time.monotonic() + 60
+        while (not _fork_server_of(process.pid) and process.poll() is None
+               and time.monotonic() < deadline):
+            time.sleep(0.02)
+        time.sleep(after)
+        os.killpg(process.pid, signal.SIGINT)
+        stdout, stderr = process.communicate(timeout=100)
+    finally:
+        if process.poll() is None:
+            os.killpg(process.pid, signal.SIGKILL)
+            process.wait()
+    assert "Traceback" not in stderr, stderr
+    assert process.returncode == 130, stderr
+    lines = stderr.splitlines()
+    assert lines[-1] == "lander campaign: interrupted"
+    assert "finished run(s) kept in" in lines[-2] and "the same command flies the rest" in lines[-2]
+
 
 
 def test_a_terminal_that_cannot_show_a_name_gets_escapes_not_a_crash(tmp_path, monkeypatch):
