@@ -20,18 +20,8 @@ from pathlib import Path
 import numpy as np
 from scipy import ndimage
 
+from sitl.terrain.esri_ascii import GridFileError, read_asc
 from sitl.terrain.settings import MAX_CELLS, FileTerrainSettings
-
-_ASC_KEYS = (
-    "ncols",
-    "nrows",
-    "xllcorner",
-    "yllcorner",
-    "xllcenter",
-    "yllcenter",
-    "cellsize",
-    "nodata_value",
-)
 
 
 def _grid_shape(
@@ -188,11 +178,14 @@ def _read_elevation_quietly(path: Path, source_cell_size: float | None
             cell = source_cell_size
             nodata = None
         elif suffix == ".asc":
-            heights, cell, nodata = _read_asc(path)
+            heights, cell, nodata = read_asc(path)
+            heights = heights[::-1]  # ESRI rows run north to south; ours run south to north
         elif suffix in (".tif", ".tiff"):
             heights, cell, nodata = _read_geotiff(path)
         else:
             raise ValueError(f"unsupported format {suffix!r}")
+    except GridFileError as exc:  # names the file and the line itself
+        raise ValueError(f"path: {exc}") from None
     except (OSError, ValueError, TypeError) as exc:
         raise ValueError(f"path: cannot read {path}: {exc}") from exc
     if cell is None or not np.isfinite(cell) or cell <= 0:
@@ -228,29 +221,6 @@ def _load_npy(path: Path) -> np.ndarray:
     if heights.dtype.kind not in "fiub":
         raise ValueError(f"expected numbers, got dtype {heights.dtype}")
     return heights.astype(np.float64)
-
-
-def _read_asc(path: Path) -> tuple[np.ndarray, float, float | None]:
-    header: dict[str, float] = {}
-    with path.open() as f:
-        while True:
-            pos = f.tell()
-            line = f.readline()
-            parts = line.split()
-            if len(parts) == 2 and parts[0].lower() in _ASC_KEYS:
-                header[parts[0].lower()] = float(parts[1])
-            else:
-                f.seek(pos)
-                break
-        values = np.loadtxt(f, dtype=np.float64, ndmin=2)
-    for key in ("ncols", "nrows", "cellsize"):
-        if key not in header:
-            raise ValueError(f"ESRI ASCII header lacks {key}")
-    shape = (int(header["nrows"]), int(header["ncols"]))
-    if values.size != shape[0] * shape[1]:
-        raise ValueError(f"expected {shape[0]} x {shape[1]} values, found {values.size}")
-    # ESRI rows run north to south; ours run south to north.
-    return values.reshape(shape)[::-1], header["cellsize"], header.get("nodata_value")
 
 
 def _read_geotiff(path: Path) -> tuple[np.ndarray, float, float | None]:

@@ -151,6 +151,41 @@ def test_detect_names_a_directory_and_an_empty_ply(tmp_path, capsys):
     assert _error(capsys).endswith("the PLY file holds no points (element vertex 0)")
 
 
+@pytest.mark.parametrize(("text", "line", "reason"), [
+    ("ncols 3\nnrows 2\ncellsize abc\n1 2 3\n4 5 6\n", 3, "cellsize 'abc' is not a number"),
+    ("ncols 3\nnrows 2\ncelsize 1\n1 2 3\n4 5 6\n", 3,
+     "'celsize' is not an ESRI ASCII header key (ncols, nrows, xllcorner, yllcorner, "
+     "xllcenter, yllcenter, cellsize, NODATA_value)"),
+    ("ncols 3.5\nnrows 2\ncellsize 1\n1 2 3\n4 5 6\n", 1,
+     "ncols 3.5 is not a whole number of cells"),
+    ("ncols 3\nnrows 2\n1 2 3\n4 5 6\n", 3, "the header lacks cellsize before the values"),
+    ("ncols 3\nnrows 2\ncellsize 1\n1 2 3\n4 5\n", 5, "2 values in the row, ncols says 3"),
+    ("ncols 3\nnrows 2\ncellsize 1\n1 2 3\n4 x 6\n", 5,
+     "value 2 of the row, 'x', is not a number"),
+    ("ncols 3\nnrows 3\ncellsize 1\n1 2 3\n4 5 6\n", 5,
+     "the file ends after 2 row(s) of values, fewer than nrows (3)"),
+    ("ncols 3\nnrows 2\ncellsize 1\n1 2 3\n4 5 6\n7 8 9\n", 6,
+     "more rows of values than nrows (2)"),
+])
+def test_a_malformed_esri_ascii_model_is_named_by_file_line_and_reason(tmp_path, capsys, text,
+                                                                       line, reason):
+    asc = tmp_path / "dem.asc"
+    asc.write_text(text)
+    mission = tmp_path / "m.yaml"
+    mission.write_text(f"waypoints: [[1, 1, 30]]\nworld: {{kind: file, path: '{asc}'}}\n")
+    for command in ("validate", "fly"):
+        assert main([command, str(mission)]) == 2
+        assert _error(capsys).endswith(f": world.path: {asc}:{line}: {reason}")
+
+
+def test_esri_ascii_rows_wrapped_over_lines_are_read_as_gdal_reads_them(tmp_path, capsys):
+    asc = tmp_path / "dem.asc"
+    asc.write_text("ncols 3\nnrows 2\ncellsize 200\n1 2 3 4\n5 6\n")
+    mission = tmp_path / "m.yaml"
+    mission.write_text(f"waypoints: [[1, 1, 30]]\nworld: {{kind: file, path: '{asc}'}}\n")
+    assert main(["validate", str(mission)]) == 0
+
+
 # -- mission files and overrides --------------------------------------------------------
 
 
