@@ -15,6 +15,8 @@ from typing import TextIO
 
 import numpy as np
 
+from sitl.terrain.file_errors import GridFileError
+
 HEADER_KEYS = {
     "ncols": "ncols",
     "nrows": "nrows",
@@ -27,10 +29,6 @@ HEADER_KEYS = {
 }  # lower case -> as the format spells it
 REQUIRED = ("ncols", "nrows", "cellsize")
 WHOLE = ("ncols", "nrows")
-
-
-class GridFileError(ValueError):
-    """A malformed elevation model: ``FILE:LINE: reason`` (or ``FILE: reason``)."""
 
 
 def read_asc(path: Path) -> tuple[np.ndarray, float, float | None]:

@@ -14,13 +14,15 @@ surface.
 
 from __future__ import annotations
 
+import math
 import warnings
 from pathlib import Path
 
 import numpy as np
 from scipy import ndimage
 
-from sitl.terrain.esri_ascii import GridFileError, read_asc
+from sitl.terrain.esri_ascii import read_asc
+from sitl.terrain.file_errors import GridFileError
 from sitl.terrain.settings import MAX_CELLS, FileTerrainSettings
 
 
@@ -214,13 +216,46 @@ def _nearest_known(heights: np.ndarray, known: np.ndarray) -> np.ndarray:
 
 
 def _load_npy(path: Path) -> np.ndarray:
-    try:
-        heights = np.load(path, allow_pickle=False)
-    except Exception as exc:  # noqa: BLE001 - a damaged header raises several types
-        raise ValueError(" ".join(str(exc).split())[:200] or type(exc).__name__) from None
-    if heights.dtype.kind not in "fiub":
-        raise ValueError(f"expected numbers, got dtype {heights.dtype}")
-    return heights.astype(np.float64)
+    """The heights of a .npy file whose header, read before the data, declares a 2-D array of
+    numbers of at most MAX_CELLS cells (else GridFileError); ValueError if unreadable."""
+    fmt = np.lib.format
+    with path.open("rb") as f:
+        try:
+            version = fmt.read_magic(f)
+        except ValueError:
+            raise ValueError("not a NumPy .npy file") from None
+        read_header = {(1, 0): fmt.read_array_header_1_0,
+                       (2, 0): fmt.read_array_header_2_0}.get(version)
+        if read_header is None:
+            raise ValueError(f".npy format version {version[0]}.{version[1]}; versions 1.0 "
+                             "and 2.0 hold a grid of numbers")
+        try:
+            shape, _, dtype = read_header(f)
+        except Exception as exc:  # noqa: BLE001 - a damaged header raises several types
+            raise ValueError(f"a damaged .npy header ({_one_line(exc)})") from None
+        if any(n < 0 for n in shape):
+            raise ValueError(f"a damaged .npy header (shape {shape})")
+        if dtype.kind not in "fiub":
+            raise GridFileError(f"{path}: holds {dtype} values, not numbers")
+        if len(shape) != 2:
+            raise GridFileError(f"{path}: holds a {len(shape)}-D array of shape {shape}; an "
+                                "elevation model is a 2-D grid of heights")
+        if math.prod(shape) > MAX_CELLS:
+            raise GridFileError(f"{path}: {shape[0]} x {shape[1]} cells, more than the "
+                                f"{MAX_CELLS:,} a world may hold (memory): crop or coarsen it")
+        needed = f.tell() + math.prod(shape) * dtype.itemsize
+        if path.stat().st_size < needed:
+            raise ValueError(f"the file ends before the {shape[0]} x {shape[1]} values its "
+                             f"header declares ({path.stat().st_size} of {needed} bytes)")
+        f.seek(0)
+        try:
+            return fmt.read_array(f, allow_pickle=False).astype(np.float64)
+        except Exception as exc:  # noqa: BLE001 - as for the header
+            raise ValueError(_one_line(exc)) from None
+
+
+def _one_line(exc: BaseException) -> str:
+    return " ".join(str(exc).split())[:200] or type(exc).__name__
 
 
 def _read_geotiff(path: Path) -> tuple[np.ndarray, float, float | None]:

@@ -186,6 +186,45 @@ def test_esri_ascii_rows_wrapped_over_lines_are_read_as_gdal_reads_them(tmp_path
     assert main(["validate", str(mission)]) == 0
 
 
+def _npy_mission(tmp_path: Path, npy: Path) -> Path:
+    mission = tmp_path / "m.yaml"
+    mission.write_text(f"waypoints: [[1, 1, 30]]\nworld: {{kind: file, path: '{npy}', "
+                       "source_cell_size: 1, cell_size: 2}\n")
+    return mission
+
+
+def test_a_huge_npy_model_is_refused_from_its_header_before_its_data_is_read(tmp_path, capsys):
+    npy = tmp_path / "dem.npy"
+    with npy.open("wb") as f:  # the header alone: reading the data would fail differently
+        np.lib.format.write_array_header_1_0(
+            f, {"descr": "<f8", "fortran_order": False, "shape": (8001, 8001)})
+    assert main(["validate", str(_npy_mission(tmp_path, npy))]) == 2
+    assert _error(capsys).endswith(f": world.path: {npy}: 8001 x 8001 cells, more than the "
+                                   "64,000,000 a world may hold (memory): crop or coarsen it")
+
+
+@pytest.mark.parametrize(("array", "reason"), [
+    (np.array([[1, None], [2, 3]], dtype=object), "holds object values, not numbers"),
+    (np.zeros((2, 2), dtype=complex), "holds complex128 values, not numbers"),
+    (np.zeros((3, 3, 3)), "holds a 3-D array of shape (3, 3, 3); an elevation model is a 2-D "
+     "grid of heights"),
+])
+def test_an_npy_model_of_no_grid_of_numbers_is_refused_in_one_line(tmp_path, capsys, array,
+                                                                   reason):
+    npy = tmp_path / "dem.npy"
+    np.save(npy, array, allow_pickle=True)
+    assert main(["validate", str(_npy_mission(tmp_path, npy))]) == 2
+    assert _error(capsys).endswith(f": world.path: {npy}: {reason}")
+
+
+def test_an_npz_archive_named_npy_is_not_an_npy_file(tmp_path, capsys):
+    npy = tmp_path / "dem.npy"
+    with npy.open("wb") as f:
+        np.savez(f, heights=np.zeros((3, 3)))
+    assert main(["validate", str(_npy_mission(tmp_path, npy))]) == 2
+    assert _error(capsys).endswith(f": world.path: cannot read {npy}: not a NumPy .npy file")
+
+
 # -- mission files and overrides --------------------------------------------------------
 
 
