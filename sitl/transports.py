@@ -15,6 +15,10 @@ _MAX_PENDING = 1 << 20
 
 def parse_address(text: str) -> tuple[str, int]:
     """``"HOST:PORT"`` -> (host, port). Raises ValueError with a clear reason."""
+    if "[" in text or text.count(":") > 1:  # [::1]:5760 or ::1:5760; no host name has ':'
+        # Its clients' MAVLink links (pymavlink's) are IPv4 only, so its sockets are too.
+        raise ValueError(f"{text}: an IPv6 address; the SITL serves IPv4 only, as lander and "
+                         "pymavlink connect: use an IPv4 address such as 127.0.0.1 or 0.0.0.0")
     host, sep, port = text.rpartition(":")
     if not sep or not host or not port:
         raise ValueError(f"expected HOST:PORT, got {text!r}")

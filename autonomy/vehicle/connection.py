@@ -116,6 +116,11 @@ _UNKNOWN_LINK = ("unknown link; use sim://, udpin:HOST:PORT, udpout:HOST:PORT, t
                  "tcpin:HOST:PORT or a serial device such as /dev/ttyACM0,115200")
 
 
+# pymavlink's network links (mavutil's mavudp, mavtcp, mavtcpin) open IPv4 sockets only.
+IPV6_REFUSED = ("an IPv6 address; MAVLink network links are IPv4 only here (pymavlink): use "
+                "an IPv4 address or a host name that has one")
+
+
 def check_url(url: str) -> str:
     """``url`` stripped, if it is a link :func:`connect` can open: its form only (scheme,
     HOST:PORT, serial device and baud, the simulator's personality and options), nothing is
@@ -136,6 +141,10 @@ def check_url(url: str) -> str:
         return url
     scheme, sep, rest = url.partition(":")
     if sep and scheme in _NETWORK_SCHEMES:
+        if "[" in rest or rest.count(":") > 1:  # [::1]:5760 or ::1:5760; no host name has ':'
+            port = rest.rpartition(":")[2]
+            raise ValueError(f"{rest}: {IPV6_REFUSED}, e.g. {scheme}:127.0.0.1:"
+                             f"{port if port.isdigit() else 5760}")
         host, sep, port = rest.rpartition(":")
         if not sep or not host or not port.isdigit() or not 0 <= int(port) <= 65535:
             raise ValueError("expected HOST:PORT after the scheme, port 0..65535 (e.g. "
@@ -178,6 +187,13 @@ def _host_port(url: str, rest: str) -> tuple[str, int]:
     return host, int(port)
 
 
+def _resolves(host: str, port: int) -> bool:
+    try:
+        return bool(socket.getaddrinfo(host, port))
+    except socket.gaierror:
+        return False
+
+
 def _check_free(url: str, host: str, port: int, kind: int) -> None:
     """pymavlink binds with SO_REUSEADDR, which hides a port held by another program."""
     if port == 0:
@@ -203,8 +219,11 @@ def open_transport(url: str, baud: int = 115200) -> PymavlinkTransport:
         if sep and scheme in _NETWORK_SCHEMES:
             host, port = _host_port(url, rest)
             try:
-                socket.getaddrinfo(host, port)
+                socket.getaddrinfo(host, port, socket.AF_INET)
             except socket.gaierror as exc:
+                if _resolves(host, port):  # to IPv6 addresses only
+                    raise UserError(f"{url}: {host} has no IPv4 address; MAVLink network "
+                                    "links are IPv4 only here (pymavlink)") from exc
                 raise UserError(f"{url}: unknown host {host!r}") from exc
             if scheme in ("udp", "udpin"):
                 _check_free(url, host, port, socket.SOCK_DGRAM)

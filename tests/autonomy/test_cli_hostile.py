@@ -266,6 +266,48 @@ def test_port_0_is_no_address_to_send_to(capsys, argv):
     assert "port 0 is not an address" in _error(capsys)
 
 
+@pytest.mark.parametrize("argv", [
+    ["link", "tcp:[::1]:5760", "--duration", "1"],
+    ["link", "udp:[::1]:14550", "--duration", "1"],
+    ["link", "udpout:::1:14550", "--duration", "1"],
+    ["fly", str(SCRIPTED), "--connect", "tcp:[::1]:5760", "--quiet"],
+])
+def test_an_ipv6_link_is_refused_in_one_line_as_pymavlink_is_ipv4(capsys, argv):
+    assert main(argv) == 2
+    line = _error(capsys)
+    assert "an IPv6 address; MAVLink network links are IPv4 only here (pymavlink)" in line
+    assert f"e.g. {argv[-2 if argv[0] == 'fly' else 1].split(':')[0]}:127.0.0.1:" in line
+
+
+@pytest.mark.parametrize(("flag", "address"), [
+    ("--tcp", "[::1]:5760"), ("--udp", "::1:14550"), ("--udp-out", "[::1]:14550"),
+])
+def test_the_sitl_refuses_an_ipv6_address_it_would_not_serve(capsys, flag, address):
+    # --udp-out [::1]:14550 "served" before, every datagram to it silently dropped
+    assert main(["sitl", flag, address, "--duration", "1"]) == 2
+    assert _error(capsys) == (f"lander sitl: error: {flag}: {address}: an IPv6 address; the "
+                              "SITL serves IPv4 only, as lander and pymavlink connect: use an "
+                              "IPv4 address such as 127.0.0.1 or 0.0.0.0")
+
+
+def test_a_host_with_only_an_ipv6_address_is_named_as_such(capsys, monkeypatch):
+    import socket
+
+    real = socket.getaddrinfo
+
+    def ipv6_only(host, port, family=0, *args, **kwargs):
+        if host != "v6.example":
+            return real(host, port, family, *args, **kwargs)
+        if family == socket.AF_INET:
+            raise socket.gaierror(socket.EAI_ADDRFAMILY, "no IPv4 address")
+        return [(socket.AF_INET6, socket.SOCK_STREAM, 6, "", ("::1", port, 0, 0))]
+
+    monkeypatch.setattr(socket, "getaddrinfo", ipv6_only)
+    assert main(["link", "tcp:v6.example:5760", "--duration", "1"]) == 2
+    assert _error(capsys).endswith("tcp:v6.example:5760: v6.example has no IPv4 address; "
+                                   "MAVLink network links are IPv4 only here (pymavlink)")
+
+
 # -- the terminal -----------------------------------------------------------------------
 
 
