@@ -18,7 +18,6 @@ is the next step.
 from __future__ import annotations
 
 import copy
-import difflib
 import functools
 import math
 import os
@@ -49,6 +48,7 @@ from autonomy.perception.descent_flow_settings import DescentFlowSettings
 from autonomy.perception.scripted import ScriptedSettings, ScriptedSite
 from autonomy.vehicle.connection import check_url, signing_key_from_text
 from autonomy.vehicle.settings import VehicleLinkSettings
+from behaviors.names import did_you_mean
 from behaviors.settings import (
     MAX_ALTITUDE,
     MAX_RANGE,
@@ -842,9 +842,8 @@ def _did_you_mean(key: str, parent: Sequence[Any], roots: Sequence[type[BaseMode
         tagged = [m for m in models if item in typing.get_args(
             getattr(m.model_fields.get("kind"), "annotation", None))]
         models = tagged or models  # the kind pydantic adds to locations in a tagged union
-    names = {info.alias or name for m in models for name, info in m.model_fields.items()}
-    close = difflib.get_close_matches(key, sorted(names), n=1, cutoff=0.75)
-    return f"; did you mean {close[0]}?" if close else ""
+    return did_you_mean(key, {info.alias or name for m in models
+                              for name, info in m.model_fields.items()})
 
 
 def _field_description(loc: Sequence[Any], roots: Sequence[type[BaseModel]]) -> str | None:

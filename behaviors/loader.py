@@ -27,6 +27,7 @@ from typing import Any
 import py_trees
 
 from behaviors import blackboard as keys
+from behaviors.names import did_you_mean
 from behaviors.registry import (
     PARSERS,
     REGISTRY,
@@ -195,8 +196,8 @@ class _Builder:
         node_id = node.attrib.get("ID", "") if node.tag in _EXPLICIT else node.tag
         model = REGISTRY.get(node_id)
         if model is None:
-            hint = f"; BehaviorTree.CPP calls it {_ALIASES[node_id]}" if node_id in _ALIASES \
-                else ""
+            hint = (f"; BehaviorTree.CPP calls it {_ALIASES[node_id]}" if node_id in _ALIASES
+                    else did_you_mean(node_id, REGISTRY))
             self.problem(node, node_id or node.tag, f"unknown node (see `lander tree "
                          f"--xml` for the registered ones){hint}")
         elif node.tag in _EXPLICIT and model.kind != node.tag and node_id != "SubTree":

@@ -247,6 +247,28 @@ def test_a_misspelt_setting_is_refused_with_the_name_it_resembles(tmp_path, caps
     assert _error(capsys).endswith("unknown setting; did you mean centring_radius?")
 
 
+def test_a_misspelt_tree_node_is_refused_with_the_registered_name_it_resembles(tmp_path,
+                                                                                capsys):
+    tree = tmp_path / "t.xml"
+    tree.write_text('<root BTCPP_format="4" main_tree_to_execute="T">\n'
+                    '  <BehaviorTree ID="T">\n    <Sequence>\n      <Takeof/>\n'
+                    '      <Action ID="NavigateToWaypont" waypoint="{waypoint_1}"/>\n'
+                    '      <Selector><Land/></Selector>\n      <Fly/>\n    </Sequence>\n'
+                    '  </BehaviorTree>\n</root>\n')
+    mission = tmp_path / "m.yaml"
+    mission.write_text("waypoints: [[0, 0, 20]]\ntree: t.xml\n")
+    unknown = "unknown node (see `lander tree --xml` for the registered ones)"
+    for command in (["validate", str(mission)], ["tree", str(mission)]):
+        assert main(command) == 2
+        assert [line.split(": error: ", 1)[1] for line in
+                capsys.readouterr().err.splitlines()] == [
+            f"{tree}:4: Takeof: {unknown}; did you mean Takeoff?",
+            f"{tree}:5: NavigateToWaypont: {unknown}; did you mean NavigateToWaypoint?",
+            f"{tree}:6: Selector: {unknown}; BehaviorTree.CPP calls it Fallback",
+            f"{tree}:7: Fly: {unknown}",
+        ]
+
+
 def test_a_tab_in_the_indentation_is_named(tmp_path, capsys):
     path = tmp_path / "tab.yaml"
     path.write_text("name: t\nwaypoints:\n\t- [1, 2, 30]\n")

@@ -164,7 +164,8 @@ def test_behaviortree_cpp_refuses_what_our_checker_refuses():
         btcpp_factory().register_behavior_tree_from_text(bad)
     settings = mission_settings(MissionPlan(waypoints=[(0, 0, 10)]), 1.0)
     assert check_tree(parse_tree(bad, "bad.xml"), settings) == [
-        "bad.xml:1: Lnd: unknown node (see `lander tree --xml` for the registered ones)"]
+        "bad.xml:1: Lnd: unknown node (see `lander tree --xml` for the registered ones); "
+        "did you mean Land?"]
 
 
 def test_every_model_is_a_valid_treenodesmodel_entry():
@@ -212,7 +213,8 @@ def test_lander_validate_names_file_line_node_and_port_of_each_problem(tmp_path,
     tree = tmp_path / "trees" / "bad.xml"
     assert capsys.readouterr().err.splitlines() == [f"lander validate: error: {tree}:{line}"
                                                     f": {text}" for line, text in [
-        (4, "Lnd: unknown node (see `lander tree --xml` for the registered ones)"),
+        (4, "Lnd: unknown node (see `lander tree --xml` for the registered ones); did you "
+            "mean Land?"),
         (5, "Land 'Touch down': port colour: Land has no such port (its ports: phase, "
             "outcome_hint, command_timeout)"),
         (5, "Land 'Touch down': port phase: 'landing' is not a phase (preflight, takeoff, "
