@@ -123,19 +123,38 @@ def fly_with_page(mission: Any, seed: int, out_dir: Any = None) -> Any:
     return fly(mission, seed=seed, out_dir=out_dir, report_png=False)
 
 
+_flying = False  # True while fly_run runs in this process
+
+
+def flying() -> bool:
+    """Whether this process is flying a run: a local pool's worker takes Ctrl-C as the end of
+    the run then, and leaves it to lander between runs (``autonomy.campaign._quiet_ctrl_c``)."""
+    return _flying
+
+
 def fly_run(task: RunTask) -> dict[str, Any]:
     """Fly one task and return its run record (an ``error`` record if the flight raised)."""
+    global _flying
     with _ONE_FLIGHT_AT_A_TIME:
-        start = time.perf_counter()
+        _flying = True
         try:
-            result = task.flight(task.mission, seed=task.seed, out_dir=task.out_dir)
-            summary = getattr(result, "summary", result)
-            if not isinstance(summary, Mapping) or "outcome" not in summary:
-                raise TypeError(f"the flight returned no summary with an outcome: {result!r}")
-            if summary.get("interrupted"):
-                # Ctrl-C stopped the flight (it wrote its partial report): record nothing,
-                # so that re-running the campaign flies this run again.
-                raise KeyboardInterrupt
-            return summary_record(task, summary, time.perf_counter() - start)
-        except Exception:
-            return error_record(task, traceback.format_exc(), time.perf_counter() - start)
+            return _fly(task)
+        finally:
+            _flying = False
+
+
+def _fly(task: RunTask) -> dict[str, Any]:
+    """The record of one run, flown here; an ``error`` record if the flight raised."""
+    start = time.perf_counter()
+    try:
+        result = task.flight(task.mission, seed=task.seed, out_dir=task.out_dir)
+        summary = getattr(result, "summary", result)
+        if not isinstance(summary, Mapping) or "outcome" not in summary:
+            raise TypeError(f"the flight returned no summary with an outcome: {result!r}")
+        if summary.get("interrupted"):
+            # Ctrl-C stopped the flight (it wrote its partial report): record nothing,
+            # so that re-running the campaign flies this run again.
+            raise KeyboardInterrupt
+        return summary_record(task, summary, time.perf_counter() - start)
+    except Exception:
+        return error_record(task, traceback.format_exc(), time.perf_counter() - start)
