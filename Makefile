@@ -2,7 +2,8 @@
 # documentation site (docs/, mkdocs.yml) into site/.
 # Both create .venv on first use; re-running is fast because the install step
 # is redone only when pyproject.toml or this Makefile changes. The test install takes
-# the optional extras too (Dask distributed, laspy) so their code paths are tested.
+# the optional extras too (Dask distributed, laspy, rasterio for GeoTIFF elevation models)
+# so their code paths are tested.
 PYTHON ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
@@ -18,7 +19,7 @@ $(BIN)/python:
 
 $(STAMP): pyproject.toml Makefile | $(BIN)/python
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e '.[test,cluster,las]'
+	$(BIN)/python -m pip install --quiet -e '.[test,cluster,las,geotiff]'
 	touch $(STAMP)
 
 demo: $(STAMP)
