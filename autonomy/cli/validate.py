@@ -31,6 +31,13 @@ def run(args: argparse.Namespace) -> int:
         f"{mission.world.kind} world, {mission.perception.detector} detector, "
         f"{mission.vehicle.connection}" + (f", tree {mission.tree}" if mission.tree else "")
     )
+    if mission.world.kind == "file":  # the model in metres: were its units taken right?
+        from sitl.terrain.files import describe_elevation
+
+        model, *notes = describe_elevation(mission.world)
+        print(f"elevation model: {model}")
+        for note in notes:
+            print(f"note: {note}")
     return 0
 
 

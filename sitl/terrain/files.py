@@ -3,7 +3,8 @@ simulation grid.
 
 Formats: ``.npy`` (row i along +y, south to north; the cell size comes from the settings),
 ESRI ASCII grid ``.asc`` (north-up rows, header with ``cellsize`` and ``NODATA_value``), and
-GeoTIFF through rasterio (optional extra ``geotiff``; imported only when needed).
+GeoTIFF (:mod:`sitl.terrain.geotiff`: its CRS and units to metres; optional extra
+``geotiff``, imported only when needed).
 
 The model is taken as it is: outside its grid there is no ground, and missing values (ESRI
 ``NODATA_value``, GeoTIFF nodata, NaN) stay unknown. The world's ``known`` mask carries
@@ -27,12 +28,13 @@ from sitl.terrain.settings import MAX_CELLS, FileTerrainSettings
 
 
 def _grid_shape(
-    settings: FileTerrainSettings, shape: tuple[int, int], source_cell: float
+    settings: FileTerrainSettings, shape: tuple[int, int], source_cell: tuple[float, float]
 ) -> tuple[int, int, float, float]:
     """(nx, ny, width, depth) of the simulation grid for a model of ``shape`` cells of
-    ``source_cell`` m. Raises ValueError when it is too small, too large or home is off it."""
+    ``source_cell`` (east, north) m. Raises ValueError when it is too small, too large or
+    home is off it."""
     src_ny, src_nx = shape
-    width, depth = (src_nx - 1) * source_cell, (src_ny - 1) * source_cell
+    width, depth = (src_nx - 1) * source_cell[0], (src_ny - 1) * source_cell[1]
     cs = settings.cell_size
     nx = int(np.floor(width / cs + 1e-9)) + 1
     ny = int(np.floor(depth / cs + 1e-9)) + 1
@@ -61,14 +63,30 @@ def check_elevation(settings: FileTerrainSettings) -> None:
         ValueError: ``path: ...``, ``cell_size: ...`` or ``home: ...``: unreadable or
             malformed, more than MAX_CELLS cells once resampled, or home outside it.
     """
-    heights, source_cell = read_elevation(settings.path, settings.source_cell_size)
+    heights, source_cell, _ = read_elevation(settings.path, settings.source_cell_size)
     _grid_shape(settings, heights.shape, source_cell)
+
+
+def describe_elevation(settings: FileTerrainSettings) -> list[str]:
+    """What the model is in metres, then how it was read (units assumed, a reprojection):
+    lines for the user to check the file's units were taken right."""
+    heights, (cx, cy), notes = read_elevation(settings.path, settings.source_cell_size)
+    ny, nx = heights.shape
+    _, _, width, depth = _grid_shape(settings, heights.shape, (cx, cy))
+    low, high = np.nanmin(heights), np.nanmax(heights)
+    unknown = np.isnan(heights).mean()
+    return [
+        f"{settings.path}: {nx} x {ny} cells of {cx:.4g} x {cy:.4g} m ({width:.6g} x "
+        f"{depth:.6g} m), heights {low:.6g} .. {high:.6g} m"
+        + (f", {unknown:.1%} unknown" if unknown else ""),
+        *notes,
+    ]
 
 
 def model_extent(settings: FileTerrainSettings) -> tuple[float, float, float, float]:
     """(xmin, xmax, ymin, ymax) ENU metres about home of the model's grid: where it has
     ground at all."""
-    heights, source_cell = read_elevation(settings.path, settings.source_cell_size)
+    heights, source_cell, _ = read_elevation(settings.path, settings.source_cell_size)
     _, _, width, depth = _grid_shape(settings, heights.shape, source_cell)
     hx, hy = settings.home if settings.home is not None else (width / 2, depth / 2)
     return (-hx, width - hx, -hy, depth - hy)
@@ -125,14 +143,14 @@ def generate(
     """(grid, origin, known) of the elevation model, resampled to ``settings.cell_size``
     and placed so that home (0, 0) is at ``settings.home`` (default: the model's centre).
     ``known`` is False in cells whose bilinear height needs an unknown source cell."""
-    heights, source_cell = read_elevation(settings.path, settings.source_cell_size)
+    heights, source_cell, _ = read_elevation(settings.path, settings.source_cell_size)
     known_source = np.isfinite(heights)
     heights = _nearest_known(heights, known_source) * settings.vertical_scale
     nx, ny, width, depth = _grid_shape(settings, heights.shape, source_cell)
     cs = settings.cell_size
     # Bilinear resampling at the simulation cell centres (source index units).
-    rows = np.arange(ny) * (cs / source_cell)
-    cols = np.arange(nx) * (cs / source_cell)
+    rows = np.arange(ny) * (cs / source_cell[1])
+    cols = np.arange(nx) * (cs / source_cell[0])
     at = np.meshgrid(rows, cols, indexing="ij")
     grid = ndimage.map_coordinates(heights, at, order=1, mode="nearest").astype(np.float32)
     known = ndimage.map_coordinates(known_source.astype(np.float64), at, order=1, mode="nearest")
@@ -140,10 +158,13 @@ def generate(
     return grid, (-hx, -hy), known >= 1.0 - 1e-6
 
 
-def read_elevation(path: Path, source_cell_size: float | None = None) -> tuple[np.ndarray, float]:
-    """Heights (ny, nx) float64 with row i along +y (south to north), NaN where unknown
-    (nodata), and the cell size in metres. Raises ValueError("path: ...") on an unreadable
-    or malformed file, or one without a single known height.
+def read_elevation(
+    path: Path, source_cell_size: float | None = None
+) -> tuple[np.ndarray, tuple[float, float], tuple[str, ...]]:
+    """Heights (ny, nx) float64 in metres with row i along +y (south to north), NaN where
+    unknown (nodata); the (east, north) cell size in metres; and notes for the user on how
+    the file was read (units assumed, a reprojection). Raises ValueError("path: ...") on an
+    unreadable or malformed file, or one without a single known height.
 
     The last model read is kept (keyed by the file's path, size and modification time), so
     validating a mission and then flying it reads the file once.
@@ -165,36 +186,45 @@ def read_elevation(path: Path, source_cell_size: float | None = None) -> tuple[n
 _LAST_READ: list = []
 
 
-def _read_elevation(path: Path, source_cell_size: float | None) -> tuple[np.ndarray, float]:
+def _read_elevation(
+    path: Path, source_cell_size: float | None
+) -> tuple[np.ndarray, tuple[float, float], tuple[str, ...]]:
     with warnings.catch_warnings(), np.errstate(all="ignore"):
         warnings.simplefilter("ignore")  # a bad file is one line, not a library's warning
         return _read_elevation_quietly(path, source_cell_size)
 
 
-def _read_elevation_quietly(path: Path, source_cell_size: float | None
-                            ) -> tuple[np.ndarray, float]:
+def _read_elevation_quietly(
+    path: Path, source_cell_size: float | None
+) -> tuple[np.ndarray, tuple[float, float], tuple[str, ...]]:
     suffix = path.suffix.lower()
+    notes: list[str] = []
     try:
         if suffix == ".npy":
             heights = _load_npy(path)
-            cell = source_cell_size
+            cells = (source_cell_size, source_cell_size)
             nodata = None
         elif suffix == ".asc":
             heights, cell, nodata = read_asc(path)
             heights = heights[::-1]  # ESRI rows run north to south; ours run south to north
+            cells = (cell, cell)
         elif suffix in (".tif", ".tiff"):
-            heights, cell, nodata = _read_geotiff(path)
+            from sitl.terrain.geotiff import read_geotiff
+
+            heights, cells, notes = read_geotiff(path)
+            nodata = None  # read_geotiff marks nodata NaN
         else:
             raise ValueError(f"unsupported format {suffix!r}")
     except GridFileError as exc:  # names the file and the line itself
         raise ValueError(f"path: {exc}") from None
     except (OSError, ValueError, TypeError) as exc:
         raise ValueError(f"path: cannot read {path}: {exc}") from exc
-    if cell is None or not np.isfinite(cell) or cell <= 0:
+    if any(c is None or not np.isfinite(c) or c <= 0 for c in cells):
         raise ValueError(f"path: {path}: no positive cell size")
     if heights.ndim != 2 or min(heights.shape) < 2:
         raise ValueError(f"path: {path}: need a 2-D grid of at least 2 x 2, got {heights.shape}")
-    return _mark_missing(heights, nodata, path), float(cell)
+    cells = (float(cells[0]), float(cells[1]))
+    return _mark_missing(heights, nodata, path), cells, tuple(notes)
 
 
 def _mark_missing(heights: np.ndarray, nodata: float | None, path: Path) -> np.ndarray:
@@ -256,18 +286,3 @@ def _load_npy(path: Path) -> np.ndarray:
 
 def _one_line(exc: BaseException) -> str:
     return " ".join(str(exc).split())[:200] or type(exc).__name__
-
-
-def _read_geotiff(path: Path) -> tuple[np.ndarray, float, float | None]:
-    try:
-        import rasterio
-    except ImportError as exc:  # optional extra
-        raise ValueError("GeoTIFF needs rasterio: pip install 'landing-autonomy[geotiff]'") from exc
-    with rasterio.open(path) as src:
-        band = src.read(1).astype(np.float64)
-        sx, sy = src.res
-        if not np.isclose(sx, sy):
-            raise ValueError(f"non-square cells {sx} x {sy} are not supported")
-        if src.crs is not None and src.crs.is_geographic:
-            raise ValueError("geographic (degree) coordinates: reproject to metres first")
-        return band[::-1], float(sx), src.nodata
