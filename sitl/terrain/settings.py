@@ -365,7 +365,8 @@ class FileTerrainSettings(_GridSettings):
 
     Formats: ``.npy`` (2-D array, row i along +y i.e. south to north, needs
     ``source_cell_size``), ESRI ASCII grid ``.asc`` (north-up, header gives the cell size),
-    GeoTIFF ``.tif``/``.tiff`` (needs the optional ``geotiff`` extra, rasterio).
+    GeoTIFF ``.tif``/``.tiff`` (needs the optional ``geotiff`` extra, rasterio and pyproj;
+    its CRS and units are converted to metres, see :mod:`sitl.terrain.geotiff`).
     """
 
     kind: Literal["file"] = "file"
