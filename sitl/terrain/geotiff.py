@@ -79,8 +79,10 @@ def _read(src, path: Path) -> tuple[np.ndarray, tuple[float, float], list[str]]:
     heights = src.read(band, masked=True).astype(np.float64).filled(np.nan)
     notes: list[str] = []
     if src.crs is None:
-        notes.append(f"{path}: no CRS; cells and heights taken as metres")
-        return _south_up(heights, t), (abs(t.a), abs(t.e)), notes
+        z_unit = _height_unit(src, None, None, path, notes)
+        said = _band_unit(src) is not None  # heights in the band's own unit
+        notes.append(f"{path}: no CRS; cells taken as metres" + ("" if said else ", heights too"))
+        return _south_up(heights, t) * z_unit, (abs(t.a), abs(t.e)), notes
     from pyproj import CRS
 
     crs = CRS.from_wkt(src.crs.to_wkt())
@@ -140,15 +142,16 @@ def _south_up(heights: np.ndarray, t) -> np.ndarray:
 def _height_unit(src, crs, horizontal, path: Path, notes: list[str]) -> float:
     """Metres per height unit: the vertical CRS's unit, else the band's unit type, else the
     unit of x and y of a projected CRS (as LAS has it; said in a note) or metres."""
-    if crs.is_compound and len(crs.sub_crs_list) > 1:
+    if crs is not None and crs.is_compound and len(crs.sub_crs_list) > 1:
         return float(crs.sub_crs_list[1].axis_info[0].unit_conversion_factor)
-    named = (src.units[0] or "").strip() if src.units else ""
-    factor = _unit_factor(named) if named else None
+    factor = _band_unit(src)
     if factor is not None:
         return factor
-    if named:
+    if named := (src.units[0] or "").strip():
         notes.append(f"{path}: band unit {named!r} is not a unit of length pyproj knows; "
                      "ignored")
+    if horizontal is None:
+        return 1.0
     if not horizontal.is_geographic and not horizontal.is_projected:
         return float(horizontal.axis_info[0].unit_conversion_factor or 1.0)
     if horizontal.is_projected:
@@ -161,12 +164,15 @@ def _height_unit(src, crs, horizontal, path: Path, notes: list[str]) -> float:
     return 1.0
 
 
-def _unit_factor(name: str) -> float | None:
-    """Metres per unit named as GDAL writes a band's unit type ("m", "metre", "ft",
-    "US survey foot"), or None when pyproj knows no unit of length by that name."""
+def _band_unit(src) -> float | None:
+    """Metres per unit of band 1's unit type as GDAL gives it ("m", "metre", "ft",
+    "US survey foot"), or None when it has none or pyproj knows no unit of length by
+    that name."""
     from pyproj.database import get_units_map
 
-    key = name.strip().lower()
+    key = (src.units[0] or "").strip().lower()
+    if not key:
+        return None
     key = _UNIT_ALIASES.get(key, key)
     for unit in get_units_map(category="linear").values():
         if key in (unit.name.lower(), (unit.proj_short_name or "").lower()):

@@ -119,6 +119,11 @@ def test_the_band_unit_gives_the_heights_unit_without_a_vertical_crs(tmp_path, c
                      from_origin(500_000, 4_000_000, 10.0, 10.0), "EPSG:32617", units="ft")
     code, out, _ = validate(tmp_path, capsys, path)
     assert code == 0 and f"heights {100 * FT:.6g} .. {100 * FT:.6g} m" in out
+    odd = write_tif(tmp_path / "odd.tif", np.full((5, 5), 100, "float32"),
+                    from_origin(500_000, 4_000_000, 10.0, 10.0), "EPSG:32617", units="asl")
+    code, out, _ = validate(tmp_path, capsys, odd)
+    assert code == 0 and "heights 100 .. 100 m" in out
+    assert f"note: {odd}: band unit 'asl' is not a unit of length pyproj knows; ignored" in out
 
 
 def test_the_real_model_holds_matplotlibs_srtm_heights_unchanged():
@@ -231,7 +236,12 @@ def test_a_model_without_crs_is_taken_as_metres_and_says_so(tmp_path, capsys):
                      from_origin(0, 10, 1.0, 1.0), None)
     code, out, _ = validate(tmp_path, capsys, path)
     assert code == 0 and "11 x 11 cells of 1 x 1 m" in out
-    assert f"note: {path}: no CRS; cells and heights taken as metres" in out
+    assert f"note: {path}: no CRS; cells taken as metres, heights too" in out
+    feet = write_tif(tmp_path / "local_ft.tif", np.full((11, 11), 10, "float32"),
+                     from_origin(0, 10, 1.0, 1.0), None, units="ft")
+    code, out, _ = validate(tmp_path, capsys, feet)
+    assert code == 0 and f"heights {10 * FT:.6g} .. " in out
+    assert f"note: {feet}: no CRS; cells taken as metres\n" in out
 
 
 def test_a_local_grid_crs_in_feet_is_taken_as_a_level_grid_in_feet(tmp_path, capsys):
