@@ -77,7 +77,7 @@ def describe_elevation(settings: FileTerrainSettings) -> list[str]:
     unknown = np.isnan(heights).mean()
     return [
         f"{settings.path}: {nx} x {ny} cells of {cx:.4g} x {cy:.4g} m ({width:.6g} x "
-        f"{depth:.6g} m), heights {low:.6g} .. {high:.6g} m"
+        f"{depth:.6g} m), heights {low:.2f} .. {high:.2f} m"
         + (f", {unknown:.1%} unknown" if unknown else ""),
         *notes,
     ]

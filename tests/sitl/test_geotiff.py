@@ -82,7 +82,7 @@ def test_a_projected_model_in_metres_is_taken_as_it_is(tmp_path, capsys):
         500_000, 4_000_080, 2.0, 2.0), "EPSG:32617", nodata=-9999.0)
     code, out, _ = validate(tmp_path, capsys, path)
     assert code == 0
-    assert "61 x 41 cells of 2 x 2 m (120 x 80 m), heights 0 .. 44 m" in model_line(out)
+    assert "61 x 41 cells of 2 x 2 m (120 x 80 m), heights 0.00 .. 44.00 m" in model_line(out)
     assert "note:" not in out
     terrain = terrain_of(path)  # home at the centre (60, 40) m
     x, y = np.array([-50.0, 0.0, 33.3]), np.array([-30.0, 0.0, 17.1])
@@ -99,11 +99,23 @@ def test_a_model_in_feet_has_its_cells_and_heights_in_metres(tmp_path, capsys, c
     assert code == 0
     cell, width, depth, top = 3 * foot, 180 * foot, 120 * foot, 66 * foot
     assert (f"61 x 41 cells of {cell:.4g} x {cell:.4g} m ({width:.6g} x {depth:.6g} m), "
-            f"heights 0 .. {top:.6g} m") in model_line(out)
+            f"heights 0.00 .. {top:.2f} m") in model_line(out)
     assert "no vertical CRS; heights taken in the unit of x and y" in out
     terrain = terrain_of(path)
     x, y = np.array([-20.0, 0.0, 25.0]), np.array([-15.0, 0.0, 12.0])
     np.testing.assert_allclose(terrain.height(x, y), 0.3 * x + 0.1 * y, atol=1e-3)
+
+
+def test_lander_terrain_says_how_a_model_in_feet_was_read(tmp_path, capsys):
+    path = write_tif(tmp_path / "ft.tif", plane(41, 61, 3.0, 3.0),
+                     from_origin(2_000_000, 600_000, 3.0, 3.0), "EPSG:2264")
+    assert main(["terrain", "--kind", "file", "--set", f"path={path}", "--set",
+                 "cell_size=0.5", "--out", str(tmp_path / "out")]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert out[0].startswith(f"elevation model: {path}: 61 x 41 cells of 0.9144 x 0.9144 m")
+    assert out[1] == (f"note: {path}: no vertical CRS; heights taken in the unit of x and y "
+                      "(US survey foot)")
+    assert out[2].startswith("world file seed 0: 110 x 74 cells of 0.5 m")
 
 
 def test_heights_take_the_vertical_crs_unit_over_that_of_x_and_y(tmp_path, capsys):
@@ -111,18 +123,18 @@ def test_heights_take_the_vertical_crs_unit_over_that_of_x_and_y(tmp_path, capsy
     path = write_tif(tmp_path / "cmpd.tif", np.full((5, 5), 1000, "float32"),
                      from_origin(500_000, 4_000_000, 10.0, 10.0), "EPSG:32617+6360")
     code, out, _ = validate(tmp_path, capsys, path)
-    assert code == 0 and f"cells of 10 x 10 m (40 x 40 m), heights {1000 * US_FT:.6g} .. " in out
+    assert code == 0 and f"cells of 10 x 10 m (40 x 40 m), heights {1000 * US_FT:.2f} .. " in out
 
 
 def test_the_band_unit_gives_the_heights_unit_without_a_vertical_crs(tmp_path, capsys):
     path = write_tif(tmp_path / "ftband.tif", np.full((5, 5), 100, "float32"),
                      from_origin(500_000, 4_000_000, 10.0, 10.0), "EPSG:32617", units="ft")
     code, out, _ = validate(tmp_path, capsys, path)
-    assert code == 0 and f"heights {100 * FT:.6g} .. {100 * FT:.6g} m" in out
+    assert code == 0 and f"heights {100 * FT:.2f} .. {100 * FT:.2f} m" in out
     odd = write_tif(tmp_path / "odd.tif", np.full((5, 5), 100, "float32"),
                     from_origin(500_000, 4_000_000, 10.0, 10.0), "EPSG:32617", units="asl")
     code, out, _ = validate(tmp_path, capsys, odd)
-    assert code == 0 and "heights 100 .. 100 m" in out
+    assert code == 0 and "heights 100.00 .. 100.00 m" in out
     assert f"note: {odd}: band unit 'asl' is not a unit of length pyproj knows; ignored" in out
 
 
@@ -142,7 +154,7 @@ def test_the_real_srtm_model_in_degrees_is_reprojected_to_metres(tmp_path, capsy
     code, out, _ = validate(tmp_path, capsys, REAL, cell_size=5.0)
     assert code == 0
     line = model_line(out)
-    assert "cells of 74.57 x 92.47 m" in line and "heights 241.251 .. 1073.11 m" in line, line
+    assert "cells of 74.57 x 92.47 m" in line and "heights 241.25 .. 1073.11 m" in line, line
     width, depth = (float(v) for v in line.split("(")[1].split(" m)")[0].split(" x "))
     assert abs(width - 30_050) < 150 and abs(depth - 31_800) < 150  # the 0.336 x 0.287 deg
     assert "EPSG:4326 is geographic (degrees); reprojected to a transverse Mercator" in out
@@ -184,7 +196,7 @@ def test_nodata_cells_have_no_ground(tmp_path, capsys, dtype, nodata):
     path = write_tif(tmp_path / "hole.tif", heights, from_origin(500_000, 4_000_040, 1.0, 1.0),
                      "EPSG:32617", nodata=nodata)
     code, out, _ = validate(tmp_path, capsys, path)
-    assert code == 0 and "heights 100 .. 100 m, 7.2% unknown" in model_line(out)
+    assert code == 0 and "heights 100.00 .. 100.00 m, 7.2% unknown" in model_line(out)
     terrain = terrain_of(path)  # home at (20, 20)
     assert terrain.has_ground(0.0, 0.0) and not terrain.has_ground(10.0, 10.0)
     assert terrain.height(-15.0, 0.0) == pytest.approx(0.0)  # heights are about home
@@ -228,7 +240,7 @@ def test_heights_with_an_alpha_band_use_it_as_their_mask(tmp_path, capsys):
     path = write_tif(tmp_path / "alpha.tif", None, from_origin(500_000, 4_000_020, 1.0, 1.0),
                      "EPSG:32617", bands=heights, alpha="YES")
     code, out, _ = validate(tmp_path, capsys, path)
-    assert code == 0 and "heights 7 .. 7 m, 5.7% unknown" in model_line(out)
+    assert code == 0 and "heights 7.00 .. 7.00 m, 5.7% unknown" in model_line(out)
 
 
 def test_a_model_without_crs_is_taken_as_metres_and_says_so(tmp_path, capsys):
@@ -240,7 +252,7 @@ def test_a_model_without_crs_is_taken_as_metres_and_says_so(tmp_path, capsys):
     feet = write_tif(tmp_path / "local_ft.tif", np.full((11, 11), 10, "float32"),
                      from_origin(0, 10, 1.0, 1.0), None, units="ft")
     code, out, _ = validate(tmp_path, capsys, feet)
-    assert code == 0 and f"heights {10 * FT:.6g} .. " in out
+    assert code == 0 and f"heights {10 * FT:.2f} .. " in out
     assert f"note: {feet}: no CRS; cells taken as metres\n" in out
 
 
@@ -254,7 +266,7 @@ def test_a_local_grid_crs_in_feet_is_taken_as_a_level_grid_in_feet(tmp_path, cap
                      from_origin(0, 40, 1.0, 1.0), local)
     code, out, _ = validate(tmp_path, capsys, path)
     assert code == 0 and f"cells of {US_FT:.4g} x {US_FT:.4g} m" in out
-    assert f"heights {10 * US_FT:.6g} .. " in out
+    assert f"heights {10 * US_FT:.2f} .. " in out
     assert "local CRS 'site grid'; taken as a level grid in its unit (US survey foot)" in out
 
 
