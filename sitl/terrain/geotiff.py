@@ -24,6 +24,8 @@ from pathlib import Path
 
 import numpy as np
 
+from sitl.terrain.settings import MAX_CELLS
+
 SCALE_TOLERANCE = 0.01
 """Largest scale error of a projected CRS at the model that is taken as metres (UTM has
 at most 0.1 %, a state plane 0.01 %; Web Mercator 41 % at 45 deg latitude)."""
@@ -75,6 +77,11 @@ def _read(src, path: Path) -> tuple[np.ndarray, tuple[float, float], list[str]]:
         raise ValueError(
             f"rotated or sheared geotransform {tuple(round(v, 6) for v in t[:6])}: warp it "
             "north-up first (gdalwarp -t_srs with the file's own CRS)"
+        )
+    if src.width * src.height > MAX_CELLS:  # before reading: a national tile is gigabytes
+        raise ValueError(
+            f"{src.height} x {src.width} cells, more than the {MAX_CELLS:,} a world may hold "
+            "(memory): crop or coarsen it (gdal_translate -srcwin, gdalwarp -tr)"
         )
     heights = src.read(band, masked=True).astype(np.float64).filled(np.nan)
     notes: list[str] = []

@@ -313,6 +313,18 @@ def _geocentric(tmp_path):
                      from_origin(0, 8, 1, 1), "EPSG:4978")
 
 
+def _huge(tmp_path):
+    # 8001 x 8001 cells with no block written (GDAL's sparse files): a few kB on disk, the
+    # size of a national 1 m tile once read. Refused from the header, before any is read.
+    path = tmp_path / "huge.tif"
+    with rasterio.open(path, "w", driver="GTiff", width=8001, height=8001, count=1,
+                       dtype="float32", crs="EPSG:32617", tiled=True, sparse_ok=True,
+                       transform=from_origin(500_000, 4_008_001, 1, 1)):
+        pass
+    assert path.stat().st_size < 1_000_000
+    return path
+
+
 @pytest.mark.parametrize(("make", "words"), [
     (_rgb, "an image (red, green, blue bands), not an elevation model"),
     (_two_bands, "2 bands (gray, undefined): an elevation model has one band of heights; "
@@ -322,8 +334,9 @@ def _geocentric(tmp_path):
     (_not_a_tiff, "not a GeoTIFF"),
     (_truncated, "damaged or truncated GeoTIFF"),
     (_geocentric, "CRS 'WGS 84' is geocentric, not a map of heights"),
+    (_huge, "8001 x 8001 cells, more than the 64,000,000 a world may hold (memory)"),
 ], ids=["rgb-image", "two-bands", "rotated", "plain-tiff", "not-a-tiff", "truncated",
-        "geocentric"])
+        "geocentric", "huge"])
 def test_a_file_that_is_no_usable_model_is_refused_in_one_line(tmp_path, capsys, make, words):
     path = make(tmp_path)
     line = refused(tmp_path, capsys, path)
