@@ -24,6 +24,7 @@ from scipy import ndimage
 
 from sitl.terrain.esri_ascii import read_asc
 from sitl.terrain.file_errors import GridFileError
+from sitl.terrain.geotiff import GDAL_SUFFIXES
 from sitl.terrain.settings import MAX_CELLS, FileTerrainSettings
 
 
@@ -208,7 +209,7 @@ def _read_elevation_quietly(
             heights, cell, nodata = read_asc(path)
             heights = heights[::-1]  # ESRI rows run north to south; ours run south to north
             cells = (cell, cell)
-        elif suffix in (".tif", ".tiff"):
+        elif suffix in GDAL_SUFFIXES:
             from sitl.terrain.geotiff import read_geotiff
 
             heights, cells, notes = read_geotiff(path)

@@ -13,6 +13,10 @@ GLO-30). The simulation works on a level grid in metres, so:
   gives their unit;
 - **no CRS** but a geotransform: cells and heights taken as metres, in one line.
 
+The same reader takes the other formats DEMs are distributed in that GDAL reads
+(:data:`GDAL_SUFFIXES`: SRTM ``.hgt``, DTED, ERDAS ``.img``, ``.bil``/``.flt`` with their
+``.hdr``, GDAL's ``.vrt`` mosaics).
+
 Refused, each with one reason: no geotransform (a plain TIFF, ground control points only),
 a rotated or sheared one, an image or more than one band of heights (bands beyond the first
 that are alpha are read as its mask), a file rasterio cannot read or a damaged one.
@@ -25,6 +29,12 @@ from pathlib import Path
 import numpy as np
 
 from sitl.terrain.settings import MAX_CELLS
+
+GEOTIFF_SUFFIXES = (".tif", ".tiff")
+GDAL_SUFFIXES = (*GEOTIFF_SUFFIXES, ".hgt", ".dt0", ".dt1", ".dt2", ".img", ".bil", ".flt",
+                 ".vrt")
+"""Elevation-model files read through rasterio (GDAL): GeoTIFF, and the other forms DEMs
+come in (SRTM tiles as .hgt, DTED levels 0-2, ERDAS Imagine, ESRI BIL/FLT, VRT mosaics)."""
 
 SCALE_TOLERANCE = 0.01
 """Largest scale error of a projected CRS at the model that is taken as metres (UTM has
@@ -47,10 +57,12 @@ def read_geotiff(path: Path) -> tuple[np.ndarray, tuple[float, float], list[str]
         from rasterio.errors import RasterioError
     except ImportError as exc:  # optional extra
         raise ValueError(
-            "GeoTIFF needs rasterio and pyproj: pip install 'landing-autonomy[geotiff]'"
+            f"{path.suffix} elevation models need rasterio and pyproj: "
+            "pip install 'landing-autonomy[geotiff]'"
         ) from exc
     from pyproj.exceptions import ProjError
 
+    what = "GeoTIFF" if path.suffix.lower() in GEOTIFF_SUFFIXES else f"{path.suffix} raster"
     try:
         with rasterio.open(path) as src:
             return _read(src, path)
@@ -60,8 +72,8 @@ def read_geotiff(path: Path) -> tuple[np.ndarray, tuple[float, float], list[str]
         cause = exc.__cause__ or exc.__context__
         why = " ".join(str(cause or exc).split())
         if "not recognized" in why:
-            raise ValueError("not a GeoTIFF (nor any raster format GDAL reads)") from None
-        raise ValueError(f"damaged or truncated GeoTIFF ({why[:160]})") from None
+            raise ValueError(f"not a {what} (nor any raster format GDAL reads)") from None
+        raise ValueError(f"damaged or truncated {what} ({why[:160]})") from None
 
 
 def _read(src, path: Path) -> tuple[np.ndarray, tuple[float, float], list[str]]:

@@ -365,8 +365,9 @@ class FileTerrainSettings(_GridSettings):
 
     Formats: ``.npy`` (2-D array, row i along +y i.e. south to north, needs
     ``source_cell_size``), ESRI ASCII grid ``.asc`` (north-up, header gives the cell size),
-    GeoTIFF ``.tif``/``.tiff`` (needs the optional ``geotiff`` extra, rasterio and pyproj;
-    its CRS and units are converted to metres, see :mod:`sitl.terrain.geotiff`).
+    GeoTIFF ``.tif``/``.tiff`` and the other DEM formats GDAL reads (SRTM ``.hgt``, DTED,
+    ``.img``, ``.bil``, ``.flt``, ``.vrt``; they need the optional ``geotiff`` extra, rasterio
+    and pyproj; the CRS and units are converted to metres, see :mod:`sitl.terrain.geotiff`).
     """
 
     kind: Literal["file"] = "file"
@@ -393,9 +394,13 @@ class FileTerrainSettings(_GridSettings):
     @field_validator("path")
     @classmethod
     def _readable(cls, v: Path) -> Path:
+        from sitl.terrain.geotiff import GDAL_SUFFIXES
+
         suffix = v.suffix.lower()
-        if suffix not in (".npy", ".asc", ".tif", ".tiff"):
-            raise ValueError(f"unsupported format {suffix!r} (use .npy, .asc, .tif, .tiff)")
+        if suffix not in (".npy", ".asc", *GDAL_SUFFIXES):
+            raise ValueError(
+                f"unsupported format {suffix!r} (use {', '.join(('.npy', '.asc', *GDAL_SUFFIXES))})"
+            )
         if not v.is_file():
             raise ValueError(f"no such file: {v}")
         return v

@@ -160,6 +160,39 @@ def test_the_real_srtm_model_in_degrees_is_reprojected_to_metres(tmp_path, capsy
     assert "EPSG:4326 is geographic (degrees); reprojected to a transverse Mercator" in out
 
 
+def test_the_other_dem_formats_gdal_reads_give_the_geotiffs_model(tmp_path, capsys):
+    """ERDAS Imagine (.img) and a GDAL mosaic (.vrt) of the same heights read as the GeoTIFF
+    does; an SRTM tile (.hgt, as downloaded: one degree, int16) is read and reprojected, and
+    too large for a world whole, which the refusal says in metres."""
+    import rasterio.shutil
+
+    tif = write_tif(tmp_path / "utm.tif", plane(41, 61, 2.0, 2.0), from_origin(
+        500_000, 4_000_080, 2.0, 2.0), "EPSG:32617", nodata=-9999.0)
+    expected = model_line(validate(tmp_path, capsys, tif)[1])
+    rasterio.shutil.copy(tif, tmp_path / "utm.img", driver="HFA")
+    (tmp_path / "utm.vrt").write_text(
+        '<VRTDataset rasterXSize="61" rasterYSize="41">'
+        "<VRTRasterBand dataType=\"Float32\" band=\"1\"><SimpleSource>"
+        '<SourceFilename relativeToVRT="1">utm.tif</SourceFilename><SourceBand>1</SourceBand>'
+        "</SimpleSource></VRTRasterBand></VRTDataset>"
+    )
+    with rasterio.open(tif) as src:  # the VRT takes its georeference from its source
+        text = (tmp_path / "utm.vrt").read_text().replace(
+            '<VRTRasterBand', f"<SRS>{src.crs.to_wkt()}</SRS><GeoTransform>"
+            f"{', '.join(str(v) for v in src.transform.to_gdal())}</GeoTransform><VRTRasterBand")
+        (tmp_path / "utm.vrt").write_text(text)
+    for name in ("utm.img", "utm.vrt"):
+        code, out, err = validate(tmp_path, capsys, tmp_path / name)
+        assert code == 0, err
+        assert model_line(out).split(": ", 2)[2] == expected.split(": ", 2)[2], name
+    n, res = 1201, 1 / 1200  # N36 W085, 3 arc-seconds, pixel centres on whole degrees
+    write_tif(tmp_path / "tile.tif", plane(n, n, 1, 1, "int16"),
+              from_origin(-85 - res / 2, 37 + res / 2, res, res), "EPSG:4326", nodata=-32768)
+    rasterio.shutil.copy(tmp_path / "tile.tif", tmp_path / "N36W085.hgt", driver="SRTMHGT")
+    code, _, err = validate(tmp_path, capsys, tmp_path / "N36W085.hgt", cell_size=5.0)
+    assert code == 2 and "N36W085.hgt spans 90188" in err and "x 111153 m" in err, err
+
+
 def test_the_real_model_reads_alike_in_degrees_and_in_utm(tmp_path):
     """The same ground whether the file is in degrees or was reprojected to UTM 17N
     beforehand (as gdalwarp -t_srs EPSG:32617 does): UTM's grid north is turned by the
