@@ -72,10 +72,8 @@ def build(kind: str, assignments: dict, seed: int):
     if settings.kind == "file":  # the model in metres: were its units taken right?
         from sitl.terrain.files import describe_elevation
 
-        model, *notes = describe_elevation(settings)
-        print(f"elevation model: {model}")
-        for note in notes:
-            print(f"note: {note}")
+        for line in describe_elevation(settings):  # the model, its window, notes
+            print(line)
     cells = settings_cells(settings)
     if cells is not None and cells > 4_000_000:
         print(f"building the {kind} world ({cells / 1e6:.0f} million cells) and its safety map",

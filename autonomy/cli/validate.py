@@ -34,10 +34,8 @@ def run(args: argparse.Namespace) -> int:
     if mission.world.kind == "file":  # the model in metres: were its units taken right?
         from sitl.terrain.files import describe_elevation
 
-        model, *notes = describe_elevation(mission.world)
-        print(f"elevation model: {model}")
-        for note in notes:
-            print(f"note: {note}")
+        for line in describe_elevation(mission.world):  # the model, its window, notes
+            print(line)
     return 0
 
 

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import math
 import warnings
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -25,70 +26,82 @@ from scipy import ndimage
 from sitl.terrain.esri_ascii import read_asc
 from sitl.terrain.file_errors import GridFileError
 from sitl.terrain.geotiff import GDAL_SUFFIXES
-from sitl.terrain.settings import MAX_CELLS, FileTerrainSettings
+from sitl.terrain.model_area import Area, WindowError, crop
+from sitl.terrain.settings import MAX_CELLS, FileTerrainSettings, WindowSettings
 
 
-def _grid_shape(
-    settings: FileTerrainSettings, shape: tuple[int, int], source_cell: tuple[float, float]
-) -> tuple[int, int, float, float]:
-    """(nx, ny, width, depth) of the simulation grid for a model of ``shape`` cells of
-    ``source_cell`` (east, north) m. Raises ValueError when it is too small, too large or
-    home is off it."""
-    src_ny, src_nx = shape
-    width, depth = (src_nx - 1) * source_cell[0], (src_ny - 1) * source_cell[1]
+def _grid_shape(settings: FileTerrainSettings, area: Area) -> tuple[int, int, float, float]:
+    """(nx, ny, width, depth) of the simulation grid of the model's ``area``. Raises
+    ValueError when it is too small, too large or home is off it."""
+    _, _, width, depth = area.box
+    what = (f"{settings.path} spans" if area.window is None
+            else f"the window of {settings.path} spans")
     cs = settings.cell_size
     nx = int(np.floor(width / cs + 1e-9)) + 1
     ny = int(np.floor(depth / cs + 1e-9)) + 1
     if nx < 2 or ny < 2:
         raise ValueError(
-            f"path: {settings.path} spans {width:g} x {depth:g} m, less than two {cs:g} m cells"
+            f"path: {what} {width:g} x {depth:g} m, less than two {cs:g} m cells"
         )
     if nx * ny > MAX_CELLS:
         raise ValueError(
-            f"cell_size: {settings.path} spans {width:g} x {depth:g} m, {nx * ny:.3g} cells of "
+            f"cell_size: {what} {width:g} x {depth:g} m, {nx * ny:.3g} cells of "
             f"{cs:g} m, more than {MAX_CELLS}"
         )
     if settings.home is not None:
         hx, hy = settings.home
         if not (0 <= hx <= width and 0 <= hy <= depth):
+            where = "model's" if area.window is None else "window's"
             raise ValueError(
-                f"home: {settings.home} is outside the model's {width:g} x {depth:g} m"
+                f"home: {settings.home} is outside the {where} {width:g} x {depth:g} m"
             )
     return nx, ny, width, depth
+
+
+def _read(settings: FileTerrainSettings) -> Area:
+    return read_elevation(settings.path, settings.source_cell_size, settings.window)
 
 
 def check_elevation(settings: FileTerrainSettings) -> None:
     """Read the model (kept for :func:`generate`) and check that it makes a world.
 
     Raises:
-        ValueError: ``path: ...``, ``cell_size: ...`` or ``home: ...``: unreadable or
-            malformed, more than MAX_CELLS cells once resampled, or home outside it.
+        ValueError: ``path: ...``, ``cell_size: ...``, ``window...: ...`` or ``home: ...``:
+            unreadable or malformed, a window off it, more than MAX_CELLS cells once
+            resampled, or home outside it.
     """
-    heights, source_cell, _ = read_elevation(settings.path, settings.source_cell_size)
-    _grid_shape(settings, heights.shape, source_cell)
+    _grid_shape(settings, _read(settings))
 
 
 def describe_elevation(settings: FileTerrainSettings) -> list[str]:
-    """What the model is in metres, then how it was read (units assumed, a reprojection):
+    """What the model is in metres (``elevation model: ...``), the window flown
+    (``window: ...``), then how it was read (``note: ...``: units assumed, a reprojection):
     lines for the user to check the file's units were taken right."""
-    heights, (cx, cy), notes = read_elevation(settings.path, settings.source_cell_size)
-    ny, nx = heights.shape
-    _, _, width, depth = _grid_shape(settings, heights.shape, (cx, cy))
+    area = _read(settings)
+    heights, (cx, cy) = area.heights, area.cell
+    nx, ny = area.model_cells
+    width, depth = area.model_size
+    _grid_shape(settings, area)
     low, high = np.nanmin(heights), np.nanmax(heights)
     unknown = np.isnan(heights).mean()
-    return [
-        f"{settings.path}: {nx} x {ny} cells of {cx:.4g} x {cy:.4g} m ({width:.6g} x "
-        f"{depth:.6g} m), heights {low:.2f} .. {high:.2f} m"
-        + (f", {unknown:.1%} unknown" if unknown else ""),
-        *notes,
-    ]
+    relief = (f"heights {low:.2f} .. {high:.2f} m"
+              + (f", {unknown:.1%} unknown" if unknown else ""))
+    model = (f"elevation model: {settings.path}: {nx} x {ny} cells of {cx:.4g} x {cy:.4g} m "
+             f"({width:.6g} x {depth:.6g} m)")
+    if area.window is None:
+        return [f"{model}, {relief}", *(f"note: {n}" for n in area.notes)]
+    x0, y0, w, d = area.window
+    at = f"{area.centre} " if area.centre else ""
+    window = (f"window: {w:.6g} x {d:.6g} m centred at {at}(x {x0 + w / 2:.6g}, "
+              f"y {y0 + d / 2:.6g} m from the model's south-west corner), "
+              f"{heights.shape[1]} x {heights.shape[0]} cells read, {relief}")
+    return [model, window, *(f"note: {n}" for n in area.notes)]
 
 
 def model_extent(settings: FileTerrainSettings) -> tuple[float, float, float, float]:
-    """(xmin, xmax, ymin, ymax) ENU metres about home of the model's grid: where it has
-    ground at all."""
-    heights, source_cell, _ = read_elevation(settings.path, settings.source_cell_size)
-    _, _, width, depth = _grid_shape(settings, heights.shape, source_cell)
+    """(xmin, xmax, ymin, ymax) ENU metres about home of the model's grid (of its window):
+    where it has ground at all."""
+    _, _, width, depth = _grid_shape(settings, _read(settings))
     hx, hy = settings.home if settings.home is not None else (width / 2, depth / 2)
     return (-hx, width - hx, -hy, depth - hy)
 
@@ -141,17 +154,21 @@ def check_route(
 def generate(
     settings: FileTerrainSettings, rng: np.random.Generator
 ) -> tuple[np.ndarray, tuple[float, float], np.ndarray]:
-    """(grid, origin, known) of the elevation model, resampled to ``settings.cell_size``
-    and placed so that home (0, 0) is at ``settings.home`` (default: the model's centre).
-    ``known`` is False in cells whose bilinear height needs an unknown source cell."""
-    heights, source_cell, _ = read_elevation(settings.path, settings.source_cell_size)
-    known_source = np.isfinite(heights)
-    heights = _nearest_known(heights, known_source) * settings.vertical_scale
-    nx, ny, width, depth = _grid_shape(settings, heights.shape, source_cell)
+    """(grid, origin, known) of the elevation model (of its window), resampled to
+    ``settings.cell_size`` and placed so that home (0, 0) is at ``settings.home`` (default:
+    the centre). ``known`` is False in cells whose bilinear height needs an unknown source
+    cell."""
+    area = _read(settings)
+    source_cell = area.cell
+    known_source = np.isfinite(area.heights)
+    heights = _nearest_known(area.heights, known_source) * settings.vertical_scale
+    nx, ny, width, depth = _grid_shape(settings, area)
     cs = settings.cell_size
-    # Bilinear resampling at the simulation cell centres (source index units).
-    rows = np.arange(ny) * (cs / source_cell[1])
-    cols = np.arange(nx) * (cs / source_cell[0])
+    # Bilinear resampling at the simulation cell centres (source index units), from the
+    # window's south-west corner (the model's without a window: offset 0).
+    x0, y0 = area.box[0] - area.origin[0], area.box[1] - area.origin[1]
+    rows = y0 / source_cell[1] + np.arange(ny) * (cs / source_cell[1])
+    cols = x0 / source_cell[0] + np.arange(nx) * (cs / source_cell[0])
     at = np.meshgrid(rows, cols, indexing="ij")
     grid = ndimage.map_coordinates(heights, at, order=1, mode="nearest").astype(np.float32)
     known = ndimage.map_coordinates(known_source.astype(np.float64), at, order=1, mode="nearest")
@@ -160,26 +177,28 @@ def generate(
 
 
 def read_elevation(
-    path: Path, source_cell_size: float | None = None
-) -> tuple[np.ndarray, tuple[float, float], tuple[str, ...]]:
-    """Heights (ny, nx) float64 in metres with row i along +y (south to north), NaN where
-    unknown (nodata); the (east, north) cell size in metres; and notes for the user on how
-    the file was read (units assumed, a reprojection). Raises ValueError("path: ...") on an
-    unreadable or malformed file, or one without a single known height.
+    path: Path, source_cell_size: float | None = None, window: WindowSettings | None = None
+) -> Area:
+    """The model's cells covering ``window`` (all of them without one): heights (ny, nx)
+    float64 in metres with row i along +y (south to north), NaN where unknown (nodata); the
+    (east, north) cell size in metres; notes for the user on how the file was read (units
+    assumed, a reprojection); where they lie on the model. A GDAL-read file is read in the
+    window only. Raises ValueError("path: ...") on an unreadable or malformed file, or one
+    without a single known height, WindowError ("window...: ...") on a window off it.
 
-    The last model read is kept (keyed by the file's path, size and modification time), so
-    validating a mission and then flying it reads the file once.
+    The last model read is kept (keyed by the file's path, size and modification time, and
+    the window), so validating a mission and then flying it reads the file once.
     """
     path = Path(path)
     try:
         stat = path.stat()
     except OSError as exc:
         raise ValueError(f"path: cannot read {path}: {exc.strerror or exc}") from None
-    key = (str(path.resolve()), stat.st_size, stat.st_mtime_ns, source_cell_size)
+    key = (str(path.resolve()), stat.st_size, stat.st_mtime_ns, source_cell_size, window)
     if _LAST_READ and _LAST_READ[0] == key:
         return _LAST_READ[1]
-    result = _read_elevation(path, source_cell_size)
-    result[0].setflags(write=False)
+    result = _read_elevation(path, source_cell_size, window)
+    result.heights.setflags(write=False)
     _LAST_READ[:] = [key, result]
     return result
 
@@ -187,19 +206,15 @@ def read_elevation(
 _LAST_READ: list = []
 
 
-def _read_elevation(
-    path: Path, source_cell_size: float | None
-) -> tuple[np.ndarray, tuple[float, float], tuple[str, ...]]:
+def _read_elevation(path: Path, source_cell_size: float | None, window) -> Area:
     with warnings.catch_warnings(), np.errstate(all="ignore"):
         warnings.simplefilter("ignore")  # a bad file is one line, not a library's warning
-        return _read_elevation_quietly(path, source_cell_size)
+        return _read_elevation_quietly(path, source_cell_size, window)
 
 
-def _read_elevation_quietly(
-    path: Path, source_cell_size: float | None
-) -> tuple[np.ndarray, tuple[float, float], tuple[str, ...]]:
+def _read_elevation_quietly(path: Path, source_cell_size: float | None, window) -> Area:
     suffix = path.suffix.lower()
-    notes: list[str] = []
+    area = None
     try:
         if suffix == ".npy":
             heights = _load_npy(path)
@@ -212,20 +227,28 @@ def _read_elevation_quietly(
         elif suffix in GDAL_SUFFIXES:
             from sitl.terrain.geotiff import read_geotiff
 
-            heights, cells, notes = read_geotiff(path)
-            nodata = None  # read_geotiff marks nodata NaN
+            area = read_geotiff(path, window)  # of the window only; nodata marked NaN
         else:
             raise ValueError(f"unsupported format {suffix!r}")
+    except WindowError:  # names the setting itself
+        raise
     except GridFileError as exc:  # names the file and the line itself
         raise ValueError(f"path: {exc}") from None
     except (OSError, ValueError, TypeError) as exc:
         raise ValueError(f"path: cannot read {path}: {exc}") from exc
+    if area is not None:
+        _check_grid(area.heights, area.cell, path)
+        return replace(area, heights=_mark_missing(area.heights, None, path))
+    _check_grid(heights, cells, path)
+    cells = (float(cells[0]), float(cells[1]))
+    return crop(_mark_missing(heights, nodata, path), cells, (), window)
+
+
+def _check_grid(heights: np.ndarray, cells, path: Path) -> None:
     if any(c is None or not np.isfinite(c) or c <= 0 for c in cells):
         raise ValueError(f"path: {path}: no positive cell size")
     if heights.ndim != 2 or min(heights.shape) < 2:
         raise ValueError(f"path: {path}: need a 2-D grid of at least 2 x 2, got {heights.shape}")
-    cells = (float(cells[0]), float(cells[1]))
-    return _mark_missing(heights, nodata, path), cells, tuple(notes)
 
 
 def _mark_missing(heights: np.ndarray, nodata: float | None, path: Path) -> np.ndarray:

@@ -28,6 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
+from sitl.terrain.model_area import Area, WindowError, covering, place
 from sitl.terrain.settings import MAX_CELLS
 
 GEOTIFF_SUFFIXES = (".tif", ".tiff")
@@ -47,10 +48,12 @@ _UNIT_ALIASES = {"meter": "metre", "meters": "metre", "metres": "metre", "feet":
                  "us survey feet": "us survey foot"}
 
 
-def read_geotiff(path: Path) -> tuple[np.ndarray, tuple[float, float], list[str]]:
-    """Heights (ny, nx) float64 in metres, row i along +y (south to north), NaN where
-    unknown; the (east, north) cell size in metres; notes for the user (what was assumed or
-    converted). Raises ValueError with the reason on a file that cannot be a model."""
+def read_geotiff(path: Path, window=None) -> Area:
+    """The model's cells covering ``window`` (sitl.terrain.settings.WindowSettings; all of
+    them without one), read from the file in the window only: heights (ny, nx) float64 in
+    metres, row i along +y (south to north), NaN where unknown; the (east, north) cell size
+    in metres; notes for the user (what was assumed or converted). Raises ValueError with
+    the reason on a file that cannot be a model, WindowError on a window off it."""
     try:
         import pyproj  # noqa: F401 - the CRS and its units
         import rasterio
@@ -65,7 +68,7 @@ def read_geotiff(path: Path) -> tuple[np.ndarray, tuple[float, float], list[str]
     what = "GeoTIFF" if path.suffix.lower() in GEOTIFF_SUFFIXES else f"{path.suffix} raster"
     try:
         with rasterio.open(path) as src:
-            return _read(src, path)
+            return _read(src, path, window)
     except ProjError as exc:  # a CRS or transformation PROJ cannot work with
         raise ValueError(f"its CRS: {' '.join(str(exc).split())[:160]}") from None
     except RasterioError as exc:
@@ -76,7 +79,7 @@ def read_geotiff(path: Path) -> tuple[np.ndarray, tuple[float, float], list[str]
         raise ValueError(f"damaged or truncated {what} ({why[:160]})") from None
 
 
-def _read(src, path: Path) -> tuple[np.ndarray, tuple[float, float], list[str]]:
+def _read(src, path: Path, window) -> Area:
     band = _height_band(src)
     t = src.transform
     if t.is_identity:
@@ -90,18 +93,19 @@ def _read(src, path: Path) -> tuple[np.ndarray, tuple[float, float], list[str]]:
             f"rotated or sheared geotransform {tuple(round(v, 6) for v in t[:6])}: warp it "
             "north-up first (gdalwarp -t_srs with the file's own CRS)"
         )
-    if src.width * src.height > MAX_CELLS:  # before reading: a national tile is gigabytes
+    if window is None and src.width * src.height > MAX_CELLS:  # before reading: gigabytes
         raise ValueError(
             f"{src.height} x {src.width} cells, more than the {MAX_CELLS:,} a world may hold "
-            "(memory): crop or coarsen it (gdal_translate -srcwin, gdalwarp -tr)"
+            "(memory): fly a window of it (world.window), or crop or coarsen it "
+            "(gdal_translate -srcwin, gdalwarp -tr)"
         )
-    heights = src.read(band, masked=True).astype(np.float64).filled(np.nan)
     notes: list[str] = []
     if src.crs is None:
         z_unit = _height_unit(src, None, None, path, notes)
         said = _band_unit(src) is not None  # heights in the band's own unit
         notes.append(f"{path}: no CRS; cells taken as metres" + ("" if said else ", heights too"))
-        return _south_up(heights, t) * z_unit, (abs(t.a), abs(t.e)), notes
+        cells = (abs(t.a), abs(t.e))
+        return _read_grid(src, band, window, cells, z_unit, notes, None)
     from pyproj import CRS
 
     crs = CRS.from_wkt(src.crs.to_wkt())
@@ -117,23 +121,172 @@ def _read(src, path: Path) -> tuple[np.ndarray, tuple[float, float], list[str]]:
         unit = float(axis.unit_conversion_factor)
         notes.append(f"{path}: local CRS {horizontal.name!r}; taken as a level grid in its "
                      f"unit ({axis.unit_name})")
-        return _south_up(heights, t) * z_unit, (abs(t.a) * unit, abs(t.e) * unit), notes
+        cells = (abs(t.a) * unit, abs(t.e) * unit)
+        return _read_grid(src, band, window, cells, z_unit, notes, None)
     lon, lat = _centre_lonlat(src, horizontal)
     scale = 0.0 if horizontal.is_geographic else _scale_error(horizontal, lon, lat)
     if horizontal.is_geographic or scale > SCALE_TOLERANCE:
-        heights, t = _to_local_metres(heights, src, horizontal, lon, lat)
+        grid = _LocalGrid(src, horizontal, lon, lat)
         what = ("geographic (degrees)" if horizontal.is_geographic
                 else f"scale off by {scale:.0%} at the model")
         notes.append(
             f"{path}: {_label(horizontal)} is {what}; reprojected to a transverse Mercator "
-            f"centred at {lat:.5f}, {lon:.5f} ({abs(t.a):.3g} x {abs(t.e):.3g} m cells)"
+            f"centred at {lat:.5f}, {lon:.5f} ({grid.cell[0]:.3g} x {grid.cell[1]:.3g} m cells)"
         )
-        return _south_up(heights, t) * z_unit, (abs(t.a), abs(t.e)), notes
+        if window is None:
+            heights = src.read(band, masked=True).astype(np.float64).filled(np.nan)
+            out = grid.reproject(heights, t, grid.transform, (grid.height, grid.width))
+            return Area(_south_up(out, grid.transform) * z_unit, grid.cell, tuple(notes),
+                        (grid.width, grid.height), (0.0, 0.0), None)
+        return grid.read_window(src, band, window, z_unit, notes)
     from lsd.georef import from_crs
 
     xy_unit = from_crs(horizontal, path).horizontal_unit
     cells = (abs(t.a) * xy_unit, abs(t.e) * xy_unit)
-    return _south_up(heights, t) * z_unit, cells, notes
+    return _read_grid(src, band, window, cells, z_unit, notes, horizontal)
+
+
+def _read_grid(src, band: int, window, cells: tuple[float, float], z_unit: float,
+               notes: list[str], horizontal) -> Area:
+    """A model taken on the file's own grid: its cells in ``window`` (all without one)."""
+    t = src.transform
+    model_cells = (src.width, src.height)
+    if window is None:
+        heights = src.read(band, masked=True).astype(np.float64).filled(np.nan)
+        return Area(_south_up(heights, t) * z_unit, cells, tuple(notes), model_cells,
+                    (0.0, 0.0), None)
+    centre_xy, centre = None, ""
+    if _in_degrees(window):
+        if horizontal is None:
+            raise WindowError(
+                "window.center: {lat, lon} needs a model with a geographic or projected "
+                f"CRS; {src.name} has none: give [x, y] metres from its south-west corner"
+            )
+        centre = _degrees(window)
+        centre_xy = _model_xy(t, model_cells, cells,
+                              *_from_wgs84(horizontal, window.center.lon, window.center.lat))
+    box = place(window, model_cells, cells, centre_xy, centre)
+    i0, i1, j0, j1 = covering(box, cells, model_cells)
+    from rasterio.windows import Window
+
+    col = j0 if t.a > 0 else model_cells[0] - 1 - j1
+    row = model_cells[1] - 1 - i1 if t.e < 0 else i0
+    _fits(j1 - j0 + 1, i1 - i0 + 1, "the model's")
+    heights = src.read(band, masked=True, window=Window(col, row, j1 - j0 + 1, i1 - i0 + 1))
+    heights = heights.astype(np.float64).filled(np.nan)
+    return Area(_south_up(heights, t) * z_unit, cells, tuple(notes), model_cells,
+                (j0 * cells[0], i0 * cells[1]), box, centre)
+
+
+def _fits(nx: int, ny: int, whose: str) -> None:
+    """Refuses reading more than MAX_CELLS cells of a window."""
+    if nx * ny > MAX_CELLS:
+        raise WindowError(
+            f"window.size: {nx} x {ny} of {whose} cells, more than the {MAX_CELLS:,} a world "
+            "may hold (memory): a smaller window, or coarsen the model (gdalwarp -tr)"
+        )
+
+
+def _in_degrees(window) -> bool:
+    return window.center is not None and not isinstance(window.center, tuple)
+
+
+def _degrees(window) -> str:
+    return f"lat {window.center.lat:.6g}, lon {window.center.lon:.6g}"
+
+
+def _from_wgs84(crs, lon: float, lat: float) -> tuple[float, float]:
+    """(x, y) in ``crs`` of a WGS84 longitude and latitude."""
+    from pyproj import Transformer
+
+    x, y = Transformer.from_crs("EPSG:4326", crs, always_xy=True).transform(lon, lat)
+    if not (np.isfinite(x) and np.isfinite(y)):
+        raise WindowError(f"window.center: {lat:g}, {lon:g} has no place in {crs.name}")
+    return float(x), float(y)
+
+
+def _model_xy(t, model_cells: tuple[int, int], cells: tuple[float, float], x: float,
+              y: float) -> tuple[float, float]:
+    """Model metres (from the south-west cell's centre) of the point (x, y) of the CRS of
+    the grid with transform ``t``."""
+    col, row = ~t @ (x, y)
+    j = col - 0.5 if t.a > 0 else model_cells[0] - 0.5 - col
+    i = model_cells[1] - 0.5 - row if t.e < 0 else row - 0.5
+    return j * cells[0], i * cells[1]
+
+
+class _LocalGrid:
+    """The grid in metres of a model in degrees (or a CRS whose scale is off at it): a
+    transverse Mercator centred at (lon, lat) on the CRS's own datum, with the metre size of
+    the file's centre cell; the whole model's extent is known without reading it."""
+
+    def __init__(self, src, horizontal, lon: float, lat: float) -> None:
+        from pyproj import Transformer
+        from pyproj.crs import ProjectedCRS
+        from pyproj.crs.coordinate_operation import TransverseMercatorConversion
+        from rasterio.crs import CRS as RasterioCRS
+        from rasterio.warp import calculate_default_transform
+
+        self.local = ProjectedCRS(TransverseMercatorConversion(lat, lon),
+                                  geodetic_crs=horizontal.geodetic_crs)
+        t = src.transform
+        col, row = src.width / 2, src.height / 2
+        corners = [_at(t, col, row), _at(t, col + 1, row), _at(t, col, row + 1)]
+        to_local = Transformer.from_crs(horizontal, self.local, always_xy=True)
+        (x0, y0), (x1, y1), (x2, y2) = (to_local.transform(*c) for c in corners)
+        self.cell = (float(np.hypot(x1 - x0, y1 - y0)), float(np.hypot(x2 - x0, y2 - y0)))
+        self.src_crs = RasterioCRS.from_wkt(horizontal.to_wkt())
+        self.dst_crs = RasterioCRS.from_wkt(self.local.to_wkt())
+        self.transform, self.width, self.height = calculate_default_transform(
+            self.src_crs, self.dst_crs, src.width, src.height, *src.bounds,
+            resolution=self.cell
+        )
+        self.cell = (abs(self.transform.a), abs(self.transform.e))
+
+    def reproject(self, heights: np.ndarray, src_t, dst_t, shape: tuple[int, int]
+                  ) -> np.ndarray:
+        """Heights (bilinear, nodata kept) on the local grid ``dst_t`` of ``shape``."""
+        from rasterio.warp import Resampling, reproject
+
+        out = np.full(shape, np.nan)
+        reproject(heights, out, src_transform=src_t, src_crs=self.src_crs, src_nodata=np.nan,
+                  dst_transform=dst_t, dst_crs=self.dst_crs, dst_nodata=np.nan,
+                  resampling=Resampling.bilinear)
+        return out
+
+    def read_window(self, src, band: int, window, z_unit: float, notes: list[str]) -> Area:
+        """The local grid's cells covering ``window``, from the file's cells under them
+        (with a margin for the bilinear resampling) only."""
+        from rasterio import windows
+        from rasterio.warp import transform_bounds
+
+        model_cells = (self.width, self.height)
+        centre_xy, centre = None, ""
+        if _in_degrees(window):
+            centre = _degrees(window)
+            centre_xy = _model_xy(self.transform, model_cells, self.cell,
+                                  *_from_wgs84(self.local, window.center.lon, window.center.lat))
+        box = place(window, model_cells, self.cell, centre_xy, centre)
+        i0, i1, j0, j1 = covering(box, self.cell, model_cells)
+        _fits(j1 - j0 + 1, i1 - i0 + 1, "the model's")
+        out_window = windows.Window(j0, self.height - 1 - i1, j1 - j0 + 1, i1 - i0 + 1)
+        out_t = windows.transform(out_window, self.transform)
+        bounds = transform_bounds(self.dst_crs, self.src_crs,
+                                  *windows.bounds(out_window, self.transform), densify_pts=21)
+        margin = 2  # source cells: bilinear needs the neighbours of the edge cells
+        read = windows.from_bounds(*bounds, transform=src.transform)
+        col0 = int(np.floor(read.col_off)) - margin
+        row0 = int(np.floor(read.row_off)) - margin
+        col1 = int(np.ceil(read.col_off + read.width)) + margin
+        row1 = int(np.ceil(read.row_off + read.height)) + margin
+        read = windows.Window(col0, row0, col1 - col0, row1 - row0).intersection(
+            windows.Window(0, 0, src.width, src.height))
+        _fits(int(read.width), int(read.height), "the file's")
+        heights = src.read(band, masked=True, window=read).astype(np.float64).filled(np.nan)
+        out = self.reproject(heights, src.window_transform(read), out_t,
+                             (int(out_window.height), int(out_window.width)))
+        return Area(_south_up(out, out_t) * z_unit, self.cell, tuple(notes), model_cells,
+                    (j0 * self.cell[0], i0 * self.cell[1]), box, centre)
 
 
 def _height_band(src) -> int:
@@ -220,36 +373,6 @@ def _scale_error(horizontal, lon: float, lat: float) -> float:
         return max(abs(f.meridional_scale - 1.0), abs(f.parallel_scale - 1.0))
     except Exception:  # noqa: BLE001 - a projection PROJ cannot give factors for: keep it
         return 0.0
-
-
-def _to_local_metres(heights: np.ndarray, src, horizontal, lon: float, lat: float):
-    """Heights reprojected (bilinear, nodata kept) to a transverse Mercator centred at
-    (lon, lat) on the CRS's own datum, with the metre size of the file's centre cell;
-    returns them (north-up) with their transform."""
-    from pyproj import Transformer
-    from pyproj.crs import ProjectedCRS
-    from pyproj.crs.coordinate_operation import TransverseMercatorConversion
-    from rasterio.crs import CRS as RasterioCRS
-    from rasterio.warp import Resampling, calculate_default_transform, reproject
-
-    local = ProjectedCRS(TransverseMercatorConversion(lat, lon),
-                         geodetic_crs=horizontal.geodetic_crs)
-    t = src.transform
-    col, row = src.width / 2, src.height / 2
-    corners = [_at(t, col, row), _at(t, col + 1, row), _at(t, col, row + 1)]
-    to_local = Transformer.from_crs(horizontal, local, always_xy=True)
-    (x0, y0), (x1, y1), (x2, y2) = (to_local.transform(*c) for c in corners)
-    cell = (float(np.hypot(x1 - x0, y1 - y0)), float(np.hypot(x2 - x0, y2 - y0)))
-    src_crs = RasterioCRS.from_wkt(horizontal.to_wkt())
-    dst_crs = RasterioCRS.from_wkt(local.to_wkt())
-    dst_t, width, height = calculate_default_transform(
-        src_crs, dst_crs, src.width, src.height, *src.bounds, resolution=cell
-    )
-    out = np.full((height, width), np.nan)
-    reproject(heights, out, src_transform=t, src_crs=src_crs, src_nodata=np.nan,
-              dst_transform=dst_t, dst_crs=dst_crs, dst_nodata=np.nan,
-              resampling=Resampling.bilinear)
-    return out, dst_t
 
 
 def _at(t, col: float, row: float) -> tuple[float, float]:

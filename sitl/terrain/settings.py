@@ -6,10 +6,20 @@ from mission YAML) with :func:`parse_terrain_settings`.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, field_validator, model_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Discriminator,
+    Field,
+    Tag,
+    TypeAdapter,
+    field_validator,
+    model_validator,
+)
 
 # Larger grids would not fit comfortably in a laptop's memory (float32 + work arrays).
 MAX_CELLS = 64_000_000
@@ -360,6 +370,53 @@ class RubbleTerrainSettings(_ProceduralSettings):
         return _size_range(v, info.field_name)
 
 
+MAX_MODEL_EXTENT = 40_075_000.0
+"""m: an elevation model spans at most the Earth's circumference (a global mosaic)."""
+
+
+class GeoPoint(BaseModel):
+    """A point in WGS84 degrees."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+
+    lat: float = Field(ge=-90, le=90, description="latitude, WGS84 degrees")
+    lon: float = Field(ge=-180, le=180, description="longitude, WGS84 degrees")
+
+
+ModelPoint = tuple[
+    Annotated[float, Field(ge=0, le=MAX_MODEL_EXTENT)],
+    Annotated[float, Field(ge=0, le=MAX_MODEL_EXTENT)],
+]
+"""(x, y) metres from an elevation model's south-west corner, up to the Earth's
+circumference."""
+
+
+def _point_kind(value: Any) -> str:
+    return "geo" if isinstance(value, (Mapping, GeoPoint)) else "model"
+
+
+class WindowSettings(BaseModel):
+    """The area of a large elevation model to fly over: only it is read and made a world."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+
+    center: Annotated[
+        Annotated[GeoPoint, Tag("geo")] | Annotated[ModelPoint, Tag("model")],
+        Discriminator(_point_kind),
+    ] | None = Field(
+        None, description="the window's centre: {lat, lon} in WGS84 degrees (a model with a "
+        "coordinate system) or [x, y] metres from the model's south-west corner; None: the "
+        "model's centre"
+    )
+    size: tuple[
+        Annotated[float, Field(gt=0, le=MAX_EXTENT)], Annotated[float, Field(gt=0, le=MAX_EXTENT)]
+    ] = Field(
+        description="width (east) and depth (north) of the window, metres, each up to 100 km "
+        f"(the widest world); at most {MAX_CELLS:,} cells of cell_size, and of the model, "
+        "are read (memory)"
+    )
+
+
 class FileTerrainSettings(_GridSettings):
     """A real elevation model from a file, resampled to the simulation grid.
 
@@ -380,7 +437,12 @@ class FileTerrainSettings(_GridSettings):
         Annotated[float, Field(ge=0, le=MAX_EXTENT)], Annotated[float, Field(ge=0, le=MAX_EXTENT)]
     ] | None = Field(
         None,
-        description="home (x, y) in metres from the model's south-west corner; None = centre",
+        description="home (x, y) in metres from the model's south-west corner (its window's "
+        "when one is given); None = the centre of the model or window",
+    )
+    window: WindowSettings | None = Field(
+        None, description="the area of the model to fly over, read alone from a large model "
+        "(a whole DEM tile); None: the whole model"
     )
     vertical_scale: float = Field(
         1.0, gt=0, le=1000, description="factor applied to the heights, up to 1000"
@@ -411,7 +473,7 @@ class FileTerrainSettings(_GridSettings):
             raise ValueError("source_cell_size: required for a .npy elevation model")
         from sitl.terrain.files import check_elevation
 
-        check_elevation(self)  # the file itself: readable, a grid, fits MAX_CELLS, home inside
+        check_elevation(self)  # readable, a grid, the window on it, fits MAX_CELLS, home inside
         self._moving_on_model()
         return self
 
