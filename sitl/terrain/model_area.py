@@ -82,10 +82,10 @@ def covering(box: tuple[float, float, float, float], cell: tuple[float, float],
     """(i0, i1, j0, j1): the rows (south to north) and columns, inclusive, of the model's
     cells whose bilinear heights cover ``box``."""
     x0, y0, w, d = box
-    j0 = max(0, math.floor(x0 / cell[0] + 1e-9))
-    j1 = min(model_cells[0] - 1, math.ceil((x0 + w) / cell[0] - 1e-9))
-    i0 = max(0, math.floor(y0 / cell[1] + 1e-9))
-    i1 = min(model_cells[1] - 1, math.ceil((y0 + d) / cell[1] - 1e-9))
+    j0 = max(0, math.floor(x0 / cell[0] + 1e-6))
+    j1 = min(model_cells[0] - 1, math.ceil((x0 + w) / cell[0] - 1e-6))
+    i0 = max(0, math.floor(y0 / cell[1] + 1e-6))
+    i1 = min(model_cells[1] - 1, math.ceil((y0 + d) / cell[1] - 1e-6))
     return i0, max(i1, i0 + 1), j0, max(j1, j0 + 1)
 
 

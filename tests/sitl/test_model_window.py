@@ -177,3 +177,25 @@ seed: 3
     assert terrain.extent == pytest.approx((-400, 400, -450, 450))
     assert terrain.has_ground(touchdown["x"], touchdown["y"])
     assert touchdown["z"] == pytest.approx(terrain.height(touchdown["x"], touchdown["y"]), abs=0.2)
+
+
+def test_a_window_centred_in_degrees_on_a_utm_model_is_where_those_degrees_are(tmp_path,
+                                                                              capsys):
+    from pyproj import Transformer
+
+    path = write_tif(tmp_path / "utm.tif", plane(401, 601, 2.0, 2.0),
+                     from_origin(500_000, 4_000_800, 2.0, 2.0), "EPSG:32617")
+    # (300, 200) m from the south-west cell's centre (500001, 3999999)
+    lon, lat = Transformer.from_crs("EPSG:32617", "EPSG:4326", always_xy=True).transform(
+        500_301, 4_000_199)
+    window = f"{{center: {{lat: {lat!r}, lon: {lon!r}}}, size: [100, 60]}}"
+    code, out, err = validate(tmp_path, capsys, f"path: {path}, cell_size: 0.5, "
+                              f"window: {window}")
+    assert code == 0, err
+    assert "(x 300, y 200 m from the model's south-west corner), 51 x 31 cells read, " \
+        "heights 92.00 .. 128.00 m" in line(out, "window: ")
+    terrain = make_terrain({"kind": "file", "path": str(path), "cell_size": 0.5,
+                            "home_clear_radius": 0, "window": {
+                                "center": {"lat": lat, "lon": lon}, "size": [100, 60]}}, seed=0)
+    x, y = np.array([-50.0, 0.0, 20.0]), np.array([-30.0, 0.0, 29.5])
+    np.testing.assert_allclose(terrain.height(x, y), 0.3 * x + 0.1 * y, atol=1e-3)
