@@ -6,6 +6,10 @@ ESRI ASCII grid ``.asc`` (north-up rows, header with ``cellsize`` and ``NODATA_v
 GeoTIFF (:mod:`sitl.terrain.geotiff`: its CRS and units to metres; optional extra
 ``geotiff``, imported only when needed).
 
+A world is the whole model or, with ``window``, an area of it (:mod:`sitl.terrain.model_area`):
+a GDAL-read file is read in the window only, a .npy or .asc (limited to MAX_CELLS by
+themselves) is cropped to it; home is then on the window.
+
 The model is taken as it is: outside its grid there is no ground, and missing values (ESRI
 ``NODATA_value``, GeoTIFF nodata, NaN) stay unknown. The world's ``known`` mask carries
 both to the sensors (no return there, so no site is detected there); its height grid holds
