@@ -376,6 +376,26 @@ def test_a_file_that_is_no_usable_model_is_refused_in_one_line(tmp_path, capsys,
     assert words in line, line
 
 
+def plateau_mission(world: str) -> str:
+    """A short flight over a real model's plateau (``world``: the mission's world, inline
+    YAML): one waypoint 30 m east, a small camera and a coarse map so that it takes seconds."""
+    return f"""\
+cruise_altitude: 30.0
+waypoints:
+  - [30.0, 0.0, 30.0]
+landing: {{verification_duration: 6.0, search_rectangle: [40, 40], pattern_center_radius: 10}}
+world: {world}
+lsm: {{match_radius: 3.0}}
+sitl: {{arming_settle_time: 2.0}}
+perception:
+  detector: elevation_map
+  rate: 1.0
+  camera: {{width: 64, height: 64, focal_px: 32.0}}
+  elevation_map: {{size: 40.0, resolution: 1.0, fine_below: 0.0}}
+seed: 3
+"""
+
+
 def test_a_flight_over_the_real_srtm_model_lands_on_it(tmp_path):
     """A 12 x 12 cell (0.9 km x 1 km) crop of the real model, still int16 in degrees with
     its nodata tag, flown by ``lander fly`` with the elevation-map detector."""
@@ -392,21 +412,8 @@ def test_a_flight_over_the_real_srtm_model_lands_on_it(tmp_path):
     with rasterio.open(model, "w", **profile) as dst:
         dst.write(crop, 1)
     mission = tmp_path / "plateau.yaml"
-    mission.write_text(f"""\
-cruise_altitude: 30.0
-waypoints:
-  - [30.0, 0.0, 30.0]
-landing: {{verification_duration: 6.0, search_rectangle: [40, 40], pattern_center_radius: 10}}
-world: {{kind: file, path: {model}, cell_size: 2.0, home_clear_radius: 3.0}}
-lsm: {{match_radius: 3.0}}
-sitl: {{arming_settle_time: 2.0}}
-perception:
-  detector: elevation_map
-  rate: 1.0
-  camera: {{width: 64, height: 64, focal_px: 32.0}}
-  elevation_map: {{size: 40.0, resolution: 1.0, fine_below: 0.0}}
-seed: 3
-""")
+    mission.write_text(plateau_mission(
+        f"{{kind: file, path: {model}, cell_size: 2.0, home_clear_radius: 3.0}}"))
     out = tmp_path / "out"
     assert main(["fly", str(mission), "--out", str(out), "--quiet"]) == 0
     summary = json.loads((out / "summary.json").read_text())

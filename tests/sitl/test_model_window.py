@@ -17,7 +17,7 @@ from rasterio.transform import from_origin  # noqa: E402
 
 from autonomy.cli import main  # noqa: E402
 from sitl.terrain import make_terrain  # noqa: E402
-from tests.sitl.test_geotiff import REAL, plane, write_tif  # noqa: E402
+from tests.sitl.test_geotiff import REAL, plane, plateau_mission, write_tif  # noqa: E402
 
 
 def srtm_tile(tmp_path: Path) -> Path:
@@ -150,21 +150,7 @@ def test_a_flight_over_a_window_of_the_real_model_lands_on_it(tmp_path):
     world = (f"{{kind: file, path: {REAL}, cell_size: 2.0, home_clear_radius: 3.0, "
              f"window: {{center: {{lat: {lat:.6f}, lon: {lon:.6f}}}, size: [800, 900]}}}}")
     mission = tmp_path / "plateau.yaml"
-    mission.write_text(f"""\
-cruise_altitude: 30.0
-waypoints:
-  - [30.0, 0.0, 30.0]
-landing: {{verification_duration: 6.0, search_rectangle: [40, 40], pattern_center_radius: 10}}
-world: {world}
-lsm: {{match_radius: 3.0}}
-sitl: {{arming_settle_time: 2.0}}
-perception:
-  detector: elevation_map
-  rate: 1.0
-  camera: {{width: 64, height: 64, focal_px: 32.0}}
-  elevation_map: {{size: 40.0, resolution: 1.0, fine_below: 0.0}}
-seed: 3
-""")
+    mission.write_text(plateau_mission(world))
     out = tmp_path / "out"
     assert main(["fly", str(mission), "--out", str(out), "--quiet"]) == 0
     summary = json.loads((out / "summary.json").read_text())
