@@ -376,14 +376,10 @@ def read_depth_image(path: str | Path, unit: float = DEPTH_UNIT) -> np.ndarray:
             depth = depth[:, :, 0]
         if depth.ndim != 2:
             raise DataFileError(f"{p}: expected an (H, W) depth array, got shape {depth.shape}")
-        if depth.size > MAX_IMAGE_PIXELS:
-            raise DataFileError(f"{p}: a {depth.shape[1]} x {depth.shape[0]} image, more than "
-                                f"{MAX_IMAGE_PIXELS:,} pixels")
+        _check_pixels(p, depth.shape[1], depth.shape[0])
         with _quiet():  # depths beyond float32 become inf: no depth
             return depth.astype(np.float32)
     if ext == ".png":
-        width, height = _png_size(p)
-        _check_pixels(p, width, height)
         img = _read_image(p, "PNG")
         if img.dtype != np.uint16 or img.ndim != 2:
             raise DataFileError(
@@ -428,17 +424,10 @@ def _read_image(p: Path, kind: str) -> np.ndarray:
             return np.array(image)
     except DataFileError:
         raise
-    except (OSError, SyntaxError, ValueError, EOFError, MemoryError, Image.DecompressionBombError):
+    except Image.DecompressionBombError:  # Pillow's own limit, far above ours, on opening
+        raise DataFileError(f"{p}: an image of more than {MAX_IMAGE_PIXELS:,} pixels") from None
+    except (OSError, SyntaxError, ValueError, EOFError, MemoryError):
         raise DataFileError(f"{p}: not a readable {kind} image") from None
-
-
-def _png_size(p: Path) -> tuple[int, int]:
-    """(width, height) from a PNG's IHDR chunk, read before decoding the image."""
-    with open(p, "rb") as f:
-        head = f.read(24)
-    if len(head) < 24 or head[:8] != b"\x89PNG\r\n\x1a\n" or head[12:16] != b"IHDR":
-        raise DataFileError(f"{p}: not a readable PNG image")
-    return int.from_bytes(head[16:20], "big"), int.from_bytes(head[20:24], "big")
 
 
 def write_las(path: str | Path, points: np.ndarray, classification: np.ndarray | None = None,

@@ -376,7 +376,8 @@ def _scale_error(horizontal, lon: float, lat: float) -> float:
 
 
 def _at(t, col: float, row: float) -> tuple[float, float]:
-    """CRS coordinates of the point (col, row) in pixel units (corner (0, 0))."""
+    """CRS coordinates of the point (col, row) in pixel units (corner (0, 0)). Written out:
+    affine 3 deprecates ``t * (col, row)`` and older affine releases lack ``t @ (col, row)``."""
     return t.c + t.a * col + t.b * row, t.f + t.d * col + t.e * row
 
 

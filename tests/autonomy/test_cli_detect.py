@@ -240,6 +240,20 @@ def _save(tmp_path, name, array):
     return tmp_path / name
 
 
+def _png_header(width: int, height: int) -> bytes:
+    """A 16-bit grey PNG's signature and header declaring ``width`` x ``height`` pixels, with
+    no pixel data: whatever reads its pixels first would need gigabytes."""
+    import struct
+    import zlib
+
+    def chunk(kind: bytes, data: bytes) -> bytes:
+        return struct.pack(">I", len(data)) + kind + data + struct.pack(
+            ">I", zlib.crc32(kind + data))
+
+    ihdr = struct.pack(">IIBBBBB", width, height, 16, 0, 0, 0, 0)
+    return b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", ihdr) + chunk(b"IEND", b"")
+
+
 def make_bad(tmp_path):
     """Name -> (argv, expected words in the one error line)."""
     (tmp_path / "text.ply").write_text("hello, not a cloud\n")
@@ -257,6 +271,8 @@ def make_bad(tmp_path):
     cv2.imwrite(str(tmp_path / "eight.png"), np.zeros((48, 64), dtype=np.uint8))
     (tmp_path / "fake.png").write_text("not an image")
     (tmp_path / "fake.tif").write_bytes(b"II*\0 not a TIFF")
+    for side in (8000, 20000):  # beyond our limit; beyond Pillow's own too
+        (tmp_path / f"huge{side}.png").write_bytes(_png_header(side, side))
     cv2.imwrite(str(tmp_path / "rgb.tif"), np.zeros((48, 64, 3), dtype=np.uint8))
     (tmp_path / "nomatrix.yaml").write_text("width: 640\nheight: 480\n")
     (tmp_path / "uncalibrated.yaml").write_text("k: [0, 0, 0, 0, 0, 0, 0, 0, 0]\n")
@@ -282,6 +298,10 @@ def make_bad(tmp_path):
         "fy negative": (["--depth", depth, "--fx", 1, "--fy", -3, "--cx", 1, "--cy", 1],
                         "--fy"),
         "no intrinsics": (["--depth", depth], "--fx: required"),
+        "huge png": (["--depth", tmp_path / "huge8000.png", *INTRINSICS],
+                     "a 8000 x 8000 image, more than 50,000,000 pixels"),
+        "huger png": (["--depth", tmp_path / "huge20000.png", *INTRINSICS],
+                      "an image of more than 50,000,000 pixels"),
         "fake tif": (["--depth", tmp_path / "fake.tif", *INTRINSICS], "not a readable TIFF"),
         "rgb tif": (["--depth", tmp_path / "rgb.tif", *INTRINSICS], "single-channel TIFF"),
         "no matrix": (["--depth", depth, "--camera-info", tmp_path / "nomatrix.yaml"],

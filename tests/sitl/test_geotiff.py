@@ -46,17 +46,34 @@ def plane(ny: int, nx: int, cell_x: float, cell_y: float, dtype="float32") -> np
     return (0.3 * x + 0.1 * y).astype(dtype)
 
 
-def validate(tmp_path: Path, capsys, model: Path, cell_size=0.5) -> tuple[int, str, str]:
+def validate_world(tmp_path: Path, capsys, world: str, waypoint=(0, 0)) -> tuple[int, str, str]:
     mission = tmp_path / "m.yaml"
     mission.write_text(
-        "cruise_altitude: 20\nwaypoints:\n  - [0, 0, 20]\n"
+        f"cruise_altitude: 20\nwaypoints:\n  - [{waypoint[0]}, {waypoint[1]}, 20]\n"
         "landing: {search_rectangle: [4, 4], pattern_center_radius: 1}\n"
-        f"world: {{kind: file, path: {model}, cell_size: {cell_size}, home_clear_radius: 0}}\n"
+        f"world: {{kind: file, home_clear_radius: 0, {world}}}\n"
     )
     code = main(["validate", str(mission)])
     captured = capsys.readouterr()
     assert "Traceback" not in captured.out + captured.err
     return code, captured.out, captured.err
+
+
+def validate(tmp_path: Path, capsys, model: Path, cell_size=0.5) -> tuple[int, str, str]:
+    return validate_world(tmp_path, capsys, f"path: {model}, cell_size: {cell_size}")
+
+
+def srtm_tile(tmp_path: Path) -> Path:
+    """N36W085.hgt as downloaded: one degree of 3 arc-second int16 heights
+    h = 0.3 column + 0.1 row (from the south-west cell)."""
+    import rasterio.shutil
+
+    n, res = 1201, 1 / 1200
+    write_tif(tmp_path / "tile.tif", plane(n, n, 1, 1, "int16"),
+              from_origin(-85 - res / 2, 37 + res / 2, res, res), "EPSG:4326", nodata=-32768)
+    path = tmp_path / "N36W085.hgt"
+    rasterio.shutil.copy(tmp_path / "tile.tif", path, driver="SRTMHGT")
+    return path
 
 
 def refused(tmp_path: Path, capsys, model: Path) -> str:
@@ -185,10 +202,7 @@ def test_the_other_dem_formats_gdal_reads_give_the_geotiffs_model(tmp_path, caps
         code, out, err = validate(tmp_path, capsys, tmp_path / name)
         assert code == 0, err
         assert model_line(out).split(": ", 2)[2] == expected.split(": ", 2)[2], name
-    n, res = 1201, 1 / 1200  # N36 W085, 3 arc-seconds, pixel centres on whole degrees
-    write_tif(tmp_path / "tile.tif", plane(n, n, 1, 1, "int16"),
-              from_origin(-85 - res / 2, 37 + res / 2, res, res), "EPSG:4326", nodata=-32768)
-    rasterio.shutil.copy(tmp_path / "tile.tif", tmp_path / "N36W085.hgt", driver="SRTMHGT")
+    srtm_tile(tmp_path)
     code, _, err = validate(tmp_path, capsys, tmp_path / "N36W085.hgt", cell_size=5.0)
     assert code == 2 and "N36W085.hgt spans 90188" in err and "x 111153 m" in err, err
 

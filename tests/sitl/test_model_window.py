@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import json
 import tracemalloc
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -17,33 +16,14 @@ from rasterio.transform import from_origin  # noqa: E402
 
 from autonomy.cli import main  # noqa: E402
 from sitl.terrain import make_terrain  # noqa: E402
-from tests.sitl.test_geotiff import REAL, plane, plateau_mission, write_tif  # noqa: E402
-
-
-def srtm_tile(tmp_path: Path) -> Path:
-    """N36W085.hgt as downloaded: one degree of 3 arc-second int16 heights
-    h = 0.3 column + 0.1 row (from the south-west cell)."""
-    import rasterio.shutil
-
-    n, res = 1201, 1 / 1200
-    write_tif(tmp_path / "tile.tif", plane(n, n, 1, 1, "int16"),
-              from_origin(-85 - res / 2, 37 + res / 2, res, res), "EPSG:4326", nodata=-32768)
-    path = tmp_path / "N36W085.hgt"
-    rasterio.shutil.copy(tmp_path / "tile.tif", path, driver="SRTMHGT")
-    return path
-
-
-def validate(tmp_path: Path, capsys, world: str, waypoint=(0, 0)) -> tuple[int, str, str]:
-    mission = tmp_path / "m.yaml"
-    mission.write_text(
-        f"cruise_altitude: 20\nwaypoints:\n  - [{waypoint[0]}, {waypoint[1]}, 20]\n"
-        "landing: {search_rectangle: [4, 4], pattern_center_radius: 1}\n"
-        f"world: {{kind: file, home_clear_radius: 0, {world}}}\n"
-    )
-    code = main(["validate", str(mission)])
-    captured = capsys.readouterr()
-    assert "Traceback" not in captured.out + captured.err
-    return code, captured.out, captured.err
+from tests.sitl.test_geotiff import (  # noqa: E402
+    REAL,
+    plane,
+    plateau_mission,
+    srtm_tile,
+    write_tif,
+)
+from tests.sitl.test_geotiff import validate_world as validate  # noqa: E402
 
 
 def line(out: str, start: str) -> str:
