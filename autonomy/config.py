@@ -476,6 +476,7 @@ def _with_derived_defaults(data: Mapping[str, Any]) -> dict[str, Any]:
         lsm = dict(lsm or {})
         lsm.setdefault("verification_altitude", ver_alt)
         data["lsm"] = lsm
+    data = _home_on_elevation_model(data)
     home = data.get("home")
     sitl = data.get("sitl")
     if (isinstance(home, Mapping) and (sitl is None or isinstance(sitl, Mapping))
@@ -483,6 +484,52 @@ def _with_derived_defaults(data: Mapping[str, Any]) -> dict[str, Any]:
         sitl = dict(sitl or {})  # the simulator's home is the mission's home
         sitl.setdefault("home", dict(home))
         data["sitl"] = sitl
+    return data
+
+
+def _home_on_elevation_model(data: dict[str, Any]) -> dict[str, Any]:
+    """A mission over an elevation model with a coordinate system flies where the model is
+    on the Earth: the mission's ``home`` (lat, lon) places home on the model unless
+    ``world.home`` says where; without a ``home``, the mission's home is the model's
+    position (and ground height) at the world's home. So the GPS the simulator reports and
+    lat/lon waypoints agree with the ground under the vehicle."""
+    world = data.get("world")
+    if not (isinstance(world, Mapping) and world.get("kind") == "file"):
+        return data
+    try:
+        settings = TypeAdapter(TerrainSettings).validate_python(world)
+    except (ValidationError, ValueError):
+        return data  # the mission's own validation names what is wrong
+    from sitl.terrain.files import georeference
+
+    home = data.get("home")
+    if settings.home is None and isinstance(home, Mapping):
+        if not _valid(HomeSettings, home):
+            return data
+        placed = {**world, "home": {"lat": home.get("lat", HomeSettings().lat),
+                                    "lon": home.get("lon", HomeSettings().lon)}}
+        try:
+            if georeference(settings) is None:
+                return data  # a model without a coordinate system: home at its centre
+            TypeAdapter(TerrainSettings).validate_python(placed)
+        except (ValidationError, ValueError) as exc:
+            said = exc.errors()[0]["msg"] if isinstance(exc, ValidationError) else str(exc)
+            if "no place in" in said:
+                raise ValueError(one_line(said.removeprefix("Value error, "))) from None
+            where = "the window of " if settings.window is not None else ""
+            raise ValueError(
+                f"home: lat {home.get('lat')}, lon {home.get('lon')} is off {where}the "
+                f"elevation model {settings.path.name}, which has a coordinate system: move "
+                "home onto it, or give world.home ([x, y] m from its south-west corner)"
+            ) from None
+        return {**data, "world": placed}
+    sitl = data.get("sitl")
+    if home is None and not (isinstance(sitl, Mapping) and "home" in sitl):
+        at = georeference(settings)
+        if at is not None:
+            lat, lon, ground = at
+            return {**data, "home": {"lat": lat, "lon": lon,
+                                     "alt": min(max(ground, -500.0), 9000.0)}}
     return data
 
 

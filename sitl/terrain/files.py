@@ -30,8 +30,8 @@ from scipy import ndimage
 from sitl.terrain.esri_ascii import read_asc
 from sitl.terrain.file_errors import GridFileError
 from sitl.terrain.geotiff import GDAL_SUFFIXES
-from sitl.terrain.model_area import Area, WindowError, crop
-from sitl.terrain.settings import MAX_CELLS, FileTerrainSettings, WindowSettings
+from sitl.terrain.model_area import Area, WindowError, crop, nodata_values
+from sitl.terrain.settings import MAX_CELLS, FileTerrainSettings, GeoPoint, WindowSettings
 
 
 def _grid_shape(settings: FileTerrainSettings, area: Area) -> tuple[int, int, float, float]:
@@ -52,18 +52,62 @@ def _grid_shape(settings: FileTerrainSettings, area: Area) -> tuple[int, int, fl
             f"cell_size: {what} {width:g} x {depth:g} m, {nx * ny:.3g} cells of "
             f"{cs:g} m, more than {MAX_CELLS}"
         )
-    if settings.home is not None:
-        hx, hy = settings.home
-        if not (0 <= hx <= width and 0 <= hy <= depth):
+    home = home_on_area(settings, area)
+    if home is not None:
+        hx, hy = home
+        if not (-1e-6 <= hx <= width + 1e-6 and -1e-6 <= hy <= depth + 1e-6):
             where = "model's" if area.window is None else "window's"
+            said = (f"{_degrees(settings.home)} (x {hx:.6g}, y {hy:.6g} m)"
+                    if isinstance(settings.home, GeoPoint) else f"{settings.home}")
             raise ValueError(
-                f"home: {settings.home} is outside the {where} {width:g} x {depth:g} m"
+                f"home: {said} is outside the {where} {width:g} x {depth:g} m"
             )
     return nx, ny, width, depth
 
 
+def home_on_area(settings: FileTerrainSettings, area: Area) -> tuple[float, float] | None:
+    """Home in metres from the south-west corner of ``area``'s box (the window's, or the
+    model's), or None when the settings leave it at the centre. Raises ValueError for home
+    in degrees on a model without a coordinate system."""
+    home = settings.home
+    if not isinstance(home, GeoPoint):
+        return home
+    if area.georef is None:
+        raise ValueError(
+            "home: {lat, lon} needs a model with a coordinate system (a GeoTIFF or another "
+            f"GDAL format with a CRS); {settings.path} has none: give (x, y) metres from its "
+            "south-west corner"
+        )
+    x, y = area.georef.to_model(home.lon, home.lat, "home")
+    return x - area.box[0], y - area.box[1]
+
+
+def georeference(settings: FileTerrainSettings) -> tuple[float, float, float] | None:
+    """(lat, lon, ground height) of the world's home on a model with a coordinate system
+    (WGS84 degrees, metres in the model's vertical datum), None on one without."""
+    area = _read(settings)
+    if area.georef is None:
+        return None
+    nx, ny, width, depth = _grid_shape(settings, area)
+    home = home_on_area(settings, area)
+    hx, hy = home if home is not None else (width / 2, depth / 2)
+    x, y = area.box[0] + hx, area.box[1] + hy
+    lon, lat = area.georef.to_wgs84(x, y)
+    heights = area.heights
+    known = np.isfinite(heights)
+    i = min(max(round((y - area.origin[1]) / area.cell[1]), 0), heights.shape[0] - 1)
+    j = min(max(round((x - area.origin[0]) / area.cell[0]), 0), heights.shape[1] - 1)
+    ground = heights[i, j] if known[i, j] else np.nanmedian(heights)
+    return lat, lon, float(ground)
+
+
+def _degrees(point: GeoPoint) -> str:
+    return f"lat {point.lat:.6g}, lon {point.lon:.6g}"
+
+
 def _read(settings: FileTerrainSettings) -> Area:
-    return read_elevation(settings.path, settings.source_cell_size, settings.window)
+    return read_elevation(settings.path, settings.source_cell_size, settings.window,
+                          settings.nodata)
 
 
 def check_elevation(settings: FileTerrainSettings) -> None:
@@ -92,21 +136,37 @@ def describe_elevation(settings: FileTerrainSettings) -> list[str]:
               + (f", {unknown:.1%} unknown" if unknown else ""))
     model = (f"elevation model: {settings.path}: {nx} x {ny} cells of {cx:.4g} x {cy:.4g} m "
              f"({width:.6g} x {depth:.6g} m)")
+    home = _describe_home(settings, area)
     if area.window is None:
-        return [f"{model}, {relief}", *(f"note: {n}" for n in area.notes)]
+        return [f"{model}, {relief}", *(f"note: {n}" for n in area.notes), *home]
     x0, y0, w, d = area.window
     at = f"{area.centre} " if area.centre else ""
     window = (f"window: {w:.6g} x {d:.6g} m centred at {at}(x {x0 + w / 2:.6g}, "
               f"y {y0 + d / 2:.6g} m from the model's south-west corner), "
               f"{heights.shape[1]} x {heights.shape[0]} cells read, {relief}")
-    return [model, window, *(f"note: {n}" for n in area.notes)]
+    return [model, window, *(f"note: {n}" for n in area.notes), *home]
+
+
+def _describe_home(settings: FileTerrainSettings, area: Area) -> list[str]:
+    """``home: lat, lon, ground`` on a model with a coordinate system: where it is flown."""
+    at = georeference(settings)
+    if at is None:
+        return []
+    lat, lon, ground = at
+    _, _, width, depth = _grid_shape(settings, area)
+    hx, hy = home_on_area(settings, area) or (width / 2, depth / 2)
+    whose = "model's" if area.window is None else "window's"
+    return [f"home: lat {lat:.7f}, lon {lon:.7f} (x {hx:.6g}, y {hy:.6g} m from the {whose} "
+            f"south-west corner), ground {ground:.2f} m"]
 
 
 def model_extent(settings: FileTerrainSettings) -> tuple[float, float, float, float]:
     """(xmin, xmax, ymin, ymax) ENU metres about home of the model's grid (of its window):
     where it has ground at all."""
-    _, _, width, depth = _grid_shape(settings, _read(settings))
-    hx, hy = settings.home if settings.home is not None else (width / 2, depth / 2)
+    area = _read(settings)
+    _, _, width, depth = _grid_shape(settings, area)
+    home = home_on_area(settings, area)
+    hx, hy = home if home is not None else (width / 2, depth / 2)
     return (-hx, width - hx, -hy, depth - hy)
 
 
@@ -176,15 +236,18 @@ def generate(
     at = np.meshgrid(rows, cols, indexing="ij")
     grid = ndimage.map_coordinates(heights, at, order=1, mode="nearest").astype(np.float32)
     known = ndimage.map_coordinates(known_source.astype(np.float64), at, order=1, mode="nearest")
-    hx, hy = settings.home if settings.home is not None else (width / 2, depth / 2)
+    home = home_on_area(settings, area)
+    hx, hy = home if home is not None else (width / 2, depth / 2)
     return grid, (-hx, -hy), known >= 1.0 - 1e-6
 
 
 def read_elevation(
-    path: Path, source_cell_size: float | None = None, window: WindowSettings | None = None
+    path: Path, source_cell_size: float | None = None, window: WindowSettings | None = None,
+    nodata: float | None = None,
 ) -> Area:
     """The model's cells covering ``window`` (all of them without one): heights (ny, nx)
-    float64 in metres with row i along +y (south to north), NaN where unknown (nodata); the
+    float64 in metres with row i along +y (south to north), NaN where unknown (the file's
+    nodata, and ``nodata``, a value in the file's own unit it does not tag); the
     (east, north) cell size in metres; notes for the user on how the file was read (units
     assumed, a reprojection); where they lie on the model. A GDAL-read file is read in the
     window only. Raises ValueError("path: ...") on an unreadable or malformed file, or one
@@ -198,10 +261,11 @@ def read_elevation(
         stat = path.stat()
     except OSError as exc:
         raise ValueError(f"path: cannot read {path}: {exc.strerror or exc}") from None
-    key = (str(path.resolve()), stat.st_size, stat.st_mtime_ns, source_cell_size, window)
+    key = (str(path.resolve()), stat.st_size, stat.st_mtime_ns, source_cell_size, window,
+           nodata)
     if _LAST_READ and _LAST_READ[0] == key:
         return _LAST_READ[1]
-    result = _read_elevation(path, source_cell_size, window)
+    result = _read_elevation(path, source_cell_size, window, nodata)
     result.heights.setflags(write=False)
     _LAST_READ[:] = [key, result]
     return result
@@ -210,28 +274,30 @@ def read_elevation(
 _LAST_READ: list = []
 
 
-def _read_elevation(path: Path, source_cell_size: float | None, window) -> Area:
+def _read_elevation(path: Path, source_cell_size: float | None, window,
+                    nodata: float | None) -> Area:
     with warnings.catch_warnings(), np.errstate(all="ignore"):
         warnings.simplefilter("ignore")  # a bad file is one line, not a library's warning
-        return _read_elevation_quietly(path, source_cell_size, window)
+        return _read_elevation_quietly(path, source_cell_size, window, nodata)
 
 
-def _read_elevation_quietly(path: Path, source_cell_size: float | None, window) -> Area:
+def _read_elevation_quietly(path: Path, source_cell_size: float | None, window,
+                            nodata: float | None) -> Area:
     suffix = path.suffix.lower()
     area = None
     try:
         if suffix == ".npy":
             heights = _load_npy(path)
             cells = (source_cell_size, source_cell_size)
-            nodata = None
+            tagged = None
         elif suffix == ".asc":
-            heights, cell, nodata = read_asc(path)
+            heights, cell, tagged = read_asc(path)
             heights = heights[::-1]  # ESRI rows run north to south; ours run south to north
             cells = (cell, cell)
         elif suffix in GDAL_SUFFIXES:
             from sitl.terrain.geotiff import read_geotiff
 
-            area = read_geotiff(path, window)  # of the window only; nodata marked NaN
+            area = read_geotiff(path, window, nodata)  # of the window only; nodata NaN
         else:
             raise ValueError(f"unsupported format {suffix!r}")
     except WindowError:  # names the setting itself
@@ -242,10 +308,11 @@ def _read_elevation_quietly(path: Path, source_cell_size: float | None, window) 
         raise ValueError(f"path: cannot read {path}: {exc}") from exc
     if area is not None:
         _check_grid(area.heights, area.cell, path)
-        return replace(area, heights=_mark_missing(area.heights, None, path))
+        return replace(area, heights=_mark_missing(area.heights, (), path))
     _check_grid(heights, cells, path)
     cells = (float(cells[0]), float(cells[1]))
-    return crop(_mark_missing(heights, nodata, path), cells, (), window)
+    marks = tuple(v for v in (tagged, nodata) if v is not None)
+    return crop(_mark_missing(heights, marks, path), cells, (), window)
 
 
 def _check_grid(heights: np.ndarray, cells, path: Path) -> None:
@@ -255,11 +322,11 @@ def _check_grid(heights: np.ndarray, cells, path: Path) -> None:
         raise ValueError(f"path: {path}: need a 2-D grid of at least 2 x 2, got {heights.shape}")
 
 
-def _mark_missing(heights: np.ndarray, nodata: float | None, path: Path) -> np.ndarray:
-    """Heights with NaN in the nodata cells."""
+def _mark_missing(heights: np.ndarray, nodata: tuple[float, ...], path: Path) -> np.ndarray:
+    """Heights with NaN in the cells holding a value of ``nodata``."""
     missing = ~np.isfinite(heights)
-    if nodata is not None:
-        missing |= heights == nodata
+    if nodata:
+        missing |= np.isin(heights, nodata_values(nodata))
     if missing.all():
         raise ValueError(f"path: {path}: no valid heights (every cell is nodata)")
     return np.where(missing, np.nan, heights)

@@ -28,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-from sitl.terrain.model_area import Area, WindowError, covering, place
+from sitl.terrain.model_area import Area, WindowError, covering, nodata_values, place
 from sitl.terrain.settings import MAX_CELLS
 
 GEOTIFF_SUFFIXES = (".tif", ".tiff")
@@ -48,12 +48,14 @@ _UNIT_ALIASES = {"meter": "metre", "meters": "metre", "metres": "metre", "feet":
                  "us survey feet": "us survey foot"}
 
 
-def read_geotiff(path: Path, window=None) -> Area:
+def read_geotiff(path: Path, window=None, nodata: float | None = None) -> Area:
     """The model's cells covering ``window`` (sitl.terrain.settings.WindowSettings; all of
     them without one), read from the file in the window only: heights (ny, nx) float64 in
-    metres, row i along +y (south to north), NaN where unknown; the (east, north) cell size
-    in metres; notes for the user (what was assumed or converted). Raises ValueError with
-    the reason on a file that cannot be a model, WindowError on a window off it."""
+    metres, row i along +y (south to north), NaN where unknown (the file's nodata, and
+    ``nodata`` in the file's own height unit for a model that does not tag it); the (east,
+    north) cell size in metres; notes for the user (what was assumed or converted); with a
+    CRS, the model's georeference. Raises ValueError with the reason on a file that cannot
+    be a model, WindowError on a window off it."""
     try:
         import pyproj  # noqa: F401 - the CRS and its units
         import rasterio
@@ -68,7 +70,7 @@ def read_geotiff(path: Path, window=None) -> Area:
     what = "GeoTIFF" if path.suffix.lower() in GEOTIFF_SUFFIXES else f"{path.suffix} raster"
     try:
         with rasterio.open(path) as src:
-            return _read(src, path, window)
+            return _read(src, path, window, nodata)
     except ProjError as exc:  # a CRS or transformation PROJ cannot work with
         raise ValueError(f"its CRS: {' '.join(str(exc).split())[:160]}") from None
     except RasterioError as exc:
@@ -79,7 +81,7 @@ def read_geotiff(path: Path, window=None) -> Area:
         raise ValueError(f"damaged or truncated {what} ({why[:160]})") from None
 
 
-def _read(src, path: Path, window) -> Area:
+def _read(src, path: Path, window, nodata: float | None) -> Area:
     band = _height_band(src)
     t = src.transform
     if t.is_identity:
@@ -105,7 +107,7 @@ def _read(src, path: Path, window) -> Area:
         said = _band_unit(src) is not None  # heights in the band's own unit
         notes.append(f"{path}: no CRS; cells taken as metres" + ("" if said else ", heights too"))
         cells = (abs(t.a), abs(t.e))
-        return _read_grid(src, band, window, cells, z_unit, notes, None)
+        return _read_grid(src, band, window, cells, z_unit, notes, None, nodata)
     from pyproj import CRS
 
     crs = CRS.from_wkt(src.crs.to_wkt())
@@ -122,7 +124,7 @@ def _read(src, path: Path, window) -> Area:
         notes.append(f"{path}: local CRS {horizontal.name!r}; taken as a level grid in its "
                      f"unit ({axis.unit_name})")
         cells = (abs(t.a) * unit, abs(t.e) * unit)
-        return _read_grid(src, band, window, cells, z_unit, notes, None)
+        return _read_grid(src, band, window, cells, z_unit, notes, None, nodata)
     lon, lat = _centre_lonlat(src, horizontal)
     scale = 0.0 if horizontal.is_geographic else _scale_error(horizontal, lon, lat)
     if horizontal.is_geographic or scale > SCALE_TOLERANCE:
@@ -134,27 +136,29 @@ def _read(src, path: Path, window) -> Area:
             f"centred at {lat:.5f}, {lon:.5f} ({grid.cell[0]:.3g} x {grid.cell[1]:.3g} m cells)"
         )
         if window is None:
-            heights = src.read(band, masked=True).astype(np.float64).filled(np.nan)
+            heights = _heights(src, band, nodata)
             out = grid.reproject(heights, t, grid.transform, (grid.height, grid.width))
             return Area(_south_up(out, grid.transform) * z_unit, grid.cell, tuple(notes),
-                        (grid.width, grid.height), (0.0, 0.0), None)
-        return grid.read_window(src, band, window, z_unit, notes)
+                        (grid.width, grid.height), (0.0, 0.0), None,
+                        georef=grid.georef())
+        return grid.read_window(src, band, window, z_unit, notes, nodata)
     from lsd.georef import from_crs
 
     xy_unit = from_crs(horizontal, path).horizontal_unit
     cells = (abs(t.a) * xy_unit, abs(t.e) * xy_unit)
-    return _read_grid(src, band, window, cells, z_unit, notes, horizontal)
+    return _read_grid(src, band, window, cells, z_unit, notes, horizontal, nodata)
 
 
 def _read_grid(src, band: int, window, cells: tuple[float, float], z_unit: float,
-               notes: list[str], horizontal) -> Area:
+               notes: list[str], horizontal, nodata: float | None) -> Area:
     """A model taken on the file's own grid: its cells in ``window`` (all without one)."""
     t = src.transform
     model_cells = (src.width, src.height)
+    georef = None if horizontal is None else _Georef(horizontal, t, model_cells, cells)
     if window is None:
-        heights = src.read(band, masked=True).astype(np.float64).filled(np.nan)
+        heights = _heights(src, band, nodata)
         return Area(_south_up(heights, t) * z_unit, cells, tuple(notes), model_cells,
-                    (0.0, 0.0), None)
+                    (0.0, 0.0), None, georef=georef)
     centre_xy, centre = None, ""
     if _in_degrees(window):
         if horizontal is None:
@@ -163,8 +167,7 @@ def _read_grid(src, band: int, window, cells: tuple[float, float], z_unit: float
                 f"CRS; {src.name} has none: give [x, y] metres from its south-west corner"
             )
         centre = _degrees(window)
-        centre_xy = _model_xy(t, model_cells, cells,
-                              *_from_wgs84(horizontal, window.center.lon, window.center.lat))
+        centre_xy = georef.to_model(window.center.lon, window.center.lat, "window.center")
     box = place(window, model_cells, cells, centre_xy, centre)
     i0, i1, j0, j1 = covering(box, cells, model_cells)
     from rasterio.windows import Window
@@ -172,10 +175,18 @@ def _read_grid(src, band: int, window, cells: tuple[float, float], z_unit: float
     col = j0 if t.a > 0 else model_cells[0] - 1 - j1
     row = model_cells[1] - 1 - i1 if t.e < 0 else i0
     _fits(j1 - j0 + 1, i1 - i0 + 1, "the model's")
-    heights = src.read(band, masked=True, window=Window(col, row, j1 - j0 + 1, i1 - i0 + 1))
-    heights = heights.astype(np.float64).filled(np.nan)
+    heights = _heights(src, band, nodata, Window(col, row, j1 - j0 + 1, i1 - i0 + 1))
     return Area(_south_up(heights, t) * z_unit, cells, tuple(notes), model_cells,
-                (j0 * cells[0], i0 * cells[1]), box, centre)
+                (j0 * cells[0], i0 * cells[1]), box, centre, georef)
+
+
+def _heights(src, band: int, nodata: float | None, window=None) -> np.ndarray:
+    """Band ``band`` (of ``window``) as float64, NaN where the file masks it (its nodata,
+    an alpha band) or where it holds ``nodata``, a value the file does not tag."""
+    heights = src.read(band, masked=True, window=window).astype(np.float64).filled(np.nan)
+    if nodata is not None:
+        heights[np.isin(heights, nodata_values((nodata,)))] = np.nan
+    return heights
 
 
 def _fits(nx: int, ny: int, whose: str) -> None:
@@ -195,24 +206,40 @@ def _degrees(window) -> str:
     return f"lat {window.center.lat:.6g}, lon {window.center.lon:.6g}"
 
 
-def _from_wgs84(crs, lon: float, lat: float) -> tuple[float, float]:
-    """(x, y) in ``crs`` of a WGS84 longitude and latitude."""
-    from pyproj import Transformer
+class _Georef:
+    """Where a model's grid lies on the Earth: model metres (from the centre of its
+    south-west cell) to and from WGS84 degrees, through the CRS of the grid with transform
+    ``t`` (the file's own, or the transverse Mercator a model in degrees is reprojected to)."""
 
-    x, y = Transformer.from_crs("EPSG:4326", crs, always_xy=True).transform(lon, lat)
-    if not (np.isfinite(x) and np.isfinite(y)):
-        raise WindowError(f"window.center: {lat:g}, {lon:g} has no place in {crs.name}")
-    return float(x), float(y)
+    def __init__(self, crs, t, model_cells: tuple[int, int], cells: tuple[float, float]
+                 ) -> None:
+        self.crs, self.t, self.model_cells, self.cells = crs, t, model_cells, cells
 
+    def to_model(self, lon: float, lat: float, field: str) -> tuple[float, float]:
+        """Model metres of a WGS84 longitude and latitude. Raises WindowError naming
+        ``field`` when the point has no place in the CRS."""
+        from pyproj import Transformer
 
-def _model_xy(t, model_cells: tuple[int, int], cells: tuple[float, float], x: float,
-              y: float) -> tuple[float, float]:
-    """Model metres (from the south-west cell's centre) of the point (x, y) of the CRS of
-    the grid with transform ``t``."""
-    col, row = ~t @ (x, y)
-    j = col - 0.5 if t.a > 0 else model_cells[0] - 0.5 - col
-    i = model_cells[1] - 0.5 - row if t.e < 0 else row - 0.5
-    return j * cells[0], i * cells[1]
+        x, y = Transformer.from_crs("EPSG:4326", self.crs, always_xy=True).transform(lon, lat)
+        if not (np.isfinite(x) and np.isfinite(y)):
+            raise WindowError(f"{field}: {lat:g}, {lon:g} has no place in {self.crs.name}")
+        col, row = ~self.t @ (x, y)
+        t, (nx, ny) = self.t, self.model_cells
+        j = col - 0.5 if t.a > 0 else nx - 0.5 - col
+        i = ny - 0.5 - row if t.e < 0 else row - 0.5
+        return j * self.cells[0], i * self.cells[1]
+
+    def to_wgs84(self, x: float, y: float) -> tuple[float, float]:
+        """WGS84 (longitude, latitude) of the point ``x``, ``y`` model metres."""
+        from pyproj import Transformer
+
+        t, (nx, ny) = self.t, self.model_cells
+        j, i = x / self.cells[0], y / self.cells[1]
+        col = j + 0.5 if t.a > 0 else nx - 0.5 - j
+        row = ny - 0.5 - i if t.e < 0 else i + 0.5
+        lon, lat = Transformer.from_crs(self.crs, "EPSG:4326", always_xy=True).transform(
+            *_at(t, col, row))
+        return float(lon), float(lat)
 
 
 class _LocalGrid:
@@ -254,7 +281,11 @@ class _LocalGrid:
                   resampling=Resampling.bilinear)
         return out
 
-    def read_window(self, src, band: int, window, z_unit: float, notes: list[str]) -> Area:
+    def georef(self) -> _Georef:
+        return _Georef(self.local, self.transform, (self.width, self.height), self.cell)
+
+    def read_window(self, src, band: int, window, z_unit: float, notes: list[str],
+                    nodata: float | None) -> Area:
         """The local grid's cells covering ``window``, from the file's cells under them
         (with a margin for the bilinear resampling) only."""
         from rasterio import windows
@@ -264,8 +295,8 @@ class _LocalGrid:
         centre_xy, centre = None, ""
         if _in_degrees(window):
             centre = _degrees(window)
-            centre_xy = _model_xy(self.transform, model_cells, self.cell,
-                                  *_from_wgs84(self.local, window.center.lon, window.center.lat))
+            centre_xy = self.georef().to_model(window.center.lon, window.center.lat,
+                                               "window.center")
         box = place(window, model_cells, self.cell, centre_xy, centre)
         i0, i1, j0, j1 = covering(box, self.cell, model_cells)
         _fits(j1 - j0 + 1, i1 - i0 + 1, "the model's")
@@ -282,11 +313,11 @@ class _LocalGrid:
         read = windows.Window(col0, row0, col1 - col0, row1 - row0).intersection(
             windows.Window(0, 0, src.width, src.height))
         _fits(int(read.width), int(read.height), "the file's")
-        heights = src.read(band, masked=True, window=read).astype(np.float64).filled(np.nan)
+        heights = _heights(src, band, nodata, read)
         out = self.reproject(heights, src.window_transform(read), out_t,
                              (int(out_window.height), int(out_window.width)))
         return Area(_south_up(out, out_t) * z_unit, self.cell, tuple(notes), model_cells,
-                    (j0 * self.cell[0], i0 * self.cell[1]), box, centre)
+                    (j0 * self.cell[0], i0 * self.cell[1]), box, centre, self.georef())
 
 
 def _height_band(src) -> int:

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 
@@ -18,6 +19,16 @@ _EPS = 1e-6  # m: a window edge on the model's edge is on it
 
 class WindowError(ValueError):
     """A window off its model, or one the model cannot place: ``window.FIELD: reason``."""
+
+
+class Georeference(Protocol):
+    """Model metres (from the centre of the model's south-west cell) to and from WGS84."""
+
+    def to_model(self, lon: float, lat: float, field: str) -> tuple[float, float]:
+        """Model metres of a WGS84 point; WindowError naming ``field`` if it has none."""
+
+    def to_wgs84(self, x: float, y: float) -> tuple[float, float]:
+        """(lon, lat) WGS84 degrees of a point in model metres."""
 
 
 @dataclass(frozen=True)
@@ -37,6 +48,8 @@ class Area:
     """(x0, y0, width, depth) model metres of the window asked for; None: the whole model."""
     centre: str = ""
     """How the window's centre was given, when in degrees."""
+    georef: Georeference | None = None
+    """Where the model lies on the Earth; None for a model without a coordinate system."""
 
     @property
     def model_size(self) -> tuple[float, float]:
@@ -104,3 +117,9 @@ def crop(heights: np.ndarray, cell: tuple[float, float], notes: tuple[str, ...],
     i0, i1, j0, j1 = covering(box, cell, model_cells)
     return Area(heights[i0:i1 + 1, j0:j1 + 1], cell, notes, model_cells,
                 (j0 * cell[0], i0 * cell[1]), box)
+
+
+def nodata_values(nodata: tuple[float, ...]) -> list[float]:
+    """The values that mark nodata in heights read as float64: each as given and as a
+    float32 file holds it (-3.4028235e38 there is -3.4028234663852886e38 here)."""
+    return [v for x in nodata for v in (x, float(np.float32(x)))]

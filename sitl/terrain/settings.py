@@ -370,6 +370,9 @@ class RubbleTerrainSettings(_ProceduralSettings):
         return _size_range(v, info.field_name)
 
 
+FLOAT32_MAX = 3.4028235e38
+"""The largest float32: nodata values are float32 or integers in the files that hold them."""
+
 MAX_MODEL_EXTENT = 40_075_000.0
 """m: an elevation model spans at most the Earth's circumference (a global mosaic)."""
 
@@ -433,12 +436,25 @@ class FileTerrainSettings(_GridSettings):
         None, gt=0, le=1000, description="cell size (m) of a .npy file (others carry their "
         "own), up to 1 km"
     )
-    home: tuple[
-        Annotated[float, Field(ge=0, le=MAX_EXTENT)], Annotated[float, Field(ge=0, le=MAX_EXTENT)]
+    home: Annotated[
+        Annotated[GeoPoint, Tag("geo")]
+        | Annotated[
+            tuple[Annotated[float, Field(ge=0, le=MAX_EXTENT)],
+                  Annotated[float, Field(ge=0, le=MAX_EXTENT)]],
+            Tag("model"),
+        ],
+        Discriminator(_point_kind),
     ] | None = Field(
         None,
-        description="home (x, y) in metres from the model's south-west corner (its window's "
-        "when one is given); None = the centre of the model or window",
+        description="home on the model: {lat, lon} in WGS84 degrees (a model with a "
+        "coordinate system) or (x, y) in metres from the model's south-west corner (its "
+        "window's when one is given); None = the centre of the model or window (a mission "
+        "that gives its home places it at that home on a model with a coordinate system)",
+    )
+    nodata: float | None = Field(
+        None, ge=-FLOAT32_MAX, le=FLOAT32_MAX, description="height value, in the file's own "
+        "unit, that marks unknown cells in a model that does not tag its nodata (e.g. -9999, "
+        "-32768 or -3.4028235e38, float32's range); the file's own nodata is always honoured"
     )
     window: WindowSettings | None = Field(
         None, description="the area of the model to fly over, read alone from a large model "

@@ -85,8 +85,13 @@ def refused(tmp_path: Path, capsys, model: Path) -> str:
     return lines[0]
 
 
+def line(out: str, start: str) -> str:
+    """The line of ``out`` that starts with ``start``."""
+    return next(s for s in out.splitlines() if s.startswith(start))
+
+
 def model_line(out: str) -> str:
-    return next(s for s in out.splitlines() if s.startswith("elevation model: "))
+    return line(out, "elevation model: ")
 
 
 def terrain_of(path: Path, **world):
@@ -132,7 +137,10 @@ def test_lander_terrain_says_how_a_model_in_feet_was_read(tmp_path, capsys):
     assert out[0].startswith(f"elevation model: {path}: 61 x 41 cells of 0.9144 x 0.9144 m")
     assert out[1] == (f"note: {path}: no vertical CRS; heights taken in the unit of x and y "
                       "(US survey foot)")
-    assert out[2].startswith("world file seed 0: 110 x 74 cells of 0.5 m")
+    # Home at the centre, 90 x 60 US ft from the south-west cell, in metres; 33 ft high.
+    assert out[2].startswith("home: lat 35.39") and out[2].endswith(
+        "(x 27.4321, y 18.288 m from the model's south-west corner), ground 10.06 m")
+    assert out[3].startswith("world file seed 0: 110 x 74 cells of 0.5 m")
 
 
 def test_heights_take_the_vertical_crs_unit_over_that_of_x_and_y(tmp_path, capsys):

@@ -18,16 +18,13 @@ from autonomy.cli import main  # noqa: E402
 from sitl.terrain import make_terrain  # noqa: E402
 from tests.sitl.test_geotiff import (  # noqa: E402
     REAL,
+    line,
     plane,
     plateau_mission,
     srtm_tile,
     write_tif,
 )
 from tests.sitl.test_geotiff import validate_world as validate  # noqa: E402
-
-
-def line(out: str, start: str) -> str:
-    return next(s for s in out.splitlines() if s.startswith(start))
 
 
 def test_a_window_of_a_whole_srtm_tile_is_validated_reading_only_it(tmp_path, capsys):
@@ -118,7 +115,9 @@ def test_lander_terrain_builds_the_window_of_a_tile(tmp_path, capsys):
     assert out[0].startswith(f"elevation model: {tile}: 1209 x 1203 cells of 74.66")
     assert out[1].startswith("window: 3000 x 2000 m centred at lat 36.25, lon -84.75 (x 2")
     assert out[2].startswith(f"note: {tile}: EPSG:4326 is geographic (degrees); reprojected")
-    assert out[3].startswith("world file seed 0: 601 x 401 cells of 5 m, x -1500.0..1500.0 m, "
+    assert out[3].startswith("home: lat 36.2500000, lon -84.7500000 (x 1500, y 1000 m from "
+                             "the window's south-west corner)")
+    assert out[4].startswith("world file seed 0: 601 x 401 cells of 5 m, x -1500.0..1500.0 m, "
                              "y -1000.0..1000.0 m")
 
 
