@@ -108,8 +108,16 @@ class Autopilot:
         self.model = model
         self.battery = battery
         self.slope = slope
-        self.home_z = ground_z
+        # The local frame's origin (the EKF origin, LOCAL_POSITION_NED's zero) stays where the
+        # vehicle booted; home (RTL's destination, the reference of relative altitudes) starts
+        # there and moves on arming and with MAV_CMD_DO_SET_HOME (set_home).
+        self.origin_z = ground_z
+        self.home_z = ground_z  # ENU z of home, m
+        self.home_xy = (0.0, 0.0)  # ENU x, y of home in the EKF's frame, m
         home = settings.home
+        self.home_geo = (home.lat, home.lon, home.alt)  # lat deg, lon deg, alt m AMSL
+        # A ground station set home (DO_SET_HOME): arming no longer moves it.
+        self.home_locked = False
         self.geo = geo or GeoFrame(home.lat, home.lon, home.alt, ground_z,
                                    lambda x, y: ground_z, self.name)
         self.mission = MissionStore(
@@ -369,7 +377,28 @@ class Autopilot:
         self.ground_since = self.time if self.model.on_ground else None
         self.hold = self.model.position
         self.guided = Setpoint(position=self.model.position, hold_ground=True)
-        self.home_changed = True  # autopilots (re)set home when arming
+        self.home_changed = True  # autopilots (re)set home when arming (send it again)
+        # Home moves to where the vehicle arms unless a ground station locked it: ArduPilot's
+        # AP_Arming_Copter::arm (ArduCopter/AP_Arming.cpp) calls
+        # set_home_to_current_location(false) when home is set and not
+        # ahrs.home_is_locked(); PX4's Commander calls set_home_position() on arming when
+        # COM_HOME_EN is set and not home_position.manual_home (set by DO_SET_HOME).
+        if not self.home_locked:
+            x, y = self.estimated_xy()
+            if (x, y, self.model.z) != (*self.home_xy, self.home_z):
+                self.set_home(x, y, self.model.z)
+
+    def set_home(self, x: float, y: float, z: float, lock: bool = False) -> None:
+        """Move home to the ENU point (x, y, z) of the EKF's frame; ``lock``: a ground
+        station set it, so arming keeps it (ArduPilot's set_home(loc, lock=true) from
+        DO_SET_HOME, PX4's manual_home). RTL flies to the new home from now on."""
+        lat, lon = self.geo.to_global(x, y)
+        self.home_xy = (x, y)
+        self.home_z = z
+        self.home_geo = (lat, lon, self.settings.home.alt + z - self.origin_z)
+        self.geo.relative_z = z  # MAV_FRAME_GLOBAL_RELATIVE_ALT is above home
+        self.home_locked = self.home_locked or lock
+        self.home_changed = True
 
     def _disarm(self, text: str) -> None:
         self.armed = False
@@ -444,11 +473,12 @@ class Autopilot:
             if m.z >= self.rtl_altitude - TAKEOFF_REACHED:
                 self.rtl_phase = "return"
             return Setpoint(position=(self.hold[0], self.hold[1], self.rtl_altitude))
+        hx, hy = self.home_xy  # RTL returns to the current home
         if self.rtl_phase == "return":
-            if math.hypot(m.x, m.y) < _RTL_RADIUS:
+            if math.hypot(m.x - hx, m.y - hy) < _RTL_RADIUS:
                 self.rtl_phase = "land"
-            return Setpoint(position=(0.0, 0.0, self.rtl_altitude))
-        return self._land_setpoint(0.0, 0.0, agl, final_speed)
+            return Setpoint(position=(hx, hy, self.rtl_altitude))
+        return self._land_setpoint(hx, hy, agl, final_speed)
 
     # ------------------------------------------------------------- simulation
     def control(self, agl: float) -> Setpoint:

@@ -26,6 +26,7 @@ _INT32_MAX = 2**31 - 1
 # COMMAND_LONG carries positions in MAV_FRAME_GLOBAL (altitude above mean sea level).
 _LONG_FRAME = mavlink.MAV_FRAME_GLOBAL
 _REPOSITION_CHANGE_MODE = mavlink.MAV_DO_REPOSITION_FLAGS_CHANGE_MODE
+_FAR_FROM_ORIGIN = 50_000.0  # m: ArduPilot's EKF_ORIGIN_MAX_DIST_M, the farthest home it sets
 
 
 @dataclass(frozen=True, slots=True)
@@ -100,6 +101,7 @@ class Commands:
             c.MAV_CMD_DO_SET_MISSION_CURRENT: self._set_mission_current,
             c.MAV_CMD_CONDITION_YAW: self._condition_yaw,
             c.MAV_CMD_DO_FLIGHTTERMINATION: self._flight_termination,
+            c.MAV_CMD_DO_SET_HOME: self._do_set_home,
         }
 
     def handle(self, link: Link, request: CommandRequest) -> int:
@@ -224,6 +226,36 @@ class Commands:
             speed=speed if speed is not None and speed > 0 else None,
             yaw=yaw,
         )
+
+    def _do_set_home(self, link: Link, r: CommandRequest) -> int:
+        """param1 1: home here; else params 5-7 the new home (COMMAND_LONG: lat, lon, alt
+        AMSL). Home is then locked: arming keeps it (ArduPilot locks home set by
+        handle_command_do_set_home; PX4 marks it manual_home)."""
+        ap = self.autopilot
+        if not ap.position_known:
+            return FAILED  # no EKF origin yet: ArduPilot's set_home fails, PX4 has no home
+        if r.value(1) == 1.0:
+            x, y = ap.estimated_xy()
+            ap.set_home(x, y, ap.model.z, lock=True)
+            return ACCEPTED
+        return self.set_home_to(*r.location())
+
+    def set_home_to(self, lat: float | None, lon: float | None, alt: float | None,
+                    frame: int = _LONG_FRAME) -> int:
+        """Move (and lock) home to a global point: DENIED for a latitude or longitude
+        missing, NaN or out of range, or no altitude (ArduPilot's check_latlng and
+        location_from_command_t; PX4 needs all three finite); FAILED on ArduPilot for a
+        home more than 50 km from the EKF origin (Copter::far_from_EKF_origin)."""
+        ap = self.autopilot
+        if lat is None or lon is None or alt is None:
+            return DENIED
+        point = self.server.global_to_enu(lat, lon, alt, frame)
+        if point is None:
+            return DENIED
+        if ap.name == "ardupilot" and math.hypot(point[0], point[1]) > _FAR_FROM_ORIGIN:
+            return FAILED
+        ap.set_home(*point, lock=True)
+        return ACCEPTED
 
     def _do_change_speed(self, link: Link, r: CommandRequest) -> int:
         """param1 speed type (0 air, 1 ground, 2 climb, 3 descent), param2 m/s (-1: unchanged)."""

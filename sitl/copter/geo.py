@@ -106,8 +106,9 @@ class GeoFrame:
     """Global positions (lat, lon, altitude in one of MAVLink's global frames) <-> local ENU.
 
     Args:
-        lat, lon: home, degrees; alt: home ground altitude AMSL, m.
-        home_z: ENU z of the ground at home (the terrain height there), m.
+        lat, lon: the local frame's origin (home at boot), degrees; alt: its ground altitude
+            AMSL, m.
+        home_z: ENU z of the ground there (the terrain height), m.
         height: function (x, y) -> terrain height (ENU z, m), for terrain-relative frames.
         autopilot: whose projection to use ("ardupilot" or "px4").
     """
@@ -117,6 +118,9 @@ class GeoFrame:
         self.to_global = PROJECTIONS[autopilot](lat, lon)
         self.home_alt = alt
         self.home_z = home_z
+        # ENU z of the current home, the zero of MAV_FRAME_GLOBAL_RELATIVE_ALT (moves with
+        # home; ``home_alt`` and ``home_z`` stay the local frame's origin).
+        self.relative_z = home_z
         self.height = height
 
     def to_enu(
@@ -142,7 +146,7 @@ class GeoFrame:
         elif frame in _AMSL_FRAMES:
             z = alt - self.home_alt + self.home_z
         elif frame in _RELATIVE_FRAMES:
-            z = alt + self.home_z
+            z = alt + self.relative_z
         else:
             z = alt + self.height(x, y)
         if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(z)):

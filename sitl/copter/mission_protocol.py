@@ -199,10 +199,10 @@ class MissionProtocol:
     def _stored(self, mission_type: int, seq: int) -> MissionItem:
         """Item ``seq``; ArduPilot's item 0 of the mission is home, whatever was uploaded."""
         if mission_type == MISSION and seq == 0 and self.store.home_at_zero:
-            home = self.server.settings.home
+            lat, lon, alt = self.server.autopilot.home_geo
             return MissionItem(
                 command=mavlink.MAV_CMD_NAV_WAYPOINT, frame=mavlink.MAV_FRAME_GLOBAL,
-                x=home.lat, y=home.lon, z=home.alt,
+                x=lat, y=lon, z=alt,
             )
         return self.store.plans[mission_type][seq]
 

@@ -343,7 +343,7 @@ class MavlinkServer:
             else:
                 # In the EKF's frame: it drifts from the truth while GPS is lost.
                 ap = self.autopilot
-                position = ap.estimate_to_truth((east, north, ap.home_z - msg.z))
+                position = ap.estimate_to_truth((east, north, ap.origin_z - msg.z))
         if not mask & _IGNORE_VELOCITY:
             vn, ve = turn(msg.vx, msg.vy)
             velocity = (ve, vn, -msg.vz)

@@ -25,6 +25,20 @@ class HomeSettings(BaseModel):
     alt: float = Field(488.0, ge=-500, le=9000, description="ground altitude AMSL, metres")
 
 
+class HomeChangeSettings(BaseModel):
+    """A ground station moving home in flight: at ``at`` s after boot it sends
+    MAV_CMD_DO_SET_HOME with the ground at (``east``, ``north``) m from where the vehicle
+    booted, as an operator clicking "set home here" on a map does."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+
+    at: float = Field(..., ge=0, le=86_400, description="sim seconds after boot, up to a day")
+    east: float = Field(..., ge=-50_000, le=50_000, description="m east of the boot home, "
+                        "within 50 km (ArduPilot sets no home farther from its EKF origin)")
+    north: float = Field(..., ge=-50_000, le=50_000, description="m north of the boot home, "
+                         "within 50 km")
+
+
 class WindSettings(BaseModel):
     """Constant wind plus seeded gusts (first-order Gauss-Markov per horizontal axis)."""
 
@@ -264,6 +278,10 @@ class SitlSettings(BaseModel):
     gps_loss: GpsLossSettings | None = Field(None, description="a scheduled loss of GPS")
     laser: LaserSettings | None = Field(
         None, description="a ground laser and the vehicle's ring of light sensors"
+    )
+    # A home moved in flight (docs/how-to/live-flights.md): None in an ordinary flight.
+    home_change: HomeChangeSettings | None = Field(
+        None, description="a ground station's DO_SET_HOME during the flight"
     )
 
     # Link.

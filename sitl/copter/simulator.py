@@ -17,7 +17,7 @@ from .gps import GpsOutage
 from .kinematics import Multicopter
 from .personalities import PERSONALITIES
 from .server import MavlinkServer
-from .settings import SitlSettings
+from .settings import HomeChangeSettings, SitlSettings
 from .wind import Wind
 
 # Stream keys of the generators of the optional GPS drift and light sensors (mixed with the
@@ -162,6 +162,8 @@ class Sitl:
                 s.laser, self._heights, np.random.default_rng([seed, _LASER_STREAM])
             )
         self._ground_xy = (0.0, 0.0)
+        self._home_change_sent = False
+        self.home_change_result: int | None = None  # the MAV_RESULT of the scheduled one
         self._touchdown_of = self._touchdown = None  # the autopilot's, as a Touchdown
         self.server = MavlinkServer(
             self.autopilot,
@@ -282,7 +284,20 @@ class Sitl:
                 ap.after_step()
         if self.light_sensors is not None and self._time + 1e-9 >= self._light_due:
             self._read_light_sensors()
+        change = self.settings.home_change
+        if change is not None and not self._home_change_sent and self._time + 1e-9 >= change.at:
+            self._send_home_change(change)
         self.server.emit(self._time)
+
+    def _send_home_change(self, change: HomeChangeSettings) -> None:
+        """The scheduled DO_SET_HOME of a ground station: home on the ground at the point."""
+        self._home_change_sent = True
+        ap = self.autopilot
+        lat, lon = ap.geo.to_global(change.east, change.north)
+        ground = float(self._height(change.east, change.north))
+        alt = self.settings.home.alt + ground - ap.origin_z
+        result = self.server.commands.set_home_to(lat, lon, alt)
+        self.home_change_result = result
 
     def _read_light_sensors(self) -> None:
         """One reading of the light-sensor ring, sent as NAMED_VALUE_INT."""

@@ -218,11 +218,12 @@ class Telemetry:
         """PX4's ALTITUDE (MAVSDK's telemetry.altitude): AMSL, above home (the local frame's
         origin), and the terrain below from the rangefinder's height above it."""
         ap = self.autopilot
+        local = ap.model.z - ap.origin_z
         rel = ap.model.z - ap.home_z
-        amsl = ap.settings.home.alt + rel
+        amsl = ap.settings.home.alt + local
         agl = self.server.agl()
         return mavlink.MAVLink_altitude_message(
-            int(self.server.time * 1e6), amsl, amsl, rel, rel, amsl - agl, agl
+            int(self.server.time * 1e6), amsl, amsl, local, rel, amsl - agl, agl
         )
 
     def _global_position_int(self):
@@ -234,7 +235,7 @@ class Telemetry:
         msg.time_boot_ms = self._time_ms()
         msg.lat = int(round(lat * 1e7))
         msg.lon = int(round(lon * 1e7))
-        msg.alt = int(round((ap.settings.home.alt + rel) * 1000.0))
+        msg.alt = int(round((ap.settings.home.alt + m.z - ap.origin_z) * 1000.0))
         msg.relative_alt = int(round(rel * 1000.0))
         msg.vx = int(round(m.vy * 100.0))
         msg.vy = int(round(m.vx * 100.0))
@@ -253,7 +254,7 @@ class Telemetry:
         msg.airspeed = msg.groundspeed = speed
         msg.heading = int(round(math.degrees(m.heading))) % 360
         msg.throttle = int(min(100.0, max(0.0, 50.0 + 10.0 * m.vz))) if ap.armed else 0
-        msg.alt = ap.settings.home.alt + m.z - ap.home_z
+        msg.alt = ap.settings.home.alt + m.z - ap.origin_z
         msg.climb = m.vz
         return msg
 
@@ -261,7 +262,7 @@ class Telemetry:
         ap = self.autopilot
         m = ap.model
         east, north = ap.estimated_xy()
-        return (self._time_ms(), north, east, -(m.z - ap.home_z), m.vy, m.vx, -m.vz)
+        return (self._time_ms(), north, east, -(m.z - ap.origin_z), m.vy, m.vx, -m.vz)
 
     def _local_position_ned(self):
         msg = self._lpn_msg
@@ -318,8 +319,15 @@ class Telemetry:
         return msg
 
     def _home_position(self):
+        """Home as it is now (it moves on arming and with DO_SET_HOME): lat/lon/alt, and
+        x, y, z in the local NED frame (about the EKF origin, where the vehicle booted)."""
+        ap = self.autopilot
         msg = self._home_msg
         msg.time_usec = int(self.server.time * 1e6)
+        lat, lon, alt = ap.home_geo
+        msg.latitude, msg.longitude, msg.altitude = int(lat * 1e7), int(lon * 1e7), int(alt * 1000)
+        east, north = ap.home_xy
+        msg.x, msg.y, msg.z = north, east, ap.origin_z - ap.home_z
         return msg
 
     def _gps_raw_int(self):
@@ -339,7 +347,7 @@ class Telemetry:
         msg.satellites_visible = 12 if ap.settled else 3
         msg.lat = int(round(lat * 1e7))
         msg.lon = int(round(lon * 1e7))
-        msg.alt = int(round((ap.settings.home.alt + m.z - ap.home_z) * 1000.0))
+        msg.alt = int(round((ap.settings.home.alt + m.z - ap.origin_z) * 1000.0))
         speed = math.hypot(m.vx, m.vy)
         msg.vel = int(speed * 100.0)
         course = math.degrees(math.atan2(m.vx, m.vy)) % 360.0 if speed > 0.1 else 0.0
