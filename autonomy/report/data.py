@@ -102,6 +102,7 @@ class FlightData:
     link: dict[str, Any] | None = None  # the driver's link statistics
     link_lost: str | None = None  # why the flight ended on the link (outcome link_lost)
     home: dict[str, Any] | None = None  # live: the homes compared and the one flown by
+    home_moves: list[dict[str, Any]] | None = None  # the vehicle's home moved under the frame
     refused: bool = False  # live: refused before takeoff (the homes disagree)
     interrupted: bool = False  # Ctrl-C ended the flight (its outcome is then aborted)
     weights: Any = None  # lsm.settings.LossWeights of the mission (report.html's loss terms)

@@ -147,6 +147,7 @@ def build_summary(data: FlightData) -> dict[str, Any]:
         "perception": dict(sorted(data.perception_counters.items())),
         "link": data.link,
         "home": data.home,
+        "home_moves": data.home_moves,
         "wall_time": data.wall_time,
         "realtime_factor": (
             data.end_time / data.wall_time if data.lockstep and data.wall_time > 0 else None
@@ -188,6 +189,8 @@ def format_summary(summary: dict[str, Any]) -> str:
         first = summary["first_collision"]
         lines.append(f"COLLISIONS: {summary['collisions']}, the first with the "
                      f"{first['obstacle']} at {first['t']:.1f} s")
+    for move in summary.get("home_moves") or ():
+        lines.append(move["text"])
     energy = summary["energy"]
     lines.append(
         f"mission time {num(summary['mission_time'], '.1f', ' s')}, time to land "

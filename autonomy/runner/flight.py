@@ -114,6 +114,7 @@ class Flight:
         self.touchdown_time: float | None = None
         self.touchdown_speed: float | None = None
         self.home: Any = None  # autonomy.runner.home.HomeChoice of a live flight
+        self.home_moves: list[Any] = []  # autonomy.vehicle.home.HomeMove, recorded so far
         self.link = LinkWatch(vehicle, log, loss_wait,
                               note=console.note if console is not None else None)
         self._airborne = False
@@ -219,6 +220,9 @@ class Flight:
         return link
 
     def _record(self, now: float, state: Any) -> None:
+        moves = getattr(self.vehicle, "home_moves", ())
+        if len(moves) > len(self.home_moves):
+            self._note_home_moves(moves)
         truth = self._truth = self.truth() if self.truth is not None else None
         if truth is not None:
             p = truth.position
@@ -250,6 +254,15 @@ class Flight:
                 self.console.phase(now, phase, None if xyz is None else xyz[2],
                                    len(self.lsm), loss, battery)
         self.log.flush()  # this tick's events on disk (tail -f, a killed run)
+
+    def _note_home_moves(self, moves: list[Any]) -> None:
+        """Record the vehicle's new home moves (the flight keeps its frame; the user sees
+        where home went)."""
+        for move in moves[len(self.home_moves):]:
+            self.home_moves.append(move)
+            self.log.add("flight", event="home_moved", **move.as_dict())
+            if self.console is not None:
+                self.console.note(move.time, move.describe())
 
     def _track_touchdown(self, now: float, truth: Any, state: Any) -> None:
         if truth is not None:

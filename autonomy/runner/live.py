@@ -58,6 +58,9 @@ def run_live(
             if waited is not None:
                 return waited
             choice = choose_home(mission, flight.vehicle.state.home)
+            # The flight's frame from here on: about the home just compared and converted
+            # about; a later home (arming, DO_SET_HOME) is recorded, not followed.
+            flight.vehicle.keep_frame()
             flight.home = choice
             flight.note(choice.describe(), home=choice.as_dict())
             autopilot = flight.vehicle.state.autopilot

@@ -205,6 +205,7 @@ def fly(
         try:
             if lockstep:
                 flight.attach_tree(build_tree(mission.plan()))
+                vehicle.keep_frame()  # about the SITL's home (docs/how-to/live-flights.md)
             log.add("flight", event="start", mission=mission.name, seed=seed,
                     connection=mission.vehicle.connection, lockstep=lockstep)
             if lockstep:
@@ -368,6 +369,7 @@ def _flight_data(mission: Mission, seed: int, flight: Flight, terrain: Any,
         link=_link_stats(flight.vehicle),
         link_lost=flight.link_gave_up,
         home=None if flight.home is None else flight.home.as_dict(),
+        home_moves=[move.as_dict() for move in flight.home_moves] or None,
         collisions=None if flight.collisions is None else flight.collisions.count,
         first_collision=None if flight.collisions is None else flight.collisions.first,
     )

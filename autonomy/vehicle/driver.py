@@ -36,6 +36,7 @@ from autonomy.vehicle.commands import (
     Wait,
     finished_handle,
 )
+from autonomy.vehicle.home import FlightFrame, HomeMove
 from autonomy.vehicle.settings import LOG_STREAMS, VehicleLinkSettings
 from autonomy.vehicle.tlog import TlogWriter
 from behaviors.ports import Clock, CommandStatus, LandedState, VehicleState
@@ -234,8 +235,8 @@ class MavlinkVehicle:
         self._light_sensors_time: float | None = None
         self._yaw_ned = math.pi / 2.0
         self._rangefinder: float | None = None
-        self._home: tuple[float, float, float] | None = None
-        self._home_ned = (0.0, 0.0, 0.0)
+        self._home: tuple[float, float, float] | None = None  # the vehicle's latest home
+        self._frame = FlightFrame()  # the origin of every ENU position (autonomy.vehicle.home)
         self._prearm_present = False
         self._prearm_health = False
         self._status_text = ""
@@ -278,6 +279,22 @@ class MavlinkVehicle:
     @property
     def autopilot(self) -> str:
         return self._autopilot
+
+    def keep_frame(self) -> None:
+        """Keep the flight's ENU frame about the vehicle's current home (or the first one it
+        reports): a later home elsewhere is recorded in :attr:`home_moves` and no longer
+        moves the positions reported or flown to."""
+        self._frame.keep()
+
+    @property
+    def home_moves(self) -> list[HomeMove]:
+        """The vehicle's home moves since the frame was kept, oldest first."""
+        return self._frame.moves
+
+    @property
+    def frame_home(self) -> tuple[float, float, float] | None:
+        """The home (lat, lon, alt AMSL) the flight's ENU frame is about."""
+        return self._frame.origin
 
     def time_lost(self) -> float:
         """Clock seconds the link has been lost after first contact, the current loss
@@ -379,7 +396,7 @@ class MavlinkVehicle:
             return refused
         if not all(math.isfinite(v) for v in (x, y, z)):
             return finished_handle(name, self.clock.now(), CommandStatus.DENIED, "not finite")
-        self._set_setpoint("position", frames.enu_to_ned(x, y, z, self._home_ned))
+        self._set_setpoint("position", frames.enu_to_ned(x, y, z, self._frame.origin_ned))
         return self._procedure(name, self._enter_guided_steps(), kind="guided")
 
     def set_velocity(self, vx: float, vy: float, vz: float) -> Handle:
@@ -404,7 +421,7 @@ class MavlinkVehicle:
             return refused
         if not all(math.isfinite(v) for v in (x, y, z, vx, vy, vz)):
             return finished_handle(name, self.clock.now(), CommandStatus.DENIED, "not finite")
-        position = frames.enu_to_ned(x, y, z, self._home_ned)
+        position = frames.enu_to_ned(x, y, z, self._frame.origin_ned)
         velocity = frames.enu_to_ned_velocity(vx, vy, vz)
         following = self._setpoint is not None and self._setpoint.kind == "trajectory"
         handle = self._following
@@ -677,7 +694,7 @@ class MavlinkVehicle:
             self.stats.dropped_sensor["HOME_POSITION"] += 1
             return
         self._home = (msg.latitude * 1e-7, msg.longitude * 1e-7, msg.altitude * 1e-3)
-        self._home_ned = (msg.x, msg.y, msg.z)
+        self._frame.on_home(self._home, (msg.x, msg.y, msg.z), now)
 
     def _on_global_position_int(self, msg: Any, now: float) -> None:
         # ArduPilot sends 0, 0 until it knows where it is.
@@ -734,7 +751,7 @@ class MavlinkVehicle:
     def _snapshot(self, now: float, age: float) -> VehicleState:
         position = None
         if self._position_ned is not None:
-            position = frames.ned_to_enu(*self._position_ned, self._home_ned)
+            position = frames.ned_to_enu(*self._position_ned, self._frame.origin_ned)
         # ArduPilot marks its pre-arm check present, enabled and healthy. PX4 (from 1.14, its
         # health report) sets the bit in health alone, once it could arm in its current mode,
         # and never in present: GPS and a position come seconds earlier, while it still says
@@ -983,7 +1000,8 @@ class MavlinkVehicle:
             "no HOME_POSITION from the autopilot",
         )
         yield self._arm_step(True)
-        assert self._home is not None
+        home = self._frame.origin or self._home  # "altitude m above home": the flight's
+        assert home is not None
         nan = math.nan
         self._requested_modes["AUTO.TAKEOFF"] = self.clock.now()
         yield self._submit(
@@ -991,6 +1009,6 @@ class MavlinkVehicle:
                 "NAV_TAKEOFF",
                 self.clock.now(),
                 mavlink.MAV_CMD_NAV_TAKEOFF,
-                (-1.0, 0.0, 0.0, nan, nan, nan, self._home[2] + altitude),
+                (-1.0, 0.0, 0.0, nan, nan, nan, home[2] + altitude),
             )
         )

@@ -16,8 +16,11 @@ from sitl.transports import TcpServer
 class ServedSitl:
     """A :class:`sitl.Sitl` stepped by a RealTimeRunner on its own thread, on TCP."""
 
-    def __init__(self, speedup: float, home: HomeSettings | None = None) -> None:
-        settings = SitlSettings() if home is None else SitlSettings(home=home)
+    def __init__(self, speedup: float, home: HomeSettings | None = None,
+                 settings: SitlSettings | None = None) -> None:
+        settings = settings or SitlSettings()
+        if home is not None:
+            settings = settings.model_copy(update={"home": home})
         self.sitl = Sitl(settings, autopilot="ardupilot")
         self.server = TcpServer("127.0.0.1", 0)
         self.runner = RealTimeRunner(self.sitl, tcp=[self.server], speedup=speedup)
@@ -54,11 +57,12 @@ class ServedSitl:
 
 @pytest.fixture
 def served_sitl():
-    """served_sitl(speedup, home=None) -> ServedSitl; killed after the test."""
+    """served_sitl(speedup, home=None, settings=None) -> ServedSitl; killed after the test."""
     made: list[ServedSitl] = []
 
-    def factory(speedup: float, home: HomeSettings | None = None) -> ServedSitl:
-        served = ServedSitl(speedup, home)
+    def factory(speedup: float, home: HomeSettings | None = None,
+                settings: SitlSettings | None = None) -> ServedSitl:
+        served = ServedSitl(speedup, home, settings)
         made.append(served)
         return served
 
