@@ -291,11 +291,6 @@ class MavlinkVehicle:
         """The vehicle's home moves since the frame was kept, oldest first."""
         return self._frame.moves
 
-    @property
-    def frame_home(self) -> tuple[float, float, float] | None:
-        """The home (lat, lon, alt AMSL) the flight's ENU frame is about."""
-        return self._frame.origin
-
     def time_lost(self) -> float:
         """Clock seconds the link has been lost after first contact, the current loss
         included."""
