@@ -113,6 +113,37 @@ def test_mavproxy_parameters_and_no_false_alarms(start_vehicle, mavproxy, autopi
     vehicle.alive()
 
 
+def test_mavproxy_sets_home_on_ardupilot(start_vehicle, mavproxy):
+    """`command_int GLOBAL_RELATIVE_ALT DO_SET_HOME ...` (MAVProxy's own example of the
+    command) moves home 30 m east: ACCEPTED, and HOME_POSITION follows at once."""
+    vehicle = start_vehicle("ardupilot")
+    w = vehicle.wall
+    out = free_port()
+    mp = mavproxy(mavproxy_master(vehicle), "--out", f"udp:127.0.0.1:{out}")
+    monitor = Monitor(f"udpin:127.0.0.1:{out}")
+    try:
+        home_msg = monitor.wait(lambda m: m.get("HOME_POSITION"), w(180), "HOME_POSITION")
+        home = (home_msg.latitude * 1e-7, home_msg.longitude * 1e-7)
+        lat, lon = offset(home[0], home[1], 0.0, 30.0)
+        mp.mark()
+        mp.send(f"command_int GLOBAL_RELATIVE_ALT DO_SET_HOME 0 0 0 0 0 0 "
+                f"{round(lat * 1e7)} {round(lon * 1e7)} 0")
+        mp.expect(r"COMMAND_ACK: DO_SET_HOME: ACCEPTED", w(10), "DO_SET_HOME accepted")
+        monitor.wait(
+            lambda m: distance(m.get("HOME_POSITION").latitude * 1e-7,
+                               m.get("HOME_POSITION").longitude * 1e-7, lat, lon) < 0.5,
+            w(10),
+            "HOME_POSITION at the new home",
+        )
+        moved = monitor.get("HOME_POSITION")
+        assert abs(moved.altitude - home_msg.altitude) < 100, (home_msg, moved)  # mm
+    finally:
+        monitor.close()
+    said = mp.output()
+    assert not alarms(said), f"MAVProxy announced: {alarms(said)}"
+    vehicle.alive()
+
+
 def arming_parameters(mp, timeout: float) -> dict[str, float]:
     """The vehicle's ARMING_* parameters as MAVProxy holds them."""
     start = mp.mark()
