@@ -19,15 +19,20 @@ from typing import IO, Any
 import numpy as np
 import py_trees
 
+from autonomy.vehicle.frames import Degrees
+
 # json.dumps(event, separators=(",", ":")) without building an encoder per event.
 _ENCODE = json.JSONEncoder(separators=(",", ":")).encode
 
 
 def _clean(value: Any) -> Any:
-    """A JSON-able copy: numpy scalars to Python, floats rounded to 0.1 mm / 0.1 ms."""
+    """A JSON-able copy: numpy scalars to Python, floats rounded to 0.1 mm / 0.1 ms, and
+    latitudes and longitudes (:class:`~autonomy.vehicle.frames.Degrees`) to 1e-7 degrees."""
     kind = type(value)  # the common plain types first, each as the chain below treats it
     if kind is float:
         return round(value, 4) if math.isfinite(value) else None
+    if kind is Degrees:
+        return round(float(value), 7) if math.isfinite(value) else None
     if kind is str or kind is int or kind is bool or value is None:
         return value
     if kind is dict:

@@ -16,6 +16,7 @@ from typing import Any
 
 from autonomy.config import Mission, geodetic_to_enu
 from autonomy.errors import UserError
+from autonomy.vehicle.frames import geodetic
 
 Geo = tuple[float, float, float]  # lat deg, lon deg, alt m AMSL
 
@@ -49,8 +50,8 @@ class HomeChoice:
 
     def as_dict(self) -> dict[str, Any]:
         return {
-            "used": self.used, "vehicle": list(self.vehicle),
-            "file": None if self.file is None else list(self.file),
+            "used": self.used, "vehicle": geodetic(self.vehicle),
+            "file": None if self.file is None else geodetic(self.file),
             "distance": self.distance, "altitude_difference": self.altitude_difference,
             "agree": self.agree,
         }

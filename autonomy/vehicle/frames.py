@@ -18,6 +18,17 @@ import math
 
 Vector = tuple[float, float, float]
 
+
+class Degrees(float):
+    """A latitude or longitude in degrees. Reports keep it to 1e-7 degrees (about a
+    centimetre, as MAVLink carries it); other floats keep four decimals (0.1 mm), which in
+    degrees is 11 m."""
+
+
+def geodetic(point: tuple[float, float, float]) -> list[float]:
+    """``[lat, lon, alt]`` for a report: lat and lon as :class:`Degrees`."""
+    return [Degrees(point[0]), Degrees(point[1]), float(point[2])]
+
 _ZERO: Vector = (0.0, 0.0, 0.0)
 
 

@@ -41,7 +41,8 @@ class HomeMove:
                 f"{self.position[2]:.1f} m)")
 
     def as_dict(self) -> dict:
-        return {"t": self.time, "previous": list(self.previous), "home": list(self.home),
+        return {"t": self.time, "previous": frames.geodetic(self.previous),
+                "home": frames.geodetic(self.home),
                 "distance": self.distance, "position": list(self.position),
                 "text": self.describe()}
 

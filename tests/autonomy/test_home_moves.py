@@ -58,6 +58,11 @@ def test_home_moved_in_flight_lands_on_the_same_ground_and_is_reported(
     assert line.startswith("home moved by 30.0 m (to 47.39774")
     assert "this flight keeps its frame from takeoff" in line
     assert [m["text"] for m in moved["home_moves"]] == [line]
+    # Latitude and longitude kept to 1e-7 degrees (1 cm), not to the 4 decimals (11 m) of
+    # other floats: 30 m east of demo.yaml's home (47.397742, 8.545594) is 8.5459921.
+    assert move["previous"][:2] == [47.397742, 8.545594]
+    assert move["home"][0] == pytest.approx(47.397742, abs=1e-6)  # 10 cm
+    assert move["home"][1] == pytest.approx(8.5459921, abs=1e-6)
     out = capsys.readouterr().out
     assert f"[   45.0 s] {line}" in out  # when it happens
     assert f"\n{line}\n" in out  # and in the closing summary
