@@ -5,6 +5,7 @@ A leaf package: it imports nothing from the rest of the project. Detectors submi
 :class:`LandingSite` records in a bounded max-heap ranked by the thesis loss (eq. 3.1).
 """
 
+from lsm.area import OperatingArea
 from lsm.loss import site_loss
 from lsm.manager import Decision, LandingSiteManager, LsmSnapshot, RankedSites
 from lsm.records import LandingSite, SiteObservation
@@ -17,6 +18,7 @@ __all__ = [
     "LossWeights",
     "LsmSettings",
     "LsmSnapshot",
+    "OperatingArea",
     "RankedSites",
     "SiteObservation",
     "site_loss",

@@ -29,6 +29,7 @@ from typing import overload
 import numpy as np
 from scipy.spatial import cKDTree
 
+from lsm.area import OperatingArea
 from lsm.loss import site_loss, site_loss_scalar
 from lsm.records import LandingSite, SiteObservation
 from lsm.settings import LossWeights, LsmSettings
@@ -46,6 +47,9 @@ REJECT_REASONS = (
     "beyond_max_distance",  # farther than max_distance from the drone
     "worse_than_worst",  # manager full and the new site is not better than its worst
 )
+OUTSIDE_GEOFENCE = "outside_geofence"
+"""Rejection reason of sites outside the operating area (or within its margin of the edge);
+counted (``rejected_outside_geofence``) only when the manager has an area."""
 
 _OBS_FIELDS = attrgetter(
     "x", "y", "z", "roughness", "uncertainty", "size", "obstacle_altitude",
@@ -222,6 +226,20 @@ class LandingSiteManager:
             ("received", "inserted", "merged", "updated", "replaced", "dropped", "banned",
              "banned_rejected"), 0)
         self._rejected = dict.fromkeys(REJECT_REASONS, 0)
+        self._area: OperatingArea | None = None
+
+    def set_area(self, area: OperatingArea | None) -> None:
+        """Reject later observations outside ``area`` (an inclusion geofence, with its
+        margin); set it before the first observation arrives. None: no area."""
+        with self._lock:
+            self._area = area
+            if area is not None:
+                self._rejected.setdefault(OUTSIDE_GEOFENCE, 0)
+
+    @property
+    def area(self) -> OperatingArea | None:
+        """The operating area observations must lie in, or None."""
+        return self._area
 
     # ------------------------------------------------------------------ producers
     def submit(self, observation: SiteObservation) -> None:
@@ -809,8 +827,15 @@ class LandingSiteManager:
 
     def _zone_reasons(self, vals: np.ndarray, reasons: list[str | None], bad: np.ndarray
                       ) -> list[str | None]:
-        """:meth:`_validate`'s last two checks, on the rows not rejected yet: inside a ban
-        zone, beyond max_distance from the drone."""
+        """:meth:`_validate`'s last checks, on the rows not rejected yet: outside the
+        operating area, inside a ban zone, beyond max_distance from the drone."""
+        if self._area is not None:
+            outside = ~bad.copy()
+            outside[outside] = ~self._area.contains(vals[outside, :2])
+            for i in np.flatnonzero(outside).tolist():
+                if reasons[i] is None:
+                    reasons[i] = OUTSIDE_GEOFENCE
+            bad |= outside
         if len(self._bans):
             dx = vals[:, None, 0] - self._bans[None, :, 0]
             dy = vals[:, None, 1] - self._bans[None, :, 1]

@@ -1,0 +1,151 @@
+"""The mission's operating area (an inclusion geofence) in the local ENU frame.
+
+A simple polygon of ENU x, y metres about home, a margin kept inside its edge and an
+optional ceiling. Sites, pattern waypoints and straight legs are tested against it,
+vectorised: matplotlib's Path for point-in-polygon, numpy for distances to the edges.
+Used by the Landing Site Manager (sites outside are rejected) and by the behaviours
+(search patterns, pattern centres and the approach stay inside).
+"""
+
+from __future__ import annotations
+
+import functools
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from matplotlib.path import Path
+
+
+@dataclass(frozen=True)
+class OperatingArea:
+    """Inclusion geofence: ``vertices`` (ENU x, y m, not closed), ``margin`` m kept inside
+    the edge, ``max_altitude`` m above home (None: no ceiling)."""
+
+    vertices: tuple[tuple[float, float], ...]
+    margin: float = 0.0
+    max_altitude: float | None = None
+
+    @functools.cached_property
+    def _corners(self) -> np.ndarray:
+        return np.asarray(self.vertices, dtype=np.float64).reshape(-1, 2)
+
+    @functools.cached_property
+    def _path(self) -> Path:
+        return Path(np.vstack([self._corners, self._corners[:1]]), closed=True)
+
+    def edge_distance(self, xy: np.ndarray | Sequence[float]) -> np.ndarray:
+        """Distance (m) of each point ``xy`` ((n, 2) or (2,)) to the nearest edge."""
+        p = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+        a = self._corners
+        b = np.roll(a, -1, axis=0)
+        return _point_segment_distance(p[:, None, :], a[None], b[None]).min(axis=1)
+
+    def contains(self, xy: np.ndarray | Sequence[float]) -> np.ndarray:
+        """Per point ``xy`` ((n, 2) or (2,)): inside the polygon and at least ``margin`` m
+        from its edge."""
+        p = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+        inside = self._path.contains_points(p)
+        if self.margin > 0 and inside.any():
+            inside &= self.edge_distance(p) >= self.margin
+        return inside
+
+    def contains_point(self, x: float, y: float) -> bool:
+        return bool(self.contains((x, y))[0])
+
+    def leg_inside(self, start: Sequence[float], end: Sequence[float]) -> bool:
+        """True when the straight leg ``start`` -> ``end`` (x, y first) stays inside: the
+        end is inside with the margin, and the leg crosses no edge and comes no closer to
+        one than the margin. A start already closer to the edge than the margin (the
+        vehicle drifted there) only has to be inside the polygon, and the leg keeps the
+        start's own clearance. A non-convex area can have both ends inside and the leg
+        out."""
+        s = np.asarray(start[:2], dtype=np.float64)
+        e = np.asarray(end[:2], dtype=np.float64)
+        if not (self._path.contains_point(s) and self.contains(e)[0]):
+            return False
+        a = self._corners
+        b = np.roll(a, -1, axis=0)
+        if _segments_cross(s, e, a, b).any():
+            return False
+        if self.margin <= 0:
+            return True
+        need = min(self.margin, float(_point_segment_distance(s[None], a, b).min())) - 1e-9
+        # Not crossing: the closest approach of two segments is at one of the four ends.
+        near = min(
+            float(_point_segment_distance(e[None], a, b).min()),
+            float(_point_segment_distance(a, s[None], e[None]).min()),
+        )
+        return near >= need
+
+    def route_inside(self, points: Sequence[Sequence[float]]) -> bool:
+        """True when every leg of the polyline ``points`` stays inside (see leg_inside)."""
+        if len(points) == 1:
+            return self.contains_point(points[0][0], points[0][1])
+        return all(self.leg_inside(p, q) for p, q in zip(points[:-1], points[1:], strict=True))
+
+
+def _point_segment_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Distances of points ``p`` to segments ``a``-``b`` (broadcast over leading axes)."""
+    ab = b - a
+    length2 = np.maximum((ab * ab).sum(axis=-1), 1e-300)
+    t = np.clip(((p - a) * ab).sum(axis=-1) / length2, 0.0, 1.0)
+    closest = a + t[..., None] * ab
+    return np.hypot(*np.moveaxis(p - closest, -1, 0))
+
+
+def _cross(o: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    return (a[..., 0] - o[..., 0]) * (b[..., 1] - o[..., 1]) - (
+        a[..., 1] - o[..., 1]) * (b[..., 0] - o[..., 0])
+
+
+def _segments_cross(s: np.ndarray, e: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Per segment ``a[i]``-``b[i]``: does it intersect ``s``-``e`` (touching counts)?"""
+    d1, d2 = _cross(a, b, s), _cross(a, b, e)
+    d3, d4 = _cross(s, e, a), _cross(s, e, b)
+    proper = (d1 * d2 < 0) & (d3 * d4 < 0)
+    touch = (
+        ((d1 == 0) & _on_segment(a, b, s)) | ((d2 == 0) & _on_segment(a, b, e))
+        | ((d3 == 0) & _on_segment(s, e, a)) | ((d4 == 0) & _on_segment(s, e, b))
+    )
+    return proper | touch
+
+
+def _on_segment(a: np.ndarray, b: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """For collinear points: does ``p`` lie within the bounding box of ``a``-``b``?"""
+    lo, hi = np.minimum(a, b), np.maximum(a, b)
+    return ((p >= lo) & (p <= hi)).all(axis=-1)
+
+
+def self_intersection(vertices: Sequence[Sequence[float]]) -> tuple[int, int] | None:
+    """The first pair of edges (i, j) of the closed polygon that cross or touch, other than
+    neighbours meeting at their shared vertex; None for a simple polygon."""
+    a = np.asarray(vertices, dtype=np.float64).reshape(-1, 2)
+    n = len(a)
+    b = np.roll(a, -1, axis=0)
+    for i in range(n):
+        crosses = _segments_cross(a[i], b[i], a, b)
+        crosses[i] = False
+        crosses[(i + 1) % n] = crosses[(i - 1) % n] = False
+        if n == 3:
+            continue
+        hit = np.flatnonzero(crosses)
+        if len(hit):
+            return i, int(hit[0])
+    return doubling_back(a)
+
+
+def doubling_back(vertices: Sequence[Sequence[float]]) -> tuple[int, int] | None:
+    """Neighbouring edges (i, j) that overlap along a line (a spike back along the edge),
+    which no simple polygon has; None when there are none."""
+    a = np.asarray(vertices, dtype=np.float64).reshape(-1, 2)
+    n = len(a)
+    b = np.roll(a, -1, axis=0)
+    prev = np.roll(a, 1, axis=0)
+    u, v = a - prev, b - a
+    cross = u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0]
+    back = (cross == 0) & ((u * v).sum(axis=1) < 0)
+    if back.any():
+        i = int(np.flatnonzero(back)[0])
+        return (i - 1) % n, i
+    return None
