@@ -2,11 +2,19 @@
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
+import numpy as np
 from py_trees.common import Access, Status
 
 from behaviors import blackboard as keys
 from behaviors.base import Point, VehicleAction, horizontal_distance, reached
 from behaviors.ports import ApproachPlanner, Clock, Trajectory, VehiclePort
+
+if TYPE_CHECKING:
+    from lsm.area import OperatingArea
+
+_AREA_SAMPLE = 0.25  # s between the trajectory samples checked against the operating area
 
 
 class FlyApproachTrajectory(VehicleAction):
@@ -24,7 +32,12 @@ class FlyApproachTrajectory(VehicleAction):
 
     * SUCCESS: the trajectory has run out and the vehicle is within ``acceptance_radius`` of
       its end
-    * FAILURE: no site on the blackboard; no trajectory (the planner's reason); the vehicle
+    With an operating ``area``, a trajectory that leaves it (or comes within its margin of
+    the edge; checked every 0.25 s of it) is refused: the Fallback's straight traverse,
+    which GetLandingSite chose inside the area, is flown instead.
+
+    * FAILURE: no site on the blackboard; no trajectory (the planner's reason), or one
+      leaving the operating area; the vehicle
       strays more than ``max_tracking_error`` m from the trajectory; the follow command denied
       or unanswered
     * RUNNING: flying the trajectory, or settling at its end
@@ -41,11 +54,13 @@ class FlyApproachTrajectory(VehicleAction):
         acceptance_radius: float = 1.0,
         max_tracking_error: float = 5.0,
         command_timeout: float = 5.0,
+        area: OperatingArea | None = None,
     ) -> None:
         super().__init__(
             name, vehicle, clock, command_timeout=command_timeout, phase="navigate_to_site"
         )
         self.planner = planner
+        self.area = area
         self.min_height = float(min_height)
         self.acceptance_radius = float(acceptance_radius)
         self.max_tracking_error = float(max_tracking_error)
@@ -67,6 +82,11 @@ class FlyApproachTrajectory(VehicleAction):
         planned = self.planner.plan(position, goal)
         if isinstance(planned, str):
             return planned
+        if self.area is not None:
+            times = np.arange(_AREA_SAMPLE, planned.duration + _AREA_SAMPLE, _AREA_SAMPLE)
+            xy = np.array([planned.state_at(min(t, planned.duration))[0][:2] for t in times])
+            if len(xy) and not self.area.contains(xy).all():
+                return "the planned trajectory leaves the geofence"
         # The planner may end higher than asked, to keep its margin over an obstacle beside
         # the site: arrival is judged at the trajectory's end.
         self.trajectory, self.goal = planned, planned.state_at(planned.duration)[0]

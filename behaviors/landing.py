@@ -10,6 +10,7 @@ from py_trees.common import Access, Status
 from behaviors import blackboard as keys
 from behaviors.base import MissionBehaviour, VehicleAction, horizontal_distance
 from behaviors.ports import Clock, VehiclePort
+from lsm.area import OperatingArea
 from lsm.records import LandingSite
 
 if TYPE_CHECKING:
@@ -98,8 +99,15 @@ class GetLandingSite(MissionBehaviour):
 
     Writes LANDING_SITE and CLEAR_ALTITUDE (:func:`clear_altitude`).
 
+    With an operating ``area`` (the LSM keeps only sites inside it), the chosen site is the
+    best one the approach reaches inside the area: the climb and descent are vertical, so
+    the traverse, a straight leg from the vehicle to the site, must stay inside (a
+    non-convex area can have both ends inside and the leg out). Sites it would leave by are
+    passed over (not banned: from elsewhere the leg may be inside).
+
     * SUCCESS: a site was chosen
-    * FAILURE: the LSM holds no (verified) site, or the vehicle position is unknown
+    * FAILURE: the LSM holds no (verified) site, none with a straight leg inside the area,
+      or the vehicle position is unknown
     """
 
     def __init__(
@@ -113,10 +121,12 @@ class GetLandingSite(MissionBehaviour):
         verified_only: bool = False,
         site_key: str = keys.LANDING_SITE,
         clear_altitude_key: str = keys.CLEAR_ALTITUDE,
+        area: OperatingArea | None = None,
     ) -> None:
         super().__init__(name, phase="landing_phase")
         self.vehicle = vehicle
         self.lsm = lsm
+        self.area = area
         self.buffer = float(buffer)
         self.failsafe_altitude = float(failsafe_altitude)
         self.verified_only = verified_only
@@ -129,10 +139,28 @@ class GetLandingSite(MissionBehaviour):
         position = self.vehicle.state.position
         if position is None:
             return self.fail("vehicle position unknown")
+        if self.area is not None:
+            return self._choose_inside(position, self.area)
         best = self.lsm.best_verified if self.verified_only else self.lsm.best
         site = best(position)
         if site is None:
             return self.fail(f"no {'verified ' if self.verified_only else ''}landing site known")
+        return self._choose(site, position)
+
+    def _choose_inside(self, position: Sequence[float], area: OperatingArea) -> Status:
+        ranking = self.lsm.ranked(position)
+        candidates = range(len(ranking))
+        if self.verified_only:
+            candidates = [i for i in candidates if self.lsm.is_verified(ranking[i])]
+        if not candidates:
+            return self.fail(f"no {'verified ' if self.verified_only else ''}landing site known")
+        for i in candidates:
+            site = ranking[i]
+            if area.leg_inside(position, (site.x, site.y)):
+                return self._choose(site, position)
+        return self.fail("no site reachable by a straight leg inside the geofence")
+
+    def _choose(self, site: LandingSite, position: Sequence[float]) -> Status:
         z_clear = clear_altitude(site, position, self.buffer, self.failsafe_altitude)
         self.blackboard.set(self.site_key, site)
         self.blackboard.set(self.clear_altitude_key, z_clear)

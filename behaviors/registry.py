@@ -450,7 +450,7 @@ _leaf("GetLandingSite", "Action", "chooses the best (or best verified) site of t
       lambda c, n, v, ch: GetLandingSite(
           n, c.vehicle, c.lsm, buffer=v["buffer"], failsafe_altitude=v["failsafe_altitude"],
           verified_only=v["verified_only"], site_key=v["site"],
-          clear_altitude_key=v["clear_altitude"]),
+          clear_altitude_key=v["clear_altitude"], area=c.plan.geofence),
       [*_GET_PORTS, Port("verified_only", "bool", "", "only verified sites", "false"),
        Port("site", "LandingSite", "", "the chosen site", "{landing_site}", "output", True),
        Port("clear_altitude", "double", "m", "its clear altitude", "{clear_altitude}",
@@ -485,7 +485,7 @@ _leaf("LandingSiteSearch", "Action", "flies a rectangle until the LSM holds a si
           n, c.vehicle, c.clock, c.lsm, size=v["size"], altitude=v["altitude"],
           use_pattern_center=v["use_pattern_center"], battery_reserve=v["battery_reserve"],
           acceptance_radius=v["acceptance_radius"], command_timeout=v["command_timeout"],
-          pattern_center_key=v["pattern_center"]),
+          pattern_center_key=v["pattern_center"], area=c.plan.geofence),
       [Port("size", "Point2D", "m", "width (east);height (north)", "{search_rectangle}"),
        Port("altitude", "double", "m", "flown at", "{cruise_altitude}"),
        Port("use_pattern_center", "bool", "", "centre on pattern_center, else where the "
@@ -499,7 +499,7 @@ _leaf("GetNextPatternCenterWP", "Action", "draws a new pattern centre (seeded) w
           n, c.vehicle, c.clock, c.rng, anchor=v["anchor"], radius=v["radius"],
           altitude=v["altitude"], battery_reserve=v["battery_reserve"],
           acceptance_radius=v["acceptance_radius"], command_timeout=v["command_timeout"],
-          pattern_center_key=v["pattern_center"]),
+          pattern_center_key=v["pattern_center"], area=c.plan.geofence),
       [Port("anchor", "Point2D", "m", "ENU x;y the centres are drawn around",
             "{last_waypoint}"),
        Port("radius", "double", "m", "of the disc drawn from", "{pattern_center_radius}"),
@@ -530,7 +530,8 @@ _leaf("FlyApproachTrajectory", "Action", "flies to above the chosen site (landin
       lambda c, n, v, ch: FlyApproachTrajectory(
           n, c.vehicle, c.clock, c.services["approach_planner"], min_height=v["min_height"],
           acceptance_radius=v["acceptance_radius"],
-          max_tracking_error=v["max_tracking_error"], command_timeout=v["command_timeout"]),
+          max_tracking_error=v["max_tracking_error"], command_timeout=v["command_timeout"],
+          area=c.plan.geofence),
       [Port("min_height", "double", "m", "the trajectory ends this high above the site",
             "{approach_min_height}"),
        Port("max_tracking_error", "double", "m", "farther from the trajectory fails",

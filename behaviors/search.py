@@ -16,6 +16,15 @@ from behaviors.ports import Clock, VehiclePort
 
 if TYPE_CHECKING:
     from lsm import LandingSiteManager
+    from lsm.area import OperatingArea
+
+PATTERN_SCALES = (1.0, 0.75, 0.5, 0.35, 0.25, 0.15, 0.1)
+"""Fractions of the search rectangle tried, largest first, until the pattern (and the leg
+to it) lies inside the operating area."""
+CENTRE_DRAWS = 100
+"""Draws of a new pattern centre before giving up: a centre inside the operating area
+(and reachable in a straight leg) that 100 uniform draws over the disc miss lies in under
+about 3 % of it, too little to search."""
 
 
 def rectangle_pattern(
@@ -78,10 +87,12 @@ class LandingSiteSearch(RouteAction):
     :class:`GetNextPatternCenterWP`), else where the vehicle is on entry. A vehicle below
     ``altitude`` climbs vertically first. Each pattern started adds one to SEARCH_PATTERNS.
     With ``battery_reserve`` set, no search flies (or goes on) at or below that level.
+    With an operating ``area``, the rectangle is shrunk about its centre
+    (:data:`PATTERN_SCALES`) until it and the leg to its first corner lie inside.
 
     * SUCCESS: the LSM holds a site (checked every tick; the rest of the pattern is dropped)
     * FAILURE: the pattern was flown and the LSM is still empty, the battery reached the
-      reserve, or a goto denied / unanswered
+      reserve, no pattern fits in the area, or a goto denied / unanswered
     * RUNNING: flying the pattern
     """
 
@@ -99,6 +110,7 @@ class LandingSiteSearch(RouteAction):
         acceptance_radius: float = 1.0,
         command_timeout: float = 5.0,
         pattern_center_key: str = keys.PATTERN_CENTER,
+        area: OperatingArea | None = None,
     ) -> None:
         super().__init__(
             name,
@@ -109,6 +121,7 @@ class LandingSiteSearch(RouteAction):
             phase="search",
         )
         self.lsm = lsm
+        self.area = area
         self.size = (float(size[0]), float(size[1]))
         self.altitude = float(altitude)
         self.use_pattern_center = use_pattern_center
@@ -131,8 +144,17 @@ class LandingSiteSearch(RouteAction):
         center = self.blackboard.get(self.pattern_center_key) if self.use_pattern_center else None
         if center is None:
             center = (position[0], position[1])
-        corners = rectangle_pattern(center, self.size, self.altitude, start_near=position[:2])
-        return _climb_first(position, self.altitude, self.acceptance_radius) + corners
+        climb = _climb_first(position, self.altitude, self.acceptance_radius)
+        if self.area is None:
+            return climb + rectangle_pattern(center, self.size, self.altitude,
+                                             start_near=position[:2])
+        for scale in PATTERN_SCALES:
+            size = (self.size[0] * scale, self.size[1] * scale)
+            corners = rectangle_pattern(center, size, self.altitude, start_near=position[:2])
+            if self.area.route_inside([position, *corners]):
+                return climb + corners
+        return (f"no search pattern around ({center[0]:.1f}, {center[1]:.1f}) fits in the "
+                "geofence")
 
     def route_done(self) -> Status:
         return self.fail("pattern flown, no landing site found")
@@ -144,10 +166,13 @@ class GetNextPatternCenterWP(RouteAction):
     ``altitude`` (climbing vertically first when below it). Meant to run under py_trees'
     ``Retry`` with :class:`LandingSiteSearch`: every entry draws a new centre. With
     ``battery_reserve`` set, it does not start (or go on) at or below that level, which ends
-    the retries "while the battery allows" (thesis 3.3.1).
+    the retries "while the battery allows" (thesis 3.3.1). With an operating ``area`` the
+    centre is drawn again (same generator, at most :data:`CENTRE_DRAWS` times) until it
+    lies inside and the straight leg to it from the vehicle does too.
 
     * SUCCESS: at the new centre
-    * FAILURE: the battery reached the reserve, or a goto denied or unanswered
+    * FAILURE: the battery reached the reserve, no centre inside the area was drawn, or a
+      goto denied or unanswered
     * RUNNING: flying
     """
 
@@ -165,6 +190,7 @@ class GetNextPatternCenterWP(RouteAction):
         acceptance_radius: float = 1.0,
         command_timeout: float = 5.0,
         pattern_center_key: str = keys.PATTERN_CENTER,
+        area: OperatingArea | None = None,
     ) -> None:
         super().__init__(
             name,
@@ -175,6 +201,7 @@ class GetNextPatternCenterWP(RouteAction):
             phase="search",
         )
         self.rng = rng
+        self.area = area
         self.anchor = (float(anchor[0]), float(anchor[1]))
         self.radius = float(radius)
         self.altitude = float(altitude)
@@ -185,14 +212,31 @@ class GetNextPatternCenterWP(RouteAction):
 
     def initialise(self) -> None:
         super().initialise()
-        self.center = random_point_in_disc(self.rng, self.anchor, self.radius)
-        self.blackboard.set(self.pattern_center_key, self.center)
+        if self.area is None:
+            self.center = random_point_in_disc(self.rng, self.anchor, self.radius)
+        else:
+            self.center = self._centre_inside(self.area)
+        if self.center is not None:
+            self.blackboard.set(self.pattern_center_key, self.center)
+
+    def _centre_inside(self, area: OperatingArea) -> tuple[float, float] | None:
+        position = self.vehicle.state.position
+        for _ in range(CENTRE_DRAWS):
+            center = random_point_in_disc(self.rng, self.anchor, self.radius)
+            if position is None:
+                if area.contains_point(*center):
+                    return center
+            elif area.leg_inside(position, center):
+                return center
+        return None
 
     def check(self, position: Point) -> Status | None:
         problem = _battery_problem(self.vehicle, self.battery_reserve)
         return None if problem is None else self.fail(problem)
 
     def plan_route(self, position: Point) -> list[Point] | str:
-        assert self.center is not None
+        if self.center is None:
+            return (f"no pattern centre inside the geofence within {self.radius:g} m of "
+                    f"({self.anchor[0]:.1f}, {self.anchor[1]:.1f}) in {CENTRE_DRAWS} draws")
         climb = _climb_first(position, self.altitude, self.acceptance_radius)
         return climb + [(self.center[0], self.center[1], self.altitude)]

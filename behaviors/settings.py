@@ -10,9 +10,10 @@ from __future__ import annotations
 import math
 from typing import Annotated, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, ConfigDict, Field, InstanceOf, model_validator
 
 from behaviors.laser_guidance import LaserGuidanceSettings
+from lsm.area import OperatingArea
 
 # Bounds of what a mission may ask of a multicopter; each Field names the one it uses.
 MAX_ALTITUDE = 10_000.0
@@ -266,6 +267,10 @@ class MissionPlan(BaseModel):
         "are flown, up to 10 km (a multicopter's ceiling)"
     )
     landing: LandingSettings = Field(default_factory=LandingSettings)
+    geofence: InstanceOf[OperatingArea] | None = Field(
+        None, description="the operating area (ENU) sites, search patterns and the approach "
+        "stay in; None: anywhere"
+    )
 
     @model_validator(mode="after")
     def _check(self) -> MissionPlan:
