@@ -28,6 +28,7 @@ from collections.abc import Callable, Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
+import numpy as np
 import yaml
 from pydantic import (
     AfterValidator,
@@ -61,6 +62,7 @@ from behaviors.settings import (
 from lsd.depth_costmap.settings import DepthCostmapSettings
 from lsd.elevation.settings import DetectorSettings, ElevationMapSettings
 from lsd.lidar_pca.settings import LidarPcaSettings
+from lsm.area import OperatingArea, self_intersection
 from lsm.settings import LossWeights, LsmSettings
 from sitl import SitlSettings
 from sitl.copter import HomeSettings
@@ -236,6 +238,54 @@ Waypoint = Annotated[
 alt}``."""
 
 
+class GeoVertex(BaseModel):
+    """A geofence vertex in geodetic coordinates (degrees)."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+
+    lat: float = Field(ge=-90, le=90, description="latitude, degrees")
+    lon: float = Field(ge=-180, le=180, description="longitude, degrees")
+
+
+Vertex = Annotated[
+    Annotated[tuple[Horizontal, Horizontal], Tag("enu")] | Annotated[GeoVertex, Tag("geo")],
+    Discriminator(_waypoint_kind),
+]
+"""``[x, y]`` ENU metres about home or ``{lat, lon}``."""
+
+MAX_FENCE_VERTICES = 1_000
+"""Vertices of a geofence: autopilots store at most a few hundred fence points (ArduPilot's
+FENCE_TOTAL tops out at some 80 on small boards), and the simple-polygon check is
+quadratic."""
+
+
+class GeofenceConfig(BaseModel):
+    """The mission's operating area, an inclusion geofence: the vehicle flies and lands only
+    inside ``polygon`` (and below ``max_altitude``), keeping ``margin`` from its edge.
+
+    Vertices are ENU ``[x, y]`` metres about home or ``{lat, lon}``, converted like lat/lon
+    waypoints (about the vehicle's home on a live link). Sites outside are rejected by the
+    Landing Site Manager, search patterns and pattern centres are kept inside, and the
+    approach is flown only along a straight leg inside (docs/how-to/write-a-mission.md).
+    """
+
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+
+    polygon: list[Vertex] = Field(
+        min_length=3, max_length=MAX_FENCE_VERTICES, description="3 to 1000 vertices of a "
+        "simple polygon (no edge crossing another), ENU [x, y] m or {lat, lon}, in order "
+        "around the area, not closed (the last joins the first)"
+    )
+    margin: float = Field(
+        0.0, ge=0, le=MAX_RANGE, description="m kept inside the edge by sites, waypoints "
+        "and search patterns, up to 50 km"
+    )
+    max_altitude: float | None = Field(
+        None, gt=0, le=MAX_ALTITUDE, description="m above home no waypoint, cruise, takeoff "
+        "or failsafe (clear) altitude may exceed, up to 10 km; unset: no ceiling"
+    )
+
+
 class PerceptionConfig(BaseModel):
     """Which detector feeds the Landing Site Manager, how often, and its settings.
 
@@ -329,6 +379,10 @@ class Mission(BaseModel):
         1800.0, gt=0, le=MAX_TIME_LIMIT, description="s of mission time before aborting, up "
         "to 4 hours (longer than any multicopter battery lasts)"
     )
+    geofence: GeofenceConfig | None = Field(
+        None, description="the operating area (inclusion geofence) the mission flies and "
+        "lands in; unset: anywhere"
+    )
     tree: str | None = Field(
         None, min_length=1, max_length=4096, description="BehaviorTree.CPP v4 XML tree file "
         "to fly instead of the built-in landing tree, relative to the mission file "
@@ -372,6 +426,74 @@ class Mission(BaseModel):
                 )
         return self
 
+    @model_validator(mode="after")
+    def _inside_geofence(self) -> Mission:
+        fence = self.geofence
+        if fence is None:
+            return self
+        area = self.operating_area()
+        assert area is not None
+        corners = area.vertices
+        x, y = np.asarray(corners).T
+        if abs(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y)) / 2 < 1.0 and (
+                len(corners) == 3 or self_intersection(corners) is None):
+            raise ValueError("geofence.polygon: encloses no area (under 1 m^2)")
+        crossing = self_intersection(corners)
+        if crossing is not None:
+            i, j = crossing
+            raise ValueError(f"geofence.polygon: not a simple polygon: edge {i} "
+                             f"(vertices {i}-{(i + 1) % len(corners)}) meets edge {j} "
+                             f"(vertices {j}-{(j + 1) % len(corners)})")
+        where = (f"at least {fence.margin:g} m inside the geofence" if fence.margin
+                 else "inside the geofence")
+        if not area.contains_point(0.0, 0.0):
+            raise ValueError(f"geofence.polygon: home (0, 0) is not {where}")
+        waypoints = self.waypoints_enu()
+        inside = area.contains(np.array([wp[:2] for wp in waypoints]))
+        for i in np.flatnonzero(~inside).tolist():
+            x, y, _ = waypoints[i]
+            raise ValueError(f"waypoints.{i}: ({x:.1f}, {y:.1f}) is not {where}")
+        # The legs too: in a non-convex area two waypoints inside may have the edge between.
+        route = [(0.0, 0.0), *(wp[:2] for wp in waypoints)]
+        for i in range(len(waypoints)):
+            if not area.leg_inside(route[i], route[i + 1]):
+                came = "home" if i == 0 else f"waypoint {i - 1}"
+                raise ValueError(f"waypoints.{i}: the straight leg from {came} leaves the "
+                                 f"geofence (or comes within its margin of the edge); add a "
+                                 "waypoint at the corner")
+        ceiling = fence.max_altitude
+        if ceiling is None:
+            return self
+        for i, (_, _, z) in enumerate(waypoints):
+            if z > ceiling:
+                raise ValueError(f"waypoints.{i}: altitude {z:g} m is above "
+                                 f"geofence.max_altitude ({ceiling:g} m)")
+        for name, value in (("cruise_altitude", self.cruise_altitude),
+                            ("takeoff_altitude", self.takeoff_altitude),
+                            ("landing.failsafe_altitude", self.landing.failsafe_altitude)):
+            if value is not None and value > ceiling:
+                what = " (the cap of the clear altitude)" if name.startswith("landing") else ""
+                raise ValueError(f"{name}: {value:g} m{what} is above "
+                                 f"geofence.max_altitude ({ceiling:g} m)")
+        return self
+
+    def operating_area(
+        self, home: tuple[float, float] | None = None, project: Projection | None = None
+    ) -> OperatingArea | None:
+        """The geofence as an :class:`lsm.area.OperatingArea` in ENU metres about home
+        (lat/lon vertices converted as :meth:`waypoints_enu` converts waypoints), or None."""
+        fence = self.geofence
+        if fence is None:
+            return None
+        lat0, lon0 = (self.home.lat, self.home.lon) if home is None else home
+        project = project or geodetic_to_enu
+        vertices = tuple(
+            tuple(float(c) for c in project(v.lat, v.lon, lat0, lon0))
+            if isinstance(v, GeoVertex) else (float(v[0]), float(v[1]))
+            for v in fence.polygon
+        )
+        return OperatingArea(vertices, fence.margin, fence.max_altitude)
+
     @property
     def has_home(self) -> bool:
         """True when the mission file gives a ``home`` (else it is the default)."""
@@ -406,6 +528,7 @@ class Mission(BaseModel):
             takeoff_altitude=self.takeoff_altitude,
             cruise_altitude=self.cruise_altitude,
             landing=self.landing,
+            geofence=self.operating_area(home, project),
         )
 
     def source_data(self) -> dict[str, Any]:

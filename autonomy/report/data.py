@@ -110,3 +110,4 @@ class FlightData:
     extra: dict[str, Any] = field(default_factory=dict)
     collisions: int | None = None  # contacts with raised ground or moving obstacles (lockstep)
     first_collision: dict[str, Any] | None = None  # sitl.terrain.contact.Contact.as_dict()
+    geofence: list[tuple[float, float]] | None = None  # the operating area's ENU vertices

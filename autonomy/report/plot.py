@@ -41,6 +41,8 @@ def map_window(data: FlightData, xyz: np.ndarray) -> tuple[float, float, float, 
     pts = [xyz[:, :2]] if len(xyz) else [np.zeros((1, 2))]
     pts.append(np.array([[s.x, s.y] for s in data.sites]).reshape(-1, 2))
     pts.append(np.array([[x, y] for x, y, _ in data.ban_zones]).reshape(-1, 2))
+    if data.geofence is not None:
+        pts.append(np.asarray(data.geofence, dtype=np.float64).reshape(-1, 2))
     allp = np.concatenate(pts)
     lo, hi = allp.min(axis=0) - 20.0, allp.max(axis=0) + 20.0
     side = max(hi - lo)  # square window keeps the map readable
@@ -127,6 +129,11 @@ def write_report_png(data: FlightData, path: Path, *, outcome: str = "") -> None
         ax_map.plot(xyz[:, 0], xyz[:, 1], "-", color="white", lw=2.2, alpha=0.8)
         ax_map.plot(xyz[:, 0], xyz[:, 1], "-", color="tab:blue", lw=1.2, label="trajectory")
         ax_map.plot(*xyz[0, :2], "o", color="tab:blue", ms=6, label="home")
+    if data.geofence is not None:
+        from matplotlib.patches import Polygon
+
+        ax_map.add_patch(Polygon(data.geofence, closed=True, fill=False, ec="tab:green",
+                                 lw=1.8, ls="-.", zorder=3, label="geofence"))
     if data.sites:
         sites = np.array([(s.x, s.y, s.loss) for s in data.sites])
         sc = ax_map.scatter(

@@ -153,6 +153,8 @@ def build_summary(data: FlightData) -> dict[str, Any]:
             data.end_time / data.wall_time if data.lockstep and data.wall_time > 0 else None
         ),
     }
+    if data.geofence is not None:  # only then: summaries of flights without one unchanged
+        summary["geofence"] = [list(v) for v in data.geofence]
     return _clean(summary)
 
 

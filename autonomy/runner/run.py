@@ -175,6 +175,7 @@ def fly(
 
         def build_tree(plan: MissionPlan) -> py_trees.trees.BehaviourTree:
             bb.reset()
+            lsm.set_area(plan.geofence)  # about the home the plan was converted about
             tree = build_mission_tree(
                 plan, vehicle, lsm, clock, np.random.default_rng(seeds.tree), mission.tree,
                 services=services,
@@ -372,6 +373,7 @@ def _flight_data(mission: Mission, seed: int, flight: Flight, terrain: Any,
         home_moves=[move.as_dict() for move in flight.home_moves] or None,
         collisions=None if flight.collisions is None else flight.collisions.count,
         first_collision=None if flight.collisions is None else flight.collisions.first,
+        geofence=None if lsm.area is None else list(lsm.area.vertices),
     )
 
 
