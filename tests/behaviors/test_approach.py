@@ -14,6 +14,7 @@ from autonomy.clock import SimClock
 from behaviors import blackboard as keys
 from behaviors.approach import FlyApproachTrajectory
 from behaviors.flight import NavigateToSite
+from lsm.area import OperatingArea
 from lsm.records import LandingSite
 from planning import clearance_grid, plan_approach
 
@@ -61,7 +62,7 @@ def _site(x, y, z=0.0):
                        last_seen=0.0, detection_count=1)
 
 
-def _run(planner, *, speed=12.0, site=(0.0, 20.0)):
+def _run(planner, *, speed=12.0, site=(0.0, 20.0), area=None):
     clock = SimClock()
     vehicle = FakeVehicle(clock, speed=speed)
     vehicle.armed, vehicle.position = True, (0.0, 0.0, 12.0)
@@ -71,7 +72,7 @@ def _run(planner, *, speed=12.0, site=(0.0, 20.0)):
     writer.set(keys.LANDING_SITE, _site(*site))
     writer.set(keys.CLEAR_ALTITUDE, 42.0)
     trajectory = FlyApproachTrajectory("Approach trajectory", vehicle, clock, planner,
-                                       min_height=10.0)
+                                       min_height=10.0, area=area)
     thesis = NavigateToSite("NavigateToSite", vehicle, clock)
     root = py_trees.composites.Selector("Approach", memory=True,
                                         children=[trajectory, thesis])
@@ -118,3 +119,14 @@ def test_a_vehicle_that_cannot_keep_up_leaves_the_trajectory_to_the_fallback():
     assert "off the trajectory" in trajectory.feedback_message
     assert vehicle.gotos()
     assert root.status is Status.SUCCESS and thesis.status is Status.SUCCESS
+
+
+def test_a_trajectory_leaving_the_operating_area_is_refused_for_the_straight_traverse():
+    top, var = _terrain()
+    # A strip narrower than the block: going around it leaves the area, going over does not.
+    strip = OperatingArea(((-10, -10), (10, -10), (10, 30), (-10, 30)), margin=1.0)
+    root, trajectory, thesis, vehicle, path = _run(MapPlanner(top, var), area=strip)
+    assert "leaves the geofence" in trajectory.feedback_message
+    assert root.status is Status.SUCCESS and thesis.status is Status.SUCCESS
+    assert not any(n == "follow" for n, _ in vehicle.commands)
+    assert strip.contains(path[:, :2]).all()

@@ -1,0 +1,69 @@
+"""Search behaviours inside an operating area: rectangles shrink to fit, pattern centres
+are redrawn inside, and a centre that cannot be placed is a failure, not a loop."""
+
+from __future__ import annotations
+
+import numpy as np
+import py_trees
+from behaviors_fakes import FakeVehicle
+from py_trees.common import Status
+
+from autonomy.clock import SimClock
+from behaviors import blackboard as keys
+from behaviors.search import CENTRE_DRAWS, GetNextPatternCenterWP, LandingSiteSearch
+from lsm import LandingSiteManager, LsmSettings, OperatingArea
+
+SQUARE = OperatingArea(((0, 0), (50, 0), (50, 50), (0, 50)), margin=2.0)
+
+
+def _vehicle(position):
+    clock = SimClock()
+    vehicle = FakeVehicle(clock)
+    vehicle.armed, vehicle.position = True, position
+    return clock, vehicle
+
+
+class _CountingRng:
+    def __init__(self, seed):
+        self.rng, self.draws = np.random.default_rng(seed), 0
+
+    def random(self):
+        self.draws += 1
+        return self.rng.random()
+
+
+def test_a_pattern_centre_that_cannot_be_placed_fails_after_a_bounded_number_of_draws():
+    clock, vehicle = _vehicle((25.0, 25.0, 30.0))
+    rng = _CountingRng(0)
+    node = GetNextPatternCenterWP("centre", vehicle, clock, rng, anchor=(500.0, 500.0),
+                                  radius=20.0, altitude=30.0, area=SQUARE)
+    tree = py_trees.trees.BehaviourTree(node)
+    tree.tick()
+    assert node.status is Status.FAILURE
+    assert "no pattern centre inside the geofence" in node.feedback_message
+    assert rng.draws == 2 * CENTRE_DRAWS  # two numbers a draw
+
+
+def test_pattern_centres_are_drawn_inside():
+    clock, vehicle = _vehicle((25.0, 25.0, 30.0))
+    node = GetNextPatternCenterWP("centre", vehicle, clock, np.random.default_rng(3),
+                                  anchor=(48.0, 48.0), radius=40.0, altitude=30.0,
+                                  area=SQUARE)
+    tree = py_trees.trees.BehaviourTree(node)
+    for _ in range(20):
+        tree.tick()
+        assert node.center is not None and SQUARE.contains_point(*node.center)
+        node.stop(Status.INVALID)
+
+
+def test_a_search_rectangle_near_the_edge_shrinks_to_fit():
+    clock, vehicle = _vehicle((40.0, 40.0, 30.0))
+    search = LandingSiteSearch("search", vehicle, clock, LandingSiteManager(LsmSettings()),
+                               size=(40.0, 30.0), altitude=30.0, area=SQUARE)
+    writer = py_trees.blackboard.Client(name="test")
+    writer.register_key(key=keys.SEARCH_PATTERNS, access=py_trees.common.Access.WRITE)
+    writer.set(keys.SEARCH_PATTERNS, 0)
+    route = search.plan_route((40.0, 40.0, 30.0))
+    assert not isinstance(route, str)
+    assert SQUARE.contains(np.array(route)[:, :2]).all()
+    assert SQUARE.route_inside([(40.0, 40.0), *route])

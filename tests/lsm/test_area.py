@@ -1,0 +1,48 @@
+"""The operating area (lsm.area) and the Landing Site Manager's rejections outside it."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from lsm import LandingSiteManager, LsmSettings, OperatingArea, SiteObservation
+from lsm.area import self_intersection
+
+# An L: the leg from the east arm to the north arm cuts the missing corner.
+L_AREA = OperatingArea(((0, 0), (100, 0), (100, 20), (20, 20), (20, 100), (0, 100)), margin=2)
+
+
+def _obs(x: float, y: float) -> SiteObservation:
+    return SiteObservation(x=x, y=y, z=0.0, roughness=0.1, uncertainty=0.1, size=3.0,
+                           obstacle_altitude=0.0, observation_altitude=30.0, timestamp=1.0)
+
+
+def test_points_inside_keep_the_margin_vectorised():
+    inside = L_AREA.contains(np.array([[10, 10], [50, 10], [50, 50], [1, 50], [50, 19]]))
+    assert inside.tolist() == [True, True, False, False, False]
+    assert L_AREA.contains_point(50, 17.5) and not L_AREA.contains_point(50, 18.5)
+
+
+def test_a_leg_across_the_missing_corner_leaves_the_area():
+    assert not L_AREA.leg_inside((90, 10), (10, 90))
+    assert L_AREA.leg_inside((90, 10), (10, 10))
+    assert L_AREA.leg_inside((10, 10), (10, 90))
+    # Along the edge closer than the margin: out.
+    assert not L_AREA.leg_inside((10, 1.0), (90, 1.0))
+    # A start the vehicle drifted into the margin from keeps its own clearance.
+    assert L_AREA.leg_inside((10, 1.5), (10, 50))
+
+
+def test_self_intersection_names_the_crossing_edges():
+    assert self_intersection([(0, 0), (1, 1), (1, 0), (0, 1)]) == (0, 2)
+    assert self_intersection(L_AREA.vertices) is None
+
+
+def test_the_manager_rejects_sites_outside_and_counts_them():
+    lsm = LandingSiteManager(LsmSettings(max_distance=1000))
+    assert "rejected_outside_geofence" not in lsm.counters()  # no area, no counter
+    lsm.set_area(L_AREA)
+    lsm.submit_many([_obs(10, 10), _obs(50, 50), _obs(10, 99.5), _obs(90, 10)])
+    lsm.process_pending()
+    counters = lsm.counters()
+    assert counters["rejected_outside_geofence"] == 2
+    assert sorted((s.x, s.y) for s in lsm.ranked((0, 0, 30))) == [(10, 10), (90, 10)]
