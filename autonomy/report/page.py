@@ -181,6 +181,7 @@ def build_page(data: FlightData, summary: dict[str, Any], events: Sequence[dict[
         "bans": [{"x": x, "y": y, "r": r, "t": bans[i]["t"] if i < len(bans) else None,
                   "site": bans[i].get("site") if i < len(bans) else None}
                  for i, (x, y, r) in enumerate(data.ban_zones)],
+        "geofence": None if data.geofence is None else [list(v) for v in data.geofence],
         "chosen": None if data.chosen_site is None else data.chosen_site.id,
         "touchdown": None if data.touchdown is None else {
             "x": data.touchdown[0], "y": data.touchdown[1], "z": data.touchdown[2],

@@ -130,6 +130,12 @@
     el("polyline", { points: pointsBetween(0, N - 1), fill: "none", stroke: "#1f77b4", "stroke-width": 2 }, map);
   }
   if (N) el("circle", { cx: mx(T.x[0]), cy: my(T.y[0]), r: 5, fill: "#1f77b4", stroke: "#fff" }, map);
+  // The operating area (geofence), when the mission has one.
+  if (D.geofence) {
+    title(el("polygon", { points: D.geofence.map(function (v) { return mx(v[0]) + "," + my(v[1]); }).join(" "),
+                          fill: "none", stroke: "#2e7d32", "stroke-width": 2,
+                          "stroke-dasharray": "8 4 2 4" }, map), "geofence (operating area)");
+  }
   // Banned sites: the ban zone and a cross.
   var banEls = D.bans.map(function (b) {
     var g = el("g", {}, map);

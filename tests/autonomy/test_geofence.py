@@ -64,6 +64,8 @@ def test_a_demo_flight_lands_inside_the_area_not_on_the_best_site_outside(tmp_pa
     assert abs(touchdown["x"] - 55.0) < 2 and abs(touchdown["y"] - 20.0) < 2
     assert summary["lsm_counters"]["rejected_outside_geofence"] > 0
     assert summary["geofence"] == DEMO_FENCE["polygon"]
+    page = (out / "report.html").read_text()
+    assert '"geofence":[[-20.0,-20.0],[70.0,-20.0]' in page.replace(" ", "")
 
 
 def test_a_flight_without_a_geofence_reports_none():
