@@ -14,7 +14,9 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from matplotlib.path import Path
+
+# matplotlib is imported when an area is first used: the LSM and a mission without a
+# geofence do not pay for it at start-up.
 
 
 @dataclass(frozen=True)
@@ -31,7 +33,9 @@ class OperatingArea:
         return np.asarray(self.vertices, dtype=np.float64).reshape(-1, 2)
 
     @functools.cached_property
-    def _path(self) -> Path:
+    def _path(self):  # matplotlib.path.Path
+        from matplotlib.path import Path
+
         return Path(np.vstack([self._corners, self._corners[:1]]), closed=True)
 
     def edge_distance(self, xy: np.ndarray | Sequence[float]) -> np.ndarray:
