@@ -30,3 +30,33 @@ def pytest_configure(config) -> None:
     with tempfile.TemporaryDirectory(prefix="lander-warm-") as out:
         subprocess.run([sys.executable, "-m", "autonomy", "fly", str(_DEMO),
                         "--out", out, "--quiet"], capture_output=True, check=False)
+
+
+# The modules whose tests take tens of seconds each (flights, fuzzing, a whole real model),
+# longest first. pytest-xdist's default (load) scheduling hands tests out in collection
+# order as workers free up; run last, one of these keeps a worker busy for a minute while
+# the other has nothing left to do. Run first, the many short tests fill in behind them.
+_LONG_FIRST = (
+    "tests/fuzz/test_fuzz.py",
+    "tests/e2e/test_sitl_fuzz.py",
+    "tests/e2e/test_demo_flight.py",
+    "tests/e2e/test_detectors_fly.py",
+    "tests/autonomy/campaign/test_warm.py",
+    "tests/autonomy/test_approach_flight.py",
+    "tests/speed/test_outcome_equality.py",
+    "tests/lsm/test_reference_model.py",
+    "tests/conformance/test_mavsdk_common.py",
+    "tests/sitl/test_geotiff.py",
+)
+
+
+def pytest_collection_modifyitems(config, items) -> None:
+    """Move the long modules' tests to the front, each module's tests kept together and in
+    their order (module fixtures are built once); every worker collects the same order."""
+    rank = {module: place for place, module in enumerate(_LONG_FIRST)}
+
+    def place(item) -> int:
+        module = item.path.relative_to(_ROOT).as_posix()
+        return rank.get(module, len(_LONG_FIRST))
+
+    items.sort(key=place)  # stable: the rest keep their collection order
