@@ -16,6 +16,7 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from .auto import AutoFlier
 from .battery import Battery
+from .fence import Fence
 from .geo import GeoFrame
 from .kinematics import Contact, Multicopter, Setpoint
 from .mission import MissionStore
@@ -94,6 +95,8 @@ class Autopilot:
     #: parameter rows (sitl.copter.params) and their float encoding
     param_table: tuple = ()
     param_bytewise = False
+    #: the geofence it enforces (sitl.copter.fence)
+    fence_class: type[Fence] = Fence
 
     def __init__(
         self,
@@ -154,6 +157,7 @@ class Autopilot:
         # A scheduled GPS loss (sitl.copter.gps.GpsOutage), set by the simulator; None in an
         # ordinary flight.
         self.gps = None
+        self.fence = self.fence_class(self)
 
     # ----------------------------------------------------------------- queries
     @property
@@ -533,3 +537,4 @@ class Autopilot:
         if self.armed and self.battery.empty:
             self.text(mavlink.MAV_SEVERITY_EMERGENCY, "Battery exhausted: motors stopped")
             self._disarm("Disarming motors")
+        self.fence.step()

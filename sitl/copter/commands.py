@@ -102,6 +102,7 @@ class Commands:
             c.MAV_CMD_CONDITION_YAW: self._condition_yaw,
             c.MAV_CMD_DO_FLIGHTTERMINATION: self._flight_termination,
             c.MAV_CMD_DO_SET_HOME: self._do_set_home,
+            c.MAV_CMD_DO_FENCE_ENABLE: lambda link, r: self.autopilot.fence.enable(r.integer(1)),
         }
 
     def handle(self, link: Link, request: CommandRequest) -> int:

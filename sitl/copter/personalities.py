@@ -19,6 +19,7 @@ from .autopilot import (
     TEMPORARILY_REJECTED,
     Autopilot,
 )
+from .fence import ArduPilotFence, Px4Fence
 from .kinematics import Setpoint
 from .params import ARDUPILOT, PX4
 
@@ -58,6 +59,7 @@ class ArduCopter(Autopilot):
     home_at_zero = True
     float_frames_on_download = True
     param_table = ARDUPILOT
+    fence_class = ArduPilotFence
     # Modes this simulator cannot fly (no pilot sticks): changing to them fails.
     _unflyable = frozenset({"ACRO", "CIRCLE"})
     _not_armable = frozenset({"LAND", "RTL", "SMART_RTL", "AUTO", "CIRCLE"})
@@ -97,6 +99,10 @@ class ArduCopter(Autopilot):
                 return FAILED
             if self.mode in self._needs_position and not self.position_known:
                 self.text(_CRITICAL, "Arm: Need Position Estimate")
+                return FAILED
+            fence = self.fence.prearm_failure()  # AP_Arming::fence_checks
+            if fence:
+                self.text(_CRITICAL, f"PreArm: {fence}")
                 return FAILED
         self._arm()
         self.text(_INFO, "Arming motors")  # AP_Arming_Copter::arm, in SITL builds
@@ -171,6 +177,8 @@ class ArduCopter(Autopilot):
         # Honoured in GUIDED only; a takeoff in progress is overridden, as on ArduPilot.
         if self.mode != "GUIDED":
             return
+        if setpoint.position is not None and not self.fence.allows(setpoint.position):
+            return  # ModeGuided::set_destination refuses a point beyond the fence
         setpoint.hold_ground = not self.flying
         if setpoint.hold_ground:
             # On the ground without a takeoff: accepted but not flown.
@@ -188,13 +196,15 @@ class ArduCopter(Autopilot):
                 return DENIED
             if self.set_mode("GUIDED") != ACCEPTED:
                 return FAILED
+        if not self.fence.allows(target):
+            return FAILED  # set_destination refused it (beyond the fence)
         if speed is not None:
             self.change_speed(1, speed)
         self.position_target(Setpoint(position=target, yaw=yaw))
         return ACCEPTED
 
     def guided_goto(self, target) -> bool:
-        if self.mode != "GUIDED":
+        if self.mode != "GUIDED" or not self.fence.allows(target):
             return False
         self.position_target(Setpoint(position=target))
         return True
@@ -288,6 +298,7 @@ class Px4Copter(Autopilot):
     announces_mission_current = True
     param_table = PX4
     param_bytewise = True
+    fence_class = Px4Fence
     _unflyable = frozenset({"ACRO"})
     _needs_position = frozenset(
         {"POSCTL", "AUTO.LOITER", "AUTO.TAKEOFF", "AUTO.RTL", "OFFBOARD"}
@@ -326,6 +337,10 @@ class Px4Copter(Autopilot):
                 return TEMPORARILY_REJECTED
             if self.battery.empty:
                 self.text(_CRITICAL, "Preflight Fail: low battery")
+                return TEMPORARILY_REJECTED
+            fence = self.fence.prearm_failure()
+            if fence:
+                self.text(_CRITICAL, fence)
                 return TEMPORARILY_REJECTED
         self._arm()
         self.text(_INFO, "Armed by external command")

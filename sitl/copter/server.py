@@ -34,6 +34,7 @@ _DATA_STREAMS: dict[int, tuple[int, ...]] = {
         mavlink.MAVLINK_MSG_ID_GPS_RAW_INT,
         mavlink.MAVLINK_MSG_ID_EXTENDED_SYS_STATE,
         mavlink.MAVLINK_MSG_ID_MISSION_CURRENT,
+        mavlink.MAVLINK_MSG_ID_FENCE_STATUS,  # ArduPilot's, while a fence is enabled
     ),
     mavlink.MAV_DATA_STREAM_POSITION: (
         mavlink.MAVLINK_MSG_ID_GLOBAL_POSITION_INT,
@@ -497,7 +498,9 @@ class MavlinkServer:
                     if not known:
                         continue  # no home until the EKF has a position
                     link.home_sent = True
-                mav.send(build[msgid]())
+                msg = build[msgid]()
+                if msg is not None:  # (FENCE_STATUS without a fence)
+                    mav.send(msg)
             once.clear()
             due = link.next_due
             limit = now + 1e-9
@@ -516,7 +519,8 @@ class MavlinkServer:
                         msg = cache.get(msgid)
                         if msg is None:
                             msg = cache[msgid] = build[msgid]()
-                        mav.send(msg)
+                        if msg is not None:  # (FENCE_STATUS without a fence: nothing)
+                            mav.send(msg)
                     interval = link.intervals[msgid]
                     nxt = when + interval
                     due[msgid] = nxt if nxt > now else now + interval

@@ -152,6 +152,10 @@ class MessageRates(BaseModel):
     )
     attitude_quaternion: float = Field(10.0, ge=0, le=MAX_STREAM_RATE, description=_RATE)
     altitude: float = Field(1.0, ge=0, le=MAX_STREAM_RATE, description="PX4 only; " + _RATE)
+    fence_status: float = Field(
+        0.0, ge=0, le=MAX_STREAM_RATE,
+        description="ArduPilot only, when asked and a fence is enabled; " + _RATE,
+    )
 
 
 class SitlSettings(BaseModel):

@@ -38,11 +38,13 @@ STREAMS: dict[int, str] = {
     mavlink.MAVLINK_MSG_ID_VFR_HUD: "vfr_hud",
     mavlink.MAVLINK_MSG_ID_ATTITUDE_QUATERNION: "attitude_quaternion",
     mavlink.MAVLINK_MSG_ID_ALTITUDE: "altitude",
+    mavlink.MAVLINK_MSG_ID_FENCE_STATUS: "fence_status",
 }
-# Messages only one personality sends (EKF_STATUS_REPORT is ArduPilot's dialect; ArduPilot
-# has no ALTITUDE).
+# Messages only one personality sends (EKF_STATUS_REPORT and FENCE_STATUS are ArduPilot's
+# dialect; ArduPilot has no ALTITUDE).
 ONLY = {
     mavlink.MAVLINK_MSG_ID_EKF_STATUS_REPORT: "ardupilot",
+    mavlink.MAVLINK_MSG_ID_FENCE_STATUS: "ardupilot",
     mavlink.MAVLINK_MSG_ID_ALTITUDE: "px4",
 }
 
@@ -122,6 +124,7 @@ class Telemetry:
         )
         # PX4 reports its pre-arm state in health only, never as present or enabled.
         present = _SENSORS & ~_S.MAV_SYS_STATUS_PREARM_CHECK if ap.name == "px4" else _SENSORS
+        self._present = present
         self._sys_status_msg = mavlink.MAVLink_sys_status_message(
             present, present, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0
         )
@@ -156,6 +159,8 @@ class Telemetry:
             mavlink.MAVLINK_MSG_ID_VFR_HUD: self._vfr_hud,
             mavlink.MAVLINK_MSG_ID_ATTITUDE_QUATERNION: self._attitude_quaternion,
             mavlink.MAVLINK_MSG_ID_ALTITUDE: self._altitude,
+            # None while no fence is enabled: then ArduPilot sends none.
+            mavlink.MAVLINK_MSG_ID_FENCE_STATUS: ap.fence.status_message,
         }
         for msgid, personality in ONLY.items():
             if ap.name != personality:
@@ -295,7 +300,15 @@ class Telemetry:
         health = _SENSORS if ap.settled else _SENSORS & ~_NEEDS_SETTLING
         if ap.gps_lost:
             health &= ~_S.MAV_SYS_STATUS_SENSOR_GPS
-        msg.onboard_control_sensors_health = health | _HEALTHY_ABSENT
+        health |= _HEALTHY_ABSENT
+        fence = ap.fence.sys_status()
+        if fence is not None:  # ArduPilot's (PX4 reports no geofence)
+            present, enabled, healthy = fence
+            bit = _S.MAV_SYS_STATUS_GEOFENCE
+            msg.onboard_control_sensors_present = self._present | bit if present else self._present
+            msg.onboard_control_sensors_enabled = self._present | bit if enabled else self._present
+            health = health if healthy else health & ~bit
+        msg.onboard_control_sensors_health = health
         msg.load = 200
         msg.voltage_battery = int(b.voltage * 1000.0)
         msg.current_battery = int(b.current * 100.0)

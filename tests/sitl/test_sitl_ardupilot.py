@@ -362,14 +362,14 @@ def test_legacy_stream_requests_and_one_shot_messages():
     gcs.mav.request_data_stream_send(1, 1, mavlink.MAV_DATA_STREAM_POSITION, 5, 1)
     gcs.command(mavlink.MAV_CMD_REQUEST_MESSAGE, mavlink.MAVLINK_MSG_ID_AUTOPILOT_VERSION)
     gcs.command(mavlink.MAV_CMD_GET_MESSAGE_INTERVAL, mavlink.MAVLINK_MSG_ID_ATTITUDE)
-    gcs.command(mavlink.MAV_CMD_DO_FENCE_ENABLE, 1)  # not simulated
+    gcs.command(mavlink.MAV_CMD_DO_SET_SERVO, 9, 1500)  # not simulated
     run(sim, gcs, 4.0)
     assert 18 <= gcs.counts["GLOBAL_POSITION_INT"] <= 21
     assert 18 <= gcs.counts["LOCAL_POSITION_NED"] <= 21
     assert "ATTITUDE" not in gcs.counts
     assert gcs.last["AUTOPILOT_VERSION"].capabilities & mavlink.MAV_PROTOCOL_CAPABILITY_MAVLINK2
     assert gcs.last["MESSAGE_INTERVAL"].interval_us == -1  # available, not streaming
-    assert gcs.acks(mavlink.MAV_CMD_DO_FENCE_ENABLE) == [mavlink.MAV_RESULT_UNSUPPORTED]
+    assert gcs.acks(mavlink.MAV_CMD_DO_SET_SERVO) == [mavlink.MAV_RESULT_UNSUPPORTED]
 
 
 def test_commands_for_another_system_are_ignored():
