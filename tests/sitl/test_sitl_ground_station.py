@@ -166,7 +166,7 @@ def test_timesync_request_is_answered_with_our_time():
 
 
 # ----------------------------------------------------------------------------- parameters
-@pytest.mark.parametrize("autopilot, count", [("ardupilot", 27), ("px4", 21)])
+@pytest.mark.parametrize("autopilot, count", [("ardupilot", 33), ("px4", 23)])
 def test_parameter_list_has_count_index_and_type(autopilot, count):
     sim, gcs = connect(autopilot)
     gcs.param_request_list()
