@@ -297,3 +297,18 @@ def test_px4_refuses_to_arm_outside_the_fence():
     gcs.arm()
     run(sim, gcs, 0.2)
     assert gcs.acks(C.MAV_CMD_COMPONENT_ARM_DISARM)[-1] == C.MAV_RESULT_ACCEPTED
+
+
+def test_ardupilot_circle_is_about_home_where_a_ground_station_set_it():
+    sim, gcs = connect()
+    run(sim, gcs, sim.settings.arming_settle_time + 0.1)
+    lat, lon = latlon(sim, 40.0, 0.0)
+    gcs.command(C.MAV_CMD_DO_SET_HOME, 0, 0, 0, 0, lat, lon, sim.settings.home.alt)
+    gcs.param_set("FENCE_RADIUS", 30, REAL32)
+    gcs.param_set("FENCE_ENABLE", 1, INT8)
+    gcs.set_mode(GUIDED)
+    gcs.arm()
+    run(sim, gcs, 0.2)
+    assert gcs.acks(C.MAV_CMD_DO_SET_HOME)[-1] == C.MAV_RESULT_ACCEPTED
+    assert gcs.acks(C.MAV_CMD_COMPONENT_ARM_DISARM)[-1] == C.MAV_RESULT_FAILED
+    assert said(gcs, "PreArm: Vehicle breaching Circle fence")  # 40 m from home
