@@ -51,6 +51,9 @@ class Zones:
     inclusion_circles: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     exclusion_circles: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
 
+    def __post_init__(self) -> None:
+        self._paths: tuple[list[Path], list[Path]] | None = None
+
     def __bool__(self) -> bool:
         return bool(self.inclusion or self.exclusion or len(self.inclusion_circles)
                     or len(self.exclusion_circles))
@@ -59,9 +62,11 @@ class Zones:
                                                         np.ndarray]:
         """Whether (x, y) is inside each inclusion polygon, each exclusion polygon, each
         inclusion circle and each exclusion circle."""
+        if self._paths is None:  # built once per plan
+            self._paths = ([Path(v) for v in self.inclusion], [Path(v) for v in self.exclusion])
         p = (x, y)
-        inc = [Path(v).contains_point(p) for v in self.inclusion]
-        exc = [Path(v).contains_point(p) for v in self.exclusion]
+        inc = [path.contains_point(p) for path in self._paths[0]]
+        exc = [path.contains_point(p) for path in self._paths[1]]
         ic, ec = self.inclusion_circles, self.exclusion_circles
         in_ic = np.hypot(ic[:, 0] - x, ic[:, 1] - y) <= ic[:, 2]
         in_ec = np.hypot(ec[:, 0] - x, ec[:, 1] - y) < ec[:, 2]
