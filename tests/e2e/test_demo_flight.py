@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import contextlib
+import io
 import json
 import math
 import os
@@ -22,11 +24,15 @@ DEMO = Path(__file__).resolve().parents[2] / "missions" / "demo.yaml"
 
 @pytest.fixture(scope="module")
 def demo_flights(tmp_path_factory):
-    """The demo flown twice with the same seed, with reports."""
-    mission = load_mission(DEMO)
+    """The demo flown twice with the same seed, with reports: through the Python API, then
+    through `lander fly` (its exit code, console output and report directory)."""
     first = tmp_path_factory.mktemp("first")
-    second = tmp_path_factory.mktemp("second")
-    return fly(mission, out_dir=first), fly(mission, out_dir=second)
+    second = tmp_path_factory.mktemp("second") / "out"
+    result = fly(load_mission(DEMO), out_dir=first)
+    console = io.StringIO()
+    with contextlib.redirect_stdout(console):
+        code = main(["fly", str(DEMO), "--out", str(second), "--quiet"])
+    return result, (code, console.getvalue(), second)
 
 
 def test_demo_lands_on_the_chosen_site_on_safe_ground(demo_flights):
@@ -45,9 +51,9 @@ def test_demo_lands_on_the_chosen_site_on_safe_ground(demo_flights):
 
 
 def test_same_seed_gives_identical_events(demo_flights):
-    first, second = demo_flights
+    first, (_, _, second) = demo_flights
     a = (first.out_dir / "events.jsonl").read_bytes()
-    b = (second.out_dir / "events.jsonl").read_bytes()
+    b = (second / "events.jsonl").read_bytes()
     assert a == b and len(a) > 0
 
 
@@ -77,10 +83,10 @@ def test_report_files_exist_and_the_tlog_reads_back(demo_flights):
     assert {"HEARTBEAT", "COMMAND_LONG", "LOCAL_POSITION_NED"} <= types
 
 
-def test_lander_fly_writes_the_report(tmp_path, capsys):
-    out = tmp_path / "out"
-    assert main(["fly", str(DEMO), "--out", str(out), "--quiet"]) == 0
-    assert f"landed (exit 0): report {out / 'report.png'}" in capsys.readouterr().out
+def test_lander_fly_writes_the_report(demo_flights):
+    _, (code, console, out) = demo_flights  # the demo's second flight, by `lander fly`
+    assert code == 0
+    assert f"landed (exit 0): report {out / 'report.png'}" in console
     assert all((out / name).exists() for name in REPORT_FILES)
 
 
