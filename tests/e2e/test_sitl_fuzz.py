@@ -195,10 +195,12 @@ def test_a_fuzzed_sitl_keeps_running_and_then_flies_the_demo_mission(served_demo
     try:
         gcs.heartbeat()
         gcs.param_request_list()
-        assert until(gcs, lambda: gcs.counts["PARAM_VALUE"] >= 27, 30)
+        # The whole list first: a list item arriving later would hide a read's answer.
+        names = _param_names(sitl)
+        assert until(gcs, lambda: gcs.counts["PARAM_VALUE"] >= len(names), 30)
         # Read the parameters by hand (keep=False): one PARAM_VALUE per read.
         before: dict[str, float] = {}
-        for name in _param_names(sitl):
+        for name in names:
             gcs.param_read(name)
             assert until(gcs, lambda n=name: gcs.last["PARAM_VALUE"].param_id == n, 10)
             before[name] = gcs.last["PARAM_VALUE"].param_value

@@ -16,6 +16,7 @@ from sitl.copter.fence import Zones, fence_names, zones_from_plan
 from sitl.copter.gcs import MiniGcs
 from sitl.copter.geo import AzimuthalEquidistant, LocalToGlobal
 from sitl.copter.mission import MissionItem
+from tests.sitl.test_sitl_ground_station import airborne, run
 
 C = mavlink
 DT = 0.05
@@ -47,16 +48,6 @@ def connect(autopilot: str = "ardupilot") -> tuple[Sitl, MiniGcs]:
     return sim, gcs
 
 
-def run(sim, gcs, seconds, until=None) -> bool:
-    end = sim.time + seconds
-    while sim.time < end - 1e-9:
-        sim.step(DT)
-        gcs.poll()
-        if until is not None and until():
-            return True
-    return until is None
-
-
 def latlon(sim, east, north):
     home = sim.settings.home
     project = LocalToGlobal if sim.personality == "ardupilot" else AzimuthalEquidistant
@@ -78,19 +69,6 @@ def upload_fence(sim, gcs, items) -> None:
     assert run(sim, gcs, 5, until=lambda: any(
         m.mission_type == FENCE for m in gcs.of_type("MISSION_ACK")))
     assert gcs.of_type("MISSION_ACK")[-1].type == C.MAV_MISSION_ACCEPTED
-
-
-def airborne(sim, gcs, altitude=10.0) -> None:
-    run(sim, gcs, sim.settings.arming_settle_time + 0.1)
-    if sim.personality == "px4":
-        gcs.arm()
-        gcs.command(C.MAV_CMD_NAV_TAKEOFF, -1, 0, 0, NAN, NAN, NAN,
-                    sim.settings.home.alt + altitude)
-    else:
-        gcs.set_mode(GUIDED)
-        gcs.arm()
-        gcs.takeoff(altitude)
-    assert run(sim, gcs, 40, until=lambda: sim.truth.position[2] > altitude - 0.35)
 
 
 def fly_east(sim, gcs, speed=5.0) -> None:
