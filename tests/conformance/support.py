@@ -338,6 +338,23 @@ async def until(stream, condition, timeout: float, what: str):
         raise AssertionError(f"{what}: not reached in {timeout:.0f} s; last seen: {seen}") from None
 
 
+async def mode(tel, name: str, timeout: float):
+    """Wait for MAVSDK's flight mode ``name`` (telemetry ``tel``), up to ``timeout`` s."""
+    return await until(tel.flight_mode(), lambda m: m.name == name, timeout, f"mode {name}")
+
+
+def collect_status_texts(tel) -> tuple[asyncio.Task, list[str]]:
+    """Start collecting the vehicle's STATUSTEXTs: (the task, to cancel at the end; the texts
+    so far)."""
+    texts: list[str] = []
+
+    async def collect():
+        async for t in tel.status_text():
+            texts.append(t.text)
+
+    return asyncio.create_task(collect()), texts
+
+
 async def connect(vehicle: Vehicle, mavsdk_server):
     """A MAVSDK System connected (through the ``mavsdk_server`` fixture) to ``vehicle``."""
     from mavsdk import System

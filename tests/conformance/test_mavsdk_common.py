@@ -26,8 +26,10 @@ from conformance_support import (
     HOME,
     Monitor,
     arm_and_takeoff,
+    collect_status_texts,
     connect,
     distance,
+    mode,
     offset,
     until,
     within,
@@ -73,10 +75,6 @@ def speed(v) -> float:
     return math.hypot(v.north_m_s, v.east_m_s)
 
 
-async def mode(tel, name: str, timeout: float):
-    return await until(tel.flight_mode(), lambda m: m.name == name, timeout, f"mode {name}")
-
-
 async def offboard_loss(vehicle, server) -> None:
     """Pause ``server`` (a mavsdk_server streaming offboard setpoints) until the PX4 on
     ``vehicle`` leaves OFFBOARD for Hold, seen on its ground-station port."""
@@ -103,13 +101,7 @@ def test_mavsdk_common_calls(start_vehicle, mavsdk_server, autopilot):
     async def scenario():
         drone = await connect(vehicle, mavsdk_server)
         tel, action = drone.telemetry, drone.action
-        texts: list[str] = []
-
-        async def collect_texts():
-            async for t in tel.status_text():
-                texts.append(t.text)
-
-        collector = asyncio.create_task(collect_texts())
+        collector, texts = collect_status_texts(tel)
         if ardupilot:  # ArduPilot streams nothing until asked
             for rate, hz in (
                 (tel.set_rate_position, 10.0),

@@ -13,7 +13,17 @@ from __future__ import annotations
 import asyncio
 
 import pytest
-from conformance_support import HOME, arm_and_takeoff, connect, distance, offset, until, within
+from conformance_support import (
+    HOME,
+    arm_and_takeoff,
+    collect_status_texts,
+    connect,
+    distance,
+    mode,
+    offset,
+    until,
+    within,
+)
 from mavsdk.geofence import FenceType, GeofenceData, Point, Polygon
 from mavsdk.offboard import VelocityNedYaw
 
@@ -24,10 +34,6 @@ HALF = 30.0  # m: the fence is a square this far either side of home
 CRUISE = 10.0
 
 
-async def mode(tel, name: str, timeout: float):
-    return await until(tel.flight_mode(), lambda m: m.name == name, timeout, f"mode {name}")
-
-
 @pytest.mark.parametrize("autopilot", ["ardupilot", "px4"])
 def test_mavsdk_geofence_breach(start_vehicle, mavsdk_server, autopilot):
     vehicle = start_vehicle(autopilot, speedup=SPEEDUP)
@@ -36,13 +42,7 @@ def test_mavsdk_geofence_breach(start_vehicle, mavsdk_server, autopilot):
     async def scenario():
         drone = await connect(vehicle, mavsdk_server)
         tel, action = drone.telemetry, drone.action
-        texts: list[str] = []
-
-        async def collect_texts():
-            async for t in tel.status_text():
-                texts.append(t.text)
-
-        collector = asyncio.create_task(collect_texts())
+        collector, texts = collect_status_texts(tel)
         if autopilot == "ardupilot":  # ArduPilot streams nothing until asked
             for rate, hz in ((tel.set_rate_position, 10.0), (tel.set_rate_velocity_ned, 10.0),
                              (tel.set_rate_health, 2.0), (tel.set_rate_home, 1.0)):
