@@ -499,6 +499,22 @@ class Mission(BaseModel):
         """True when the mission file gives a ``home`` (else it is the default)."""
         return "home" in self.source_data()
 
+    @property
+    def home_source(self) -> str | None:
+        """Where the mission's home comes from: ``"mission file"`` (its ``home``),
+        ``"elevation model"`` (a model with a coordinate system, at the world's home, for a
+        file that gives no home) or None (the default home, which places nothing)."""
+        data = self.source_data()
+        if "home" in data:
+            return "mission file"
+        sitl = data.get("sitl")
+        if getattr(self.world, "kind", None) != "file" or (
+                isinstance(sitl, Mapping) and "home" in sitl):
+            return None
+        from sitl.terrain.files import georeference
+
+        return "elevation model" if georeference(self.world) is not None else None
+
     def waypoints_enu(
         self, home: tuple[float, float] | None = None, project: Projection | None = None
     ) -> list[tuple[float, float, float]]:

@@ -5,7 +5,9 @@ waypoints are relative to it, and lat/lon waypoints are converted about it, so t
 flown to their lat/lon. A mission file's ``home`` only places the embedded SITL and its
 terrain. When the file gives a home that disagrees with the vehicle's by more than the
 tolerances, the flight refuses to start unless ``vehicle.home_from`` (``--home-from``) says
-which to fly by.
+which to fly by. A mission over an elevation model with a coordinate system and no ``home``
+has the model's position as its home (the simulated ground lies there on the Earth), and it
+is checked the same way: a vehicle elsewhere would see that ground under it.
 """
 
 from __future__ import annotations
@@ -37,10 +39,11 @@ class HomeChoice:
 
     used: str  # "vehicle" or "file"
     vehicle: Geo
-    file: Geo | None  # None when the mission file gives no home
+    file: Geo | None  # None when the mission (file or elevation model) gives no home
     distance: float | None  # m horizontally between the two homes
     altitude_difference: float | None  # m, vehicle minus file
     agree: bool
+    file_source: str = "mission file"  # or "elevation model": where ``file`` comes from
 
     @property
     def lat_lon(self) -> tuple[float, float]:
@@ -53,7 +56,7 @@ class HomeChoice:
             "used": self.used, "vehicle": geodetic(self.vehicle),
             "file": None if self.file is None else geodetic(self.file),
             "distance": self.distance, "altitude_difference": self.altitude_difference,
-            "agree": self.agree,
+            "agree": self.agree, "file_source": self.file_source,
         }
 
     def describe(self) -> str:
@@ -61,15 +64,20 @@ class HomeChoice:
         where = f"vehicle home {_geo(self.vehicle)}"
         if self.file is None:
             return f"{where}; the mission file gives no home: flying by the vehicle's"
-        apart = f"{self.distance:.1f} m from the file's home ({self.altitude_difference:+.1f} m)"
+        apart = (f"{self.distance:.1f} m from the {_whose(self.file_source)} home "
+                 f"({self.altitude_difference:+.1f} m)")
         if self.agree:
             return f"{where}, {apart}: the homes agree"
         if self.used == "vehicle":
             return (f"{where}, {apart}: flying by the vehicle's home (lat/lon waypoints are "
                     "flown to their lat/lon)")
-        return (f"{where}, {apart}: flying by the file's home (the mission as drawn about it, "
-                "moved to the vehicle's home; lat/lon waypoints are NOT reached at their "
-                "lat/lon)")
+        return (f"{where}, {apart}: flying by the {_whose(self.file_source)} home (the "
+                "mission as drawn about it, moved to the vehicle's home; lat/lon waypoints are "
+                "NOT reached at their lat/lon)")
+
+
+def _whose(source: str) -> str:
+    return "file's" if source == "mission file" else f"{source}'s"
 
 
 def _geo(home: Geo) -> str:
@@ -86,7 +94,8 @@ def choose_home(mission: Mission, vehicle_home: Geo, home_from: str | None = Non
     """The home to fly by, given the one the vehicle reports.
 
     Args:
-        mission: the mission (its ``home`` counts only if the file gives one).
+        mission: the mission (its ``home`` counts if the file gives one, or an elevation
+            model with a coordinate system places it: :attr:`Mission.home_source`).
         vehicle_home: the vehicle's HOME_POSITION (lat, lon, alt AMSL).
         home_from: "vehicle", "file" or None (default ``mission.vehicle.home_from``).
 
@@ -98,7 +107,8 @@ def choose_home(mission: Mission, vehicle_home: Geo, home_from: str | None = Non
     config = mission.vehicle
     home_from = home_from or config.home_from
     vehicle_home = tuple(float(v) for v in vehicle_home)  # type: ignore[assignment]
-    if not mission.has_home:
+    source = mission.home_source
+    if source is None:
         if home_from == "file":
             raise UserError("--home-from file: the mission file gives no home to fly by")
         return HomeChoice("vehicle", vehicle_home, None, None, None, True)
@@ -106,12 +116,15 @@ def choose_home(mission: Mission, vehicle_home: Geo, home_from: str | None = Non
     distance, height = compare_homes(vehicle_home, file_home)
     agree = distance <= config.home_tolerance and abs(height) <= config.home_altitude_tolerance
     if not agree and home_from is None:
+        whose = ("the mission file's home" if source == "mission file" else
+                 f"the elevation model's home ({mission.world.path.name} at world.home)")
         raise HomeMismatch(
-            f"home mismatch: the vehicle reports home {_geo(vehicle_home)}, the mission file's "
-            f"home is {_geo(file_home)}: {distance:.1f} m apart, {height:+.1f} m in altitude "
+            f"home mismatch: the vehicle reports home {_geo(vehicle_home)}, {whose} is "
+            f"{_geo(file_home)}: {distance:.1f} m apart, {height:+.1f} m in altitude "
             f"(tolerance {config.home_tolerance:g} m, {config.home_altitude_tolerance:g} m); "
             "say which to fly by: --home-from vehicle (lat/lon waypoints flown to their "
             "lat/lon) or --home-from file (the mission as drawn about the file's home, moved "
             "to the vehicle's)"
         )
-    return HomeChoice(home_from or "vehicle", vehicle_home, file_home, distance, height, agree)
+    return HomeChoice(home_from or "vehicle", vehicle_home, file_home, distance, height, agree,
+                      source)

@@ -121,3 +121,40 @@ def test_without_a_home_in_the_file_the_vehicles_is_used():
     assert x == pytest.approx(30.0, abs=0.2) and y == pytest.approx(20.0, abs=0.2)
     with pytest.raises(UserError, match="gives no home"):
         choose_home(mission, VEHICLE_HOME, "file")
+
+
+def test_a_home_taken_from_an_elevation_model_is_checked_like_a_files(tmp_path):
+    """A mission over a georeferenced model without a ``home`` is where the model is: a
+    vehicle whose home is elsewhere would see that ground under it, so it is refused until
+    told which home to fly by, and one at the model's home agrees."""
+    pytest.importorskip("rasterio")
+    from tests.sitl.test_model_home import mission_file, utm_plane
+
+    mission = load_mission(mission_file(tmp_path, f"path: {utm_plane(tmp_path)}"))
+    model = (mission.home.lat, mission.home.lon, mission.home.alt)
+    assert mission.home_source == "elevation model"
+    north = (model[0] + 0.001, model[1], model[2])  # 111 m north of the model's home
+    with pytest.raises(HomeMismatch, match=r"the elevation model's home \(utm.tif at "
+                       r"world.home\) is .*: 111.0 m apart"):
+        choose_home(mission, north)
+    choice = choose_home(mission, (model[0] + 2.0 / 111_320.0, model[1], model[2] + 3.0))
+    assert choice.agree and choice.file_source == "elevation model"
+    assert choice.as_dict()["file"] == pytest.approx(model)
+
+
+def test_a_live_flight_over_a_model_elsewhere_is_refused_before_takeoff(
+        served_sitl, tmp_path, capsys):
+    pytest.importorskip("rasterio")
+    from tests.sitl.test_model_home import mission_file, utm_plane
+
+    served = served_sitl(speedup=10.0, home=HomeSettings(
+        lat=VEHICLE_HOME[0], lon=VEHICLE_HOME[1], alt=VEHICLE_HOME[2]))
+    mission = mission_file(tmp_path, f"path: {utm_plane(tmp_path)}")
+    out = tmp_path / "refused"
+    assert main(["fly", str(mission), "--connect", served.url, "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "the elevation model's home (utm.tif at world.home)" in err[0]
+    assert "--home-from" in err[0]
+    summary = json.loads((out / "summary.json").read_text())
+    assert (summary["outcome"], summary["exit_code"]) == ("refused", 2)
+    assert not served.sitl.truth.armed, "refused before takeoff"

@@ -98,7 +98,7 @@ def test_without_a_home_the_mission_is_where_the_model_is(tmp_path):
     assert loaded.home.lon == pytest.approx(lon, abs=1e-9)
     assert loaded.home.alt == pytest.approx(0.3 * 600 + 0.1 * 400)
     assert loaded.sitl.home == loaded.home  # the simulator's GPS says the same
-    assert not loaded.has_home  # not the file's: a live vehicle's home is not checked on it
+    assert not loaded.has_home and loaded.home_source == "elevation model"
 
 
 def test_a_flight_over_the_real_model_reports_the_models_position(tmp_path):
