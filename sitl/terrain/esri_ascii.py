@@ -5,13 +5,17 @@ rows of ``ncols`` numbers, north to south.
 A malformed file is refused with :class:`GridFileError`, whose text names the file, the line
 and what is wrong there. Rows that wrap over several lines are read as GDAL reads them, as one
 stream of ``nrows x ncols`` numbers.
+
+The format itself has no coordinate system: a ``.prj`` file beside the grid (same name) gives
+it, as ESRI and GDAL write it (:func:`projection_file`; :mod:`sitl.terrain.files` then reads
+the grid through GDAL, which takes the ``.prj``). Without one, the grid is in metres.
 """
 
 from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import TextIO
+from typing import NamedTuple, TextIO
 
 import numpy as np
 
@@ -31,8 +35,36 @@ REQUIRED = ("ncols", "nrows", "cellsize")
 WHOLE = ("ncols", "nrows")
 
 
-def read_asc(path: Path) -> tuple[np.ndarray, float, float | None]:
-    """(heights north-up (nrows, ncols) float64, cell size, NODATA_value or None)."""
+class AsciiGrid(NamedTuple):
+    """An ESRI ASCII grid as read: heights north-up (nrows, ncols) float64, the cell size,
+    NODATA_value (None when not given) and the lower-left corner (x, y) of the grid (of its
+    corner cell's corner, whether the header gives the corner or the centre)."""
+
+    heights: np.ndarray
+    cell: float
+    nodata: float | None
+    corner: tuple[float, float]
+
+
+def projection_file(path: Path) -> Path | None:
+    """The ``.prj`` file beside ``path`` (same name; ``.prj`` or ``.PRJ``), or None."""
+    for suffix in (".prj", ".PRJ"):
+        prj = path.with_suffix(suffix)
+        if prj.is_file():
+            return prj
+    return None
+
+
+def looks_geographic(grid: AsciiGrid) -> bool:
+    """True for a grid whose cell size (under 1 cm) and corner (a longitude and latitude,
+    not the origin) say degrees rather than metres: 1 and 3 arc-seconds are 2.8e-4 and
+    8.3e-4, 30 arc-seconds 8.3e-3."""
+    x, y = grid.corner
+    return grid.cell < 0.01 and abs(x) <= 180 and abs(y) <= 90 and (x, y) != (0.0, 0.0)
+
+
+def read_asc(path: Path) -> AsciiGrid:
+    """The grid of an ESRI ASCII file (:class:`AsciiGrid`); GridFileError on a malformed one."""
     with path.open(encoding="utf-8-sig") as f:
         try:
             header, first_data_line = _header(path, f)
@@ -47,7 +79,11 @@ def read_asc(path: Path) -> tuple[np.ndarray, float, float | None]:
                 values = _values_or_reason(path, f, first_data_line, shape)
         except UnicodeDecodeError:
             raise GridFileError(f"{path}: not text (an ESRI ASCII grid is plain text)") from None
-    return values.reshape(shape), header["cellsize"], header.get("nodata_value")
+    cell = header["cellsize"]
+    half = cell / 2  # a centre given instead of the corner
+    corner = (header.get("xllcorner", header.get("xllcenter", half) - half),
+              header.get("yllcorner", header.get("yllcenter", half) - half))
+    return AsciiGrid(values.reshape(shape), cell, header.get("nodata_value"), corner)
 
 
 def _header(path: Path, f: TextIO) -> tuple[dict, int]:

@@ -2,7 +2,8 @@
 simulation grid.
 
 Formats: ``.npy`` (row i along +y, south to north; the cell size comes from the settings),
-ESRI ASCII grid ``.asc`` (north-up rows, header with ``cellsize`` and ``NODATA_value``), and
+ESRI ASCII grid ``.asc`` (north-up rows, header with ``cellsize`` and ``NODATA_value``; with
+a ``.prj`` beside it, read through GDAL as a georeferenced model, as a GeoTIFF is), and
 GeoTIFF (:mod:`sitl.terrain.geotiff`: its CRS and units to metres; optional extra
 ``geotiff``, imported only when needed).
 
@@ -27,7 +28,7 @@ from pathlib import Path
 import numpy as np
 from scipy import ndimage
 
-from sitl.terrain.esri_ascii import read_asc
+from sitl.terrain.esri_ascii import looks_geographic, projection_file, read_asc
 from sitl.terrain.file_errors import GridFileError
 from sitl.terrain.geotiff import GDAL_SUFFIXES
 from sitl.terrain.model_area import Area, WindowError, crop, nodata_values
@@ -291,9 +292,22 @@ def _read_elevation_quietly(path: Path, source_cell_size: float | None, window,
             cells = (source_cell_size, source_cell_size)
             tagged = None
         elif suffix == ".asc":
-            heights, cell, tagged = read_asc(path)
-            heights = heights[::-1]  # ESRI rows run north to south; ours run south to north
-            cells = (cell, cell)
+            grid = read_asc(path)  # a malformed file is named by its line here, not by GDAL
+            if projection_file(path) is not None:
+                from sitl.terrain.geotiff import read_geotiff
+
+                area = read_geotiff(path, window, nodata)  # GDAL takes the CRS from the .prj
+            elif looks_geographic(grid):
+                raise ValueError(
+                    f"cellsize {grid.cell:g} at corner ({grid.corner[0]:g}, "
+                    f"{grid.corner[1]:g}) looks like degrees, but a grid without a .prj is "
+                    f"read in metres: add {path.with_suffix('.prj').name} (gdalsrsinfo -o "
+                    "wkt1_esri EPSG:4326)"
+                )
+            else:
+                heights = grid.heights[::-1]  # ESRI rows run north to south; ours south to north
+                cells = (grid.cell, grid.cell)
+                tagged = grid.nodata
         elif suffix in GDAL_SUFFIXES:
             from sitl.terrain.geotiff import read_geotiff
 

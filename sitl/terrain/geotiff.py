@@ -102,6 +102,10 @@ def _read(src, path: Path, window, nodata: float | None) -> Area:
             "(gdal_translate -srcwin, gdalwarp -tr)"
         )
     notes: list[str] = []
+    scale, offset = _scale_offset(src, band)
+    if (scale, offset) != (1.0, 0.0):
+        notes.append(f"{path}: heights are the stored values x {scale:g} + {offset:g} (the "
+                     "band's scale and offset)")
     if src.crs is None:
         z_unit = _height_unit(src, None, None, path, notes)
         said = _band_unit(src) is not None  # heights in the band's own unit
@@ -181,12 +185,28 @@ def _read_grid(src, band: int, window, cells: tuple[float, float], z_unit: float
 
 
 def _heights(src, band: int, nodata: float | None, window=None) -> np.ndarray:
-    """Band ``band`` (of ``window``) as float64, NaN where the file masks it (its nodata,
-    an alpha band) or where it holds ``nodata``, a value the file does not tag."""
+    """Band ``band`` (of ``window``) as float64 heights in the band's unit: the stored values
+    times the band's scale plus its offset (GDAL's unscaled values: DEMs stored as integers
+    of centimetres or decimetres say so there), NaN where the file masks it (its nodata, an
+    alpha band) or where it stores ``nodata``, a value the file does not tag (compared with
+    the stored values, as a nodata tag is)."""
     heights = src.read(band, masked=True, window=window).astype(np.float64).filled(np.nan)
     if nodata is not None:
         heights[np.isin(heights, nodata_values((nodata,)))] = np.nan
+    scale, offset = _scale_offset(src, band)
+    if (scale, offset) != (1.0, 0.0):
+        heights = heights * scale + offset
     return heights
+
+
+def _scale_offset(src, band: int) -> tuple[float, float]:
+    """The band's (scale, offset); ValueError on one that cannot give heights."""
+    scale, offset = float(src.scales[band - 1]), float(src.offsets[band - 1])
+    if not (np.isfinite(scale) and scale != 0 and np.isfinite(offset)):
+        raise ValueError(f"band {band} has scale {scale:g} and offset {offset:g}: heights are "
+                         "stored value x scale + offset, so the scale must be a non-zero "
+                         "number (gdal_edit.py -scale 1 -offset 0 if the values are heights)")
+    return scale, offset
 
 
 def _fits(nx: int, ny: int, whose: str) -> None:
