@@ -264,7 +264,8 @@ def _shell_pca(pairs: _Pairs, r: int):
     stacked ``eigh`` fits all (S, R) planes.
 
     Returns count (S, R), centroid relative to the search point (S, R, 3), eigenvalues
-    (S, R, 3) ascending, unit normals (S, R, 3) with z >= 0 and z std (S, R).
+    (S, R, 3) ascending, unit normals (S, R, 3) with z >= 0, z std (S, R) and the smallest
+    horizontal variance (S, R) (:func:`_horizontal_spread`).
     """
     s = pairs.n
     inside = np.flatnonzero(pairs.shell < r)
@@ -284,7 +285,29 @@ def _shell_pca(pairs: _Pairs, r: int):
     cov = m[..., 4:10][..., _COV_ENTRY] - mean[..., :, None] * mean[..., None, :]
     evals, normal = _pca_planes(cov)
     zstd = np.sqrt(np.maximum(cov[..., 2, 2], 0.0))
-    return count, mean, np.maximum(evals, 0.0), normal, zstd
+    return count, mean, np.maximum(evals, 0.0), normal, zstd, _horizontal_spread(cov)
+
+
+def _horizontal_spread(cov: np.ndarray) -> np.ndarray:
+    """The smallest eigenvalue of the horizontal (x, y) block of covariances (..., 3, 3):
+    the variance of the points across their narrowest horizontal direction, m^2."""
+    a, b, c = cov[..., 0, 0], cov[..., 0, 1], cov[..., 1, 1]
+    return (a + c) / 2 - np.hypot((a - c) / 2, b)
+
+
+def _off_data(mean: np.ndarray, spread: np.ndarray, radius, settings: LidarPcaSettings
+              ) -> np.ndarray:
+    """True where a sphere of ``radius`` runs off the data: its centroid is more than
+    max_offset * radius (horizontally) from the search point (a cloud edge or a hole on one
+    side), or its points spread across their narrowest horizontal direction less than
+    min_spread of a filled disc's (variance r^2 / 4): a strip or a line of returns (a scan
+    line, the edge of a flight strip) says nothing of the ground beside it."""
+    off = np.zeros(spread.shape, dtype=bool)
+    if settings.max_offset is not None:  # centroid relative to the seed
+        off |= np.hypot(mean[..., 0], mean[..., 1]) > settings.max_offset * radius
+    if settings.min_spread is not None:
+        off |= spread < settings.min_spread * np.square(radius) / 4
+    return off
 
 
 def _smooth(evals: np.ndarray, settings: LidarPcaSettings) -> np.ndarray:
@@ -339,17 +362,15 @@ class _Growth:
 def _grow(pairs: _Pairs, radii: np.ndarray, settings: LidarPcaSettings, max_step: float):
     """Grow every search point's sphere over ``radii`` (the Algorithm 1 loop, batched over
     search points and radii): a point stays alive while each larger sphere has n_min points,
-    slope <= theta_max, no point farther than max_step from its plane and its centroid
-    within max_offset * r (horizontally) of the search point. The search points are those
+    slope <= theta_max, no point farther than max_step from its plane and its points on the
+    data around it (:func:`_off_data`). The search points are those
     that passed r_min (:func:`_first_radius`), which is fitted again here."""
     r = len(radii)
-    count, mean, evals, normal, zstd = _shell_pca(pairs, r)
+    count, mean, evals, normal, zstd, spread = _shell_pca(pairs, r)
     slope = np.arccos(np.minimum(normal[..., 2], 1.0))  # normal z >= 0
     enough = count >= settings.n_min
     fit = enough & (slope <= settings.theta_max) & _smooth(evals, settings)  # a flat plane
-    lopsided = np.zeros_like(fit)
-    if settings.max_offset is not None:  # centroid relative to the seed
-        lopsided = np.hypot(mean[..., 0], mean[..., 1]) > settings.max_offset * radii
+    lopsided = _off_data(mean, spread, radii, settings)
     off = np.zeros_like(fit)
     if np.isfinite(max_step):
         # Only spheres a point can reach matter: those after an unbroken run of passes.
@@ -426,9 +447,7 @@ def _first_radius(
     evals, normal = _pca_planes(cov)
     fit = enough & (np.arccos(np.minimum(normal[:, 2], 1.0)) <= settings.theta_max)
     smooth = _smooth(evals, settings)
-    lopsided = np.zeros(s, dtype=bool)
-    if settings.max_offset is not None:  # centroid relative to the seed
-        lopsided = np.hypot(mean[:, 0], mean[:, 1]) > settings.max_offset * r0
+    lopsided = _off_data(mean, _horizontal_spread(cov), r0, settings)
     off = np.zeros(s, dtype=bool)
     if np.isfinite(max_step) and fit.any():
         dist = _plane_distance(rel.T, mean, normal, owner)

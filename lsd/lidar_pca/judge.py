@@ -5,7 +5,9 @@ and a random-disc baseline to compare with (issue 16).
 A site (centre, radius r) is safe when, with D the points within r horizontally and R those
 within the clearance ring r < d <= r + clearance:
 
-- D holds at least ``n_min`` points;
+- D holds at least ``n_min`` points, and covers the disc: every node of a square lattice of
+  spacing r/4 over the disc lies within r/2 of a point (a strip or a line of returns, as at
+  a tile's or a flight strip's edge, says nothing of the ground beside it);
 - the least-squares plane z = a x + b y + c of D has a slope of at most ``slope_max_deg``,
   an RMS distance of D from it of at most ``residual_max`` and no point of D farther than
   ``step_max`` from it;
@@ -81,6 +83,8 @@ class Judge:
         disc = d <= radius
         if disc.sum() < ru.n_min:
             return "too few points"
+        if not self._covered(centre, radius):
+            return "disc not covered"
         if self.codes is not None:
             c = self.codes[near]
             if not (np.isin(c, ru.ground).all() or (ru.roofs and np.isin(c, ru.roof).all())):
@@ -101,6 +105,13 @@ class Judge:
         if (height[~disc] > ru.obstacle_height).any():
             return "obstacle in ring"
         return ""
+
+    def _covered(self, centre: np.ndarray, radius: float) -> bool:
+        step = np.arange(-4, 5) * (radius / 4)
+        nodes = np.stack(np.meshgrid(step, step), axis=-1).reshape(-1, 2)
+        nodes = nodes[np.hypot(nodes[:, 0], nodes[:, 1]) <= radius * (1 + 1e-9)] + centre
+        gap, _ = self.tree.query(nodes, distance_upper_bound=radius / 2)
+        return bool(np.isfinite(gap).all())
 
 
 def random_discs(points: np.ndarray, n: int, radius: float,

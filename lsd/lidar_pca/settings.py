@@ -129,6 +129,15 @@ class LidarPcaSettings(BaseModel):
         "centroid is farther than this fraction of the radius from the search point (the "
         "sphere runs off the data: a cloud edge or a hole); None disables",
     )
+    min_spread: float | None = Field(
+        0.25,
+        gt=0,
+        le=1,
+        description="beyond the paper: stop growing when the neighbourhood's points spread "
+        "across their narrowest horizontal direction less than this fraction of a filled "
+        "disc's (variance r^2/4; a strip narrower than 0.87 r at 0.25): a line or strip of "
+        "returns says nothing of the ground beside it; None disables",
+    )
     weights: SpotWeights = SpotWeights()
     distance_scale: float = Field(
         100.0, gt=0, le=50_000, description="horizontal distance (m) at which the distance "

@@ -363,6 +363,21 @@ def test_spheres_running_off_the_cloud_edge_stop_growing():
     assert overhang <= 0.3 < paper_overhang
 
 
+def test_a_strip_of_returns_holds_no_site_however_long_and_flat():
+    """A line of returns along a tile's edge (a scan line, a flight strip's border) is flat
+    and centred on every search point in it, so neither the plane tests nor max_offset stop
+    it; the ground beside it is unknown, so it is no site. A square of the same ground is."""
+    strip = grid(-10, 10, 0.0, 0.3)  # 20 m x 0.3 m
+    square = grid(20, 30, -5, 5)
+    cloud = np.c_[np.r_[strip, square], np.zeros(len(strip) + len(square))]
+    found = detect_planes(cloud, SETTINGS, np.random.default_rng(0)).spots.centre
+    assert (found[:, 0] > 20 - 1e-9).all() and len(found) > 0  # on the square only
+    paper = detect_planes(cloud, SETTINGS.model_copy(update={"min_spread": None}),
+                          np.random.default_rng(0)).spots
+    on_strip = paper.centre[:, 0] < 10.5
+    assert on_strip.any() and (paper.radius[on_strip] == SETTINGS.r_max).any()
+
+
 def test_voxel_grid_centroids_match_a_per_voxel_reference():
     rng = np.random.default_rng(5)
     pts = rng.uniform([-3, -2, 0], [3, 2, 1], (5000, 3))
@@ -459,7 +474,9 @@ def algorithm1_reference(cloud, seeds, s):
             if np.abs((sphere - mean) @ normal).max() > s.max_step or rough:
                 why = 3 if j == 0 else why
                 break
-            if np.hypot(*(mean - centre)[:2]) > s.max_offset * r:
+            across = np.linalg.eigvalsh(np.cov((sphere[:, :2] - mean[:2]).T, bias=True))[0]
+            if np.hypot(*(mean - centre)[:2]) > s.max_offset * r or \
+                    across < s.min_spread * r * r / 4:
                 why = 4 if j == 0 else why
                 break
         fails.append(why)
