@@ -60,11 +60,14 @@ class CloudData:
             other formats: taken as metres; rows may hold NaN).
         classification: (N,) int64 ASPRS class codes, or None when the file has none.
         georef: the file's coordinate reference (CRS, units), or None (not a LAS/LAZ file).
+        withheld: LAS/LAZ points flagged withheld, whose rows in ``points`` are NaN (the
+            LAS specification: such a point is deleted and must not be used).
     """
 
     points: np.ndarray
     classification: np.ndarray | None = None
     georef: Georeference | None = None
+    withheld: int = 0
 
 
 def class_name(code: int) -> str:
@@ -260,7 +263,7 @@ def read_las(path: str | Path) -> CloudData:
     if len(points) != reader.header.point_count:
         raise DataFileError(f"{p}: truncated LAS/LAZ file ({len(points)} of "
                             f"{reader.header.point_count} points)")
-    return CloudData(points, codes, georef)
+    return CloudData(points, codes, georef, int(np.isnan(points[:, 0]).sum()))
 
 
 def iter_las_chunks(
@@ -335,13 +338,18 @@ def _not_readable(p: Path, exc: Exception) -> DataFileError:
 
 
 def _las_arrays(points, georef: Georeference) -> tuple[np.ndarray, np.ndarray | None]:
-    """(n, 3) metres and (n,) class codes of a laspy point record."""
+    """(n, 3) metres and (n,) class codes of a laspy point record; NaN rows for the points
+    flagged withheld (deleted, by the LAS specification; the flag is a bit of the
+    classification byte up to point format 5, of the classification flags from 6 on)."""
     xyz = np.empty((len(points), 3))
     xyz[:, 0] = points.x
     xyz[:, 1] = points.y
     xyz[:, 2] = points.z
     xyz[:, :2] *= georef.horizontal_unit
     xyz[:, 2] *= georef.vertical_unit
+    withheld = np.asarray(points.withheld, dtype=bool)
+    if withheld.any():
+        xyz[withheld] = np.nan
     try:
         codes = np.asarray(points.classification).astype(np.int64)
     except Exception:  # noqa: BLE001 - a point format without classification

@@ -297,7 +297,9 @@ def run_lidar(args: argparse.Namespace, out_dir: Path) -> int:
             georef = data.georef
             raw = np.asarray(data.points)
             cloud, dropped = clean_points(raw)
-            print(f"{path}: {len(raw)} points ({dropped} {DROPPED})")
+            withheld = (f", {data.withheld} of them flagged withheld (deleted)"
+                        if data.withheld else "")
+            print(f"{path}: {len(raw)} points ({dropped} {DROPPED}{withheld})")
             _print_georef(georef)
             if len(cloud) < settings.n_min:
                 raise UserError(

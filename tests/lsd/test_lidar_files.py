@@ -103,6 +103,49 @@ def test_streamed_tiles_give_the_sites_of_the_whole_cloud(tmp_path, capsys):
         {k: v for k, v in r.items() if k != "class"} for r in tiles]
 
 
+def write_with_withheld(path: Path, points, codes, withheld, point_format: int) -> None:
+    """A LAS file (NC state plane, metres) whose ``withheld`` points carry the flag."""
+    import laspy
+    from pyproj import CRS
+
+    header = laspy.LasHeader(point_format=point_format,
+                             version="1.4" if point_format >= 6 else "1.2")
+    header.scales, header.offsets = np.full(3, 0.001), np.floor(points.min(axis=0))
+    header.add_crs(CRS.from_user_input(NC_METRES))
+    las = laspy.LasData(header)
+    las.x, las.y, las.z = points.T
+    las.classification = codes.astype(np.uint8)
+    las.withheld = withheld
+    las.write(str(path))
+
+
+@pytest.mark.parametrize("point_format", [3, 6])  # the flag in the class byte, in its flags
+def test_points_flagged_withheld_are_not_used(tmp_path, capsys, point_format):
+    """Withheld points are deleted (LAS 1.4 R15, 'Withheld'): a flat classified field whose
+    stray returns 10 m up are flagged so has its sites; read as points, they block every
+    site (whole cloud and streamed in tiles alike)."""
+    ground = np.stack(np.meshgrid(np.arange(0, 30, 0.25), np.arange(0, 30, 0.25)), -1)
+    ground = np.c_[ground.reshape(-1, 2), np.zeros(ground.size // 2)]
+    stray = np.stack(np.meshgrid(np.arange(1, 30, 1.0), np.arange(1, 30, 1.0)), -1)
+    stray = np.c_[stray.reshape(-1, 2), np.full(stray.size // 2, 10.0)]
+    points = np.r_[ground, stray] + NC_ORIGIN
+    codes = np.r_[np.full(len(ground), 2), np.full(len(stray), 2)]
+    flagged = np.r_[np.zeros(len(ground), bool), np.ones(len(stray), bool)]
+    write_with_withheld(tmp_path / "c.las", points, codes, flagged, point_format)
+    write_with_withheld(tmp_path / "u.las", points, codes, np.zeros_like(flagged), point_format)
+    assert lander("--lidar", tmp_path / "c.las", "--out", tmp_path / "whole") == 0
+    assert f"({len(stray)} with NaN/inf or beyond 1e8 m dropped, {len(stray)} of them " \
+        "flagged withheld (deleted))" in capsys.readouterr().out
+    assert lander("--lidar", tmp_path / "c.las", "--tile-size", 12, "--out",
+                  tmp_path / "tiles") == 0
+    assert lander("--lidar", tmp_path / "u.las", "--out", tmp_path / "unflagged") == 0
+    whole, tiles = read_sites(tmp_path / "whole"), read_sites(tmp_path / "tiles")
+    assert len(whole) >= 4 and [{k: v for k, v in r.items() if k != "class"} for r in whole] \
+        == [{k: v for k, v in r.items() if k != "class"} for r in tiles]
+    assert read_sites(tmp_path / "unflagged") == []
+    assert read_point_cloud(tmp_path / "c.las").withheld == len(stray)
+
+
 def test_a_cloud_in_memory_searched_in_tiles_gives_the_sites_of_the_whole(tmp_path):
     points, codes = scene("farmland", size=60.0, seed=7)
     np.save(tmp_path / "c.npy", np.column_stack((points, codes)))
