@@ -11,7 +11,11 @@ the same values, so both give the same bytes.
 from __future__ import annotations
 
 import math
+import re
+import subprocess
 from collections.abc import Callable
+from functools import cache
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
@@ -98,6 +102,42 @@ CAPABILITIES = {
 }
 # flight_sw_version: major, minor, patch, release type (0xFF = official).
 SOFTWARE_VERSION = {"ardupilot": 0x040500FF, "px4": 0x010F00FF}
+# Left zero in AUTOPILOT_VERSION: this simulator has no operating system, board, USB vendor
+# and product or hardware UID (uid2) of its own to report.
+_NO_HASH = [0] * 8
+_NO_UID2 = [0] * 18
+
+
+@cache
+def build_hash() -> str | None:
+    """The simulator's own git commit (hex), or None outside a git checkout. The flight
+    software a ground station talks to is this code, so AUTOPILOT_VERSION carries its hash,
+    never an ArduPilot or PX4 commit."""
+    try:
+        done = subprocess.run(["git", "rev-parse", "HEAD"], cwd=Path(__file__).parent,
+                              capture_output=True, text=True, timeout=10, check=True)
+    except (OSError, subprocess.SubprocessError):
+        return None
+    commit = done.stdout.strip()
+    return commit if re.fullmatch(r"[0-9a-f]{40,64}", commit) else None
+
+
+def custom_versions(personality: str, commit: str | None) -> tuple[list[int], list[int]]:
+    """(flight_custom_version, middleware_custom_version) for ``commit``, each autopilot's way.
+
+    ArduPilot (GCS_MAVLINK::send_autopilot_version, GCS_Common.cpp) copies the first 8
+    characters of its git hash as text, and no middleware hash. PX4
+    (Mavlink::send_autopilot_capabilities, mavlink_main.cpp) stores the first 16 hex digits
+    as a little-endian uint64: the flight field keeps its top 5 bytes over a 3-byte vendor
+    version (0.0.0 here), the middleware field all 8. QGroundControl and MAVSDK read PX4's
+    bytes reversed as hex, ArduPilot's as text (InitialConnectStateMachine)."""
+    if commit is None:
+        return _NO_HASH, _NO_HASH
+    if personality == "px4":
+        binary = int(commit[:16], 16)
+        return (list((binary & 0xFFFFFFFFFF000000).to_bytes(8, "little")),
+                list(binary.to_bytes(8, "little")))
+    return list(commit[:8].encode("ascii")), _NO_HASH
 
 
 class Telemetry:
@@ -375,10 +415,17 @@ class Telemetry:
         return msg
 
     def _autopilot_version(self):
+        """What the autopilot is: its capabilities, version and this code's git hash. PX4 also
+        reports the flight version as the middleware's, and a uid that differs with the system
+        id as PX4 SITL's does; ArduPilot leaves both zero."""
         name = self.autopilot.name
+        version = SOFTWARE_VERSION.get(name, 0)
+        flight, middleware = custom_versions(name, build_hash())
+        px4 = name == "px4"
         return mavlink.MAVLink_autopilot_version_message(
-            CAPABILITIES.get(name, _COMMON_CAPABILITIES), SOFTWARE_VERSION.get(name, 0), 0, 0,
-            0, [0] * 8, [0] * 8, [0] * 8, 0, 0, self.autopilot.settings.system_id,
+            CAPABILITIES.get(name, _COMMON_CAPABILITIES), version, version if px4 else 0, 0, 0,
+            flight, middleware, _NO_HASH, 0, 0,
+            self.autopilot.settings.system_id if px4 else 0, _NO_UID2,
         )
 
     def _ekf_status_report(self):

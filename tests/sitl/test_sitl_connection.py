@@ -1,0 +1,78 @@
+"""What a ground station or SDK asks a vehicle it has just met (QGroundControl's
+InitialConnectStateMachine, MAVSDK's Info, MAVProxy's start), answered by the embedded SITL as
+each autopilot answers: the message, or a refusal in a COMMAND_ACK matched by command id,
+never silence and never ACCEPTED for a message that does not come. Over the in-memory link."""
+
+from __future__ import annotations
+
+import pytest
+from pymavlink.dialects.v20 import ardupilotmega as C
+
+from sitl import MemoryLink, Sitl
+from sitl.copter.gcs import MiniGcs
+from sitl.copter.telemetry import build_hash, custom_versions
+
+DT = 0.05
+
+
+def connect(autopilot: str) -> tuple[Sitl, MiniGcs]:
+    sim = Sitl(autopilot=autopilot)
+    link = MemoryLink()
+    sim.attach(link.vehicle)
+    gcs = MiniGcs(link.gcs)
+    gcs.heartbeat()
+    return sim, gcs
+
+
+def ask(sim: Sitl, gcs: MiniGcs, command: int, *params: float) -> tuple[int, list]:
+    """Send a command; (the result of its COMMAND_ACK, what else arrived in 0.5 s)."""
+    gcs.received.clear()
+    gcs.command(command, *params)
+    for _ in range(10):
+        sim.step(DT)
+        gcs.poll()
+    results = gcs.acks(command)
+    assert len(results) == 1, f"{len(results)} COMMAND_ACKs for command {command}"
+    return results[0], [m for m in gcs.received if m.get_type() != "COMMAND_ACK"]
+
+
+def of_type(msgs: list, name: str) -> list:
+    return [m for m in msgs if m.get_type() == name]
+
+
+# ----------------------------------------------------------------------------- AUTOPILOT_VERSION
+def test_the_git_hash_is_encoded_as_each_autopilot_does():
+    commit = "0123456789abcdef0123456789abcdef01234567"
+    # ArduPilot: the first 8 characters as text.
+    assert custom_versions("ardupilot", commit) == (list(b"01234567"), [0] * 8)
+    # PX4: the first 16 hex digits as a little-endian uint64, the flight field's low 3 bytes
+    # being the vendor version (0.0.0); read back reversed as hex, as QGroundControl does.
+    flight, middleware = custom_versions("px4", commit)
+    assert bytes(reversed(flight)).hex() == "0123456789000000"
+    assert bytes(reversed(middleware)).hex() == "0123456789abcdef"
+    assert custom_versions("px4", None) == ([0] * 8, [0] * 8)  # no checkout: no hash claimed
+
+
+@pytest.mark.parametrize("autopilot", ["ardupilot", "px4"])
+def test_autopilot_version_carries_this_codes_git_hash(autopilot):
+    sim, gcs = connect(autopilot)
+    result, msgs = ask(sim, gcs, C.MAV_CMD_REQUEST_MESSAGE, C.MAVLINK_MSG_ID_AUTOPILOT_VERSION)
+    assert result == C.MAV_RESULT_ACCEPTED
+    (version,) = of_type(msgs, "AUTOPILOT_VERSION")
+    commit = build_hash()
+    assert commit is not None, "the tests run from a git checkout"
+    flight, middleware = custom_versions(autopilot, commit)
+    assert list(version.flight_custom_version) == flight
+    assert list(version.middleware_custom_version) == middleware
+    assert version.flight_sw_version >> 24 == {"ardupilot": 4, "px4": 1}[autopilot]
+    assert version.flight_sw_version & 0xFF == C.FIRMWARE_VERSION_TYPE_OFFICIAL
+    if autopilot == "ardupilot":
+        assert bytes(version.flight_custom_version).decode() == commit[:8]
+        assert version.middleware_sw_version == 0 and version.uid == 0
+    else:
+        assert version.middleware_sw_version == version.flight_sw_version
+        assert version.uid == sim.settings.system_id
+    # No operating system, board, USB ids or hardware UID of its own to report.
+    assert version.os_sw_version == version.board_version == 0
+    assert version.vendor_id == version.product_id == 0
+    assert not any(version.os_custom_version) and not any(version.uid2)
