@@ -153,21 +153,32 @@ class Commands:
         return FAILED
 
     def _request_message(self, link: Link, r: CommandRequest) -> int:
-        msgid = r.integer(1)
-        if msgid is None or not self.server.can_build(msgid):
+        return self._send_once(link, r.integer(1))
+
+    def _send_once(self, link: Link, msgid: int | None) -> int:
+        """Send ``msgid`` once, or refuse it: never ACCEPTED for a message that will not come.
+        PX4 denies what it cannot send now (MavlinkReceiver::handle_request_message_command:
+        the stream's request_message() sent nothing). ArduPilot fails an unknown message
+        (handle_command_request_message) and a home not yet set
+        (handle_command_get_home_position); for a known message it cannot send now (home,
+        FENCE_STATUS without a fence) it would ACCEPT and send nothing, which the simulator
+        fails instead."""
+        if msgid is None or not self.server.can_send(msgid):
             return self._cannot_send(msgid, stream=False)
         link.once.append(msgid)
         return ACCEPTED
 
     def _get_home_position(self, link: Link, r: CommandRequest) -> int:
-        if not self.autopilot.position_known:
-            return FAILED  # no home before the position estimate, as on ArduPilot
-        link.once.append(mavlink.MAVLINK_MSG_ID_HOME_POSITION)
-        return ACCEPTED
+        """No home before the position estimate: FAILED on ArduPilot, DENIED on PX4 (which
+        answers it as a request for HOME_POSITION)."""
+        return self._send_once(link, mavlink.MAVLINK_MSG_ID_HOME_POSITION)
 
     def _request_capabilities(self, link: Link, r: CommandRequest) -> int:
-        link.once.append(mavlink.MAVLINK_MSG_ID_AUTOPILOT_VERSION)
-        return ACCEPTED
+        """AUTOPILOT_VERSION. ArduPilot fails it unless param1 is 1
+        (handle_command_request_autopilot_capabilities); PX4 answers any."""
+        if self.autopilot.name == "ardupilot" and r.value(1) != 1.0:
+            return FAILED
+        return self._send_once(link, mavlink.MAVLINK_MSG_ID_AUTOPILOT_VERSION)
 
     # ------------------------------------------------------------------ flight
     def _arm_disarm(self, link: Link, r: CommandRequest) -> int:

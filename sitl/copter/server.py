@@ -228,6 +228,16 @@ class MavlinkServer:
     def can_build(self, msgid: int) -> bool:
         return msgid in self.telemetry.builders
 
+    def can_send(self, msgid: int) -> bool:
+        """Whether ``msgid`` requested now would go out: HOME_POSITION waits for a position
+        estimate, FENCE_STATUS for an enabled fence (emit() sends neither before)."""
+        if msgid == mavlink.MAVLINK_MSG_ID_HOME_POSITION:
+            return self.autopilot.position_known
+        build = self.telemetry.builders.get(msgid)
+        if msgid == mavlink.MAVLINK_MSG_ID_FENCE_STATUS and build is not None:
+            return build() is not None
+        return build is not None
+
     # ---------------------------------------------------------------- receive
     def receive(self) -> None:
         """Read and handle everything that arrived on every link."""

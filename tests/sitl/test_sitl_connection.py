@@ -13,6 +13,18 @@ from sitl.copter.gcs import MiniGcs
 from sitl.copter.telemetry import build_hash, custom_versions
 
 DT = 0.05
+# What the vehicle cannot send: ArduPilot fails the request, PX4 denies it.
+REFUSED = {"ardupilot": C.MAV_RESULT_FAILED, "px4": C.MAV_RESULT_DENIED}
+# What ground stations and SDKs ask for on connecting that the simulator does not have (some
+# are not in pymavlink's dialect: their ids).
+NOT_SERVED = {
+    "AVAILABLE_MODES (QGroundControl's standard modes)": 435,
+    "COMPONENT_METADATA (QGroundControl's component information)": 397,
+    "COMPONENT_INFORMATION (its fallback)": 395,
+    "GIMBAL_MANAGER_INFORMATION (QGroundControl's gimbal discovery)": 280,
+    "CAMERA_INFORMATION": C.MAVLINK_MSG_ID_CAMERA_INFORMATION,
+    "FLIGHT_INFORMATION (MAVSDK's Info)": C.MAVLINK_MSG_ID_FLIGHT_INFORMATION,
+}
 
 
 def connect(autopilot: str) -> tuple[Sitl, MiniGcs]:
@@ -76,3 +88,51 @@ def test_autopilot_version_carries_this_codes_git_hash(autopilot):
     assert version.os_sw_version == version.board_version == 0
     assert version.vendor_id == version.product_id == 0
     assert not any(version.os_custom_version) and not any(version.uid2)
+
+
+@pytest.mark.parametrize("autopilot, param1, result", [
+    ("ardupilot", 1, C.MAV_RESULT_ACCEPTED),
+    ("ardupilot", 0, C.MAV_RESULT_FAILED),  # handle_command_request_autopilot_capabilities
+    ("px4", 1, C.MAV_RESULT_ACCEPTED),
+    ("px4", 0, C.MAV_RESULT_ACCEPTED),
+])
+def test_request_autopilot_capabilities(autopilot, param1, result):
+    sim, gcs = connect(autopilot)
+    got, msgs = ask(sim, gcs, C.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES, param1)
+    assert got == result
+    assert len(of_type(msgs, "AUTOPILOT_VERSION")) == (result == C.MAV_RESULT_ACCEPTED)
+
+
+# ----------------------------------------------------------------------------- refusals
+@pytest.mark.parametrize("autopilot", ["ardupilot", "px4"])
+def test_home_is_refused_until_there_is_one_then_sent(autopilot):
+    sim, gcs = connect(autopilot)
+    for command, params in ((C.MAV_CMD_REQUEST_MESSAGE, (C.MAVLINK_MSG_ID_HOME_POSITION,)),
+                            (C.MAV_CMD_GET_HOME_POSITION, ())):
+        result, msgs = ask(sim, gcs, command, *params)
+        assert result == REFUSED[autopilot], command
+        assert not of_type(msgs, "HOME_POSITION")
+    while not sim.server.autopilot.position_known:
+        sim.step(DT)
+        gcs.poll()
+    for command, params in ((C.MAV_CMD_REQUEST_MESSAGE, (C.MAVLINK_MSG_ID_HOME_POSITION,)),
+                            (C.MAV_CMD_GET_HOME_POSITION, ())):
+        result, msgs = ask(sim, gcs, command, *params)
+        assert result == C.MAV_RESULT_ACCEPTED, command
+        assert of_type(msgs, "HOME_POSITION")
+
+
+def test_ardupilot_refuses_fence_status_without_a_fence():
+    sim, gcs = connect("ardupilot")
+    result, msgs = ask(sim, gcs, C.MAV_CMD_REQUEST_MESSAGE, C.MAVLINK_MSG_ID_FENCE_STATUS)
+    assert result == C.MAV_RESULT_FAILED
+    assert not of_type(msgs, "FENCE_STATUS")
+
+
+@pytest.mark.parametrize("autopilot", ["ardupilot", "px4"])
+@pytest.mark.parametrize("what", list(NOT_SERVED))
+def test_what_the_simulator_does_not_have_is_refused(autopilot, what):
+    sim, gcs = connect(autopilot)
+    result, msgs = ask(sim, gcs, C.MAV_CMD_REQUEST_MESSAGE, NOT_SERVED[what])
+    assert result == REFUSED[autopilot]
+    assert not [m for m in msgs if m.get_msgId() == NOT_SERVED[what]]
