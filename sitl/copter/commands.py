@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
+from . import protocol_version
 from .autopilot import ACCEPTED, DENIED, FAILED, UNSUPPORTED
 from .personalities import FORCE_ARM, FORCE_DISARM
 
@@ -89,6 +90,7 @@ class Commands:
             c.MAV_CMD_REQUEST_MESSAGE: self._request_message,
             c.MAV_CMD_GET_HOME_POSITION: self._get_home_position,
             c.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES: self._request_capabilities,
+            c.MAV_CMD_REQUEST_PROTOCOL_VERSION: self._request_protocol_version,
             c.MAV_CMD_COMPONENT_ARM_DISARM: self._arm_disarm,
             c.MAV_CMD_NAV_TAKEOFF: self._takeoff,
             c.MAV_CMD_NAV_LAND: self._land,
@@ -179,6 +181,13 @@ class Commands:
         if self.autopilot.name == "ardupilot" and r.value(1) != 1.0:
             return FAILED
         return self._send_once(link, mavlink.MAVLINK_MSG_ID_AUTOPILOT_VERSION)
+
+    def _request_protocol_version(self, link: Link, r: CommandRequest) -> int:
+        """PX4 answers it as a request for PROTOCOL_VERSION (MavlinkReceiver); ArduPilot has
+        no handler for it (GCS_MAVLINK::handle_command_int_packet: unsupported)."""
+        if self.autopilot.name != "px4":
+            return UNSUPPORTED
+        return self._send_once(link, protocol_version.MSG_ID)
 
     # ------------------------------------------------------------------ flight
     def _arm_disarm(self, link: Link, r: CommandRequest) -> int:

@@ -21,6 +21,8 @@ from typing import TYPE_CHECKING
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 from pymavlink.quaternion import QuaternionBase
 
+from . import protocol_version
+
 if TYPE_CHECKING:
     from .server import MavlinkServer
 
@@ -45,11 +47,12 @@ STREAMS: dict[int, str] = {
     mavlink.MAVLINK_MSG_ID_FENCE_STATUS: "fence_status",
 }
 # Messages only one personality sends (EKF_STATUS_REPORT and FENCE_STATUS are ArduPilot's
-# dialect; ArduPilot has no ALTITUDE).
+# dialect; ArduPilot has no ALTITUDE, and no PROTOCOL_VERSION: no ap_message for it).
 ONLY = {
     mavlink.MAVLINK_MSG_ID_EKF_STATUS_REPORT: "ardupilot",
     mavlink.MAVLINK_MSG_ID_FENCE_STATUS: "ardupilot",
     mavlink.MAVLINK_MSG_ID_ALTITUDE: "px4",
+    protocol_version.MSG_ID: "px4",
 }
 
 _S = mavlink
@@ -194,6 +197,7 @@ class Telemetry:
             mavlink.MAVLINK_MSG_ID_GPS_RAW_INT: self._gps_raw_int,
             mavlink.MAVLINK_MSG_ID_SYSTEM_TIME: self._system_time,
             mavlink.MAVLINK_MSG_ID_AUTOPILOT_VERSION: self._autopilot_version,
+            protocol_version.MSG_ID: self._protocol_version,
             mavlink.MAVLINK_MSG_ID_MISSION_CURRENT: self.mission_current,
             mavlink.MAVLINK_MSG_ID_EKF_STATUS_REPORT: self._ekf_status_report,
             mavlink.MAVLINK_MSG_ID_VFR_HUD: self._vfr_hud,
@@ -427,6 +431,12 @@ class Telemetry:
             flight, middleware, _NO_HASH, 0, 0,
             self.autopilot.settings.system_id if px4 else 0, _NO_UID2,
         )
+
+    def _protocol_version(self):
+        """PX4's PROTOCOL_VERSION (Mavlink::send_protocol_version): MAVLink 2 in use, 1 to 2
+        supported; no specification hash, and no library hash (PX4 sends its C library's;
+        pymavlink's is not known)."""
+        return protocol_version.message_class()(200, 100, 200, _NO_HASH, _NO_HASH)
 
     def _ekf_status_report(self):
         ap = self.autopilot

@@ -9,6 +9,7 @@ import pytest
 from pymavlink.dialects.v20 import ardupilotmega as C
 
 from sitl import MemoryLink, Sitl
+from sitl.copter import protocol_version
 from sitl.copter.gcs import MiniGcs
 from sitl.copter.telemetry import build_hash, custom_versions
 
@@ -25,6 +26,12 @@ NOT_SERVED = {
     "CAMERA_INFORMATION": C.MAVLINK_MSG_ID_CAMERA_INFORMATION,
     "FLIGHT_INFORMATION (MAVSDK's Info)": C.MAVLINK_MSG_ID_FLIGHT_INFORMATION,
 }
+
+
+@pytest.fixture
+def decodes_protocol_version(monkeypatch):
+    """Teach this process's pymavlink PROTOCOL_VERSION, which its definitions lack."""
+    monkeypatch.setitem(C.mavlink_map, protocol_version.MSG_ID, protocol_version.message_class())
 
 
 def connect(autopilot: str) -> tuple[Sitl, MiniGcs]:
@@ -101,6 +108,31 @@ def test_request_autopilot_capabilities(autopilot, param1, result):
     got, msgs = ask(sim, gcs, C.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES, param1)
     assert got == result
     assert len(of_type(msgs, "AUTOPILOT_VERSION")) == (result == C.MAV_RESULT_ACCEPTED)
+
+
+# ----------------------------------------------------------------------------- PROTOCOL_VERSION
+@pytest.mark.parametrize("command, params", [
+    (C.MAV_CMD_REQUEST_MESSAGE, (protocol_version.MSG_ID,)),
+    (C.MAV_CMD_REQUEST_PROTOCOL_VERSION, (1,)),
+])
+def test_px4_answers_protocol_version(decodes_protocol_version, command, params):
+    sim, gcs = connect("px4")
+    result, msgs = ask(sim, gcs, command, *params)
+    assert result == C.MAV_RESULT_ACCEPTED
+    (answer,) = of_type(msgs, "PROTOCOL_VERSION")
+    assert (answer.version, answer.min_version, answer.max_version) == (200, 100, 200)
+    assert answer.get_srcSystem() == 1 and answer.get_srcComponent() == 1
+
+
+@pytest.mark.parametrize("command, params, result", [
+    (C.MAV_CMD_REQUEST_MESSAGE, (protocol_version.MSG_ID,), C.MAV_RESULT_FAILED),
+    (C.MAV_CMD_REQUEST_PROTOCOL_VERSION, (1,), C.MAV_RESULT_UNSUPPORTED),
+])
+def test_ardupilot_has_no_protocol_version(decodes_protocol_version, command, params, result):
+    sim, gcs = connect("ardupilot")
+    got, msgs = ask(sim, gcs, command, *params)
+    assert got == result
+    assert not of_type(msgs, "PROTOCOL_VERSION")
 
 
 # ----------------------------------------------------------------------------- refusals
