@@ -12,6 +12,9 @@ import pytest
 from conformance_support import Monitor
 from pymavlink import mavutil
 
+from sitl.copter import protocol_version
+from sitl.copter.telemetry import build_hash
+
 mavlink = mavutil.mavlink
 pytestmark = pytest.mark.timeout(300)
 
@@ -130,12 +133,31 @@ NOT_SENT = mavlink.MAVLINK_MSG_ID_COMMAND_LONG
 # fails on both, ArduPilot saying "No ap_message for mavlink id (76)").
 NOT_SENT_REQUEST = {"ardupilot": mavlink.MAV_RESULT_FAILED, "px4": mavlink.MAV_RESULT_DENIED}
 NO_SUCH_COMMAND = 54321  # in no dialect
+# What QGroundControl asks for after AUTOPILOT_VERSION and PROTOCOL_VERSION (its
+# InitialConnectStateMachine: standard modes, then component information with its fallback);
+# not in pymavlink's dialect, hence the ids. An autopilot may send them or refuse them.
+QGC_REQUESTS = {
+    "AVAILABLE_MODES": 435,
+    "COMPONENT_METADATA": 397,
+    "COMPONENT_INFORMATION": 395,
+}
+REFUSALS = {mavlink.MAV_RESULT_DENIED, mavlink.MAV_RESULT_FAILED, mavlink.MAV_RESULT_UNSUPPORTED}
+
+
+def git_hash_shown(autopilot: str, version) -> str:
+    """The git hash as QGroundControl shows it (InitialConnectStateMachine): PX4's 8 bytes
+    reversed as hex, ArduPilot's as text."""
+    if autopilot == "px4":
+        return bytes(reversed(version.flight_custom_version)).hex()
+    return bytes(version.flight_custom_version).decode("ascii")
 
 
 @pytest.mark.parametrize("autopilot", ["ardupilot", "px4"])
-def test_ground_station_connection_sequence(start_vehicle, autopilot):
+def test_ground_station_connection_sequence(start_vehicle, autopilot, monkeypatch):
     """What QGroundControl asks of a vehicle it has just met, each answer checked: the
-    autopilot's version and capabilities, telemetry rates (the message interval protocol and
+    autopilot's version (with its git hash) and capabilities, PROTOCOL_VERSION (PX4 sends it,
+    ArduPilot has none), the standard modes and component information (sent, or refused:
+    never ACCEPTED without the message), telemetry rates (the message interval protocol and
     the legacy data streams, whose EXTRA2 group is the HUD's VFR_HUD), the mission, fence and
     rally lists (empty ones answered with a count of 0, not silence), TIMESYNC, the full
     parameter list, and a COMMAND_ACK matched by command id for every command, including
@@ -167,10 +189,40 @@ def test_ground_station_connection_sequence(start_vehicle, autopilot):
         # pymavlink switches to MAVLink 2 (a new encoder) on the first packet it reads; use
         # that one, as QGroundControl speaks MAVLink 2 (mission_type is a MAVLink 2 field).
         mav = gcs.conn.mav
+        # pymavlink no longer defines PROTOCOL_VERSION: teach the dialect it now parses with
+        # (mavutil switched to its MAVLink 2 module) the message.
+        monkeypatch.setitem(mavutil.mavlink.mavlink_map, protocol_version.MSG_ID,
+                            protocol_version.message_class())
         ack = command(mavlink.MAV_CMD_REQUEST_MESSAGE, mavlink.MAVLINK_MSG_ID_AUTOPILOT_VERSION)
         assert ack.result == mavlink.MAV_RESULT_ACCEPTED, ack
         version = gcs.wait(lambda m: m.get("AUTOPILOT_VERSION"), w(5), "AUTOPILOT_VERSION")
         assert version.capabilities & mavlink.MAV_PROTOCOL_CAPABILITY_MAVLINK2, version
+        shown = git_hash_shown(autopilot, version)
+        assert all(c in "0123456789abcdef" for c in shown) and len(shown) in (8, 16), version
+        if not vehicle.real:  # the embedded SITL's hash is this checkout's
+            assert build_hash().startswith(shown.rstrip("0")), (shown, build_hash())
+        ack = command(mavlink.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES, 1)
+        assert ack.result == mavlink.MAV_RESULT_ACCEPTED, ack
+
+        ack = command(mavlink.MAV_CMD_REQUEST_MESSAGE, protocol_version.MSG_ID)
+        if autopilot == "px4":
+            assert ack.result == mavlink.MAV_RESULT_ACCEPTED, ack
+            proto = gcs.wait(lambda m: m.get("PROTOCOL_VERSION"), w(5), "PROTOCOL_VERSION")
+            assert proto.max_version >= 200 and proto.min_version <= proto.version, proto
+            ack = command(mavlink.MAV_CMD_REQUEST_PROTOCOL_VERSION, 1)
+            assert ack.result == mavlink.MAV_RESULT_ACCEPTED, ack
+        else:  # no ap_message for it; no handler for the command
+            assert ack.result == mavlink.MAV_RESULT_FAILED, ack
+            ack = command(mavlink.MAV_CMD_REQUEST_PROTOCOL_VERSION, 1)
+            assert ack.result == mavlink.MAV_RESULT_UNSUPPORTED, ack
+
+        for name, msgid in QGC_REQUESTS.items():
+            ack = command(mavlink.MAV_CMD_REQUEST_MESSAGE, msgid)
+            if ack.result == mavlink.MAV_RESULT_ACCEPTED:
+                gcs.wait(lambda m, i=msgid: [x for x in m.latest.values() if x.get_msgId() == i],
+                         w(5), f"{name}, the request ACCEPTED")
+            else:
+                assert ack.result in REFUSALS, (name, ack)
 
         # Rates: what the vehicle has it streams; what it does not have it refuses.
         ack = command(mavlink.MAV_CMD_SET_MESSAGE_INTERVAL,
