@@ -42,6 +42,8 @@ from mavsdk.mission_raw import MissionItem as RawItem
 from mavsdk.offboard import PositionNedYaw, VelocityBodyYawspeed, VelocityNedYaw
 from mavsdk.telemetry import FixType
 
+from sitl.copter.telemetry import build_hash, custom_versions
+
 pytestmark = pytest.mark.timeout(600)
 
 # Offboard setpoints arrive at 20 Hz of wall time: at 5x that is 4 per simulated second,
@@ -125,6 +127,19 @@ def test_mavsdk_common_calls(start_vehicle, mavsdk_server, autopilot):
         assert product.vendor_id >= 0 and product.product_id >= 0, product
         ident = await within(drone.info.get_identification(), w(10), "identification")
         assert isinstance(ident.hardware_uid, str), ident
+        # MAVSDK shows flight_custom_version's bytes reversed as hex (its first 9 digits, in
+        # 3.10): PX4's git hash, ArduPilot's hash text backwards. ArduPilot reports no uid.
+        shown = version.flight_sw_git_hash.rstrip("\x00")
+        assert len(shown) >= 8 and all(c in "0123456789abcdef" for c in shown), version
+        if ardupilot:
+            assert ident.legacy_uid == 0, ident
+        if not vehicle.real:  # this checkout's hash, each autopilot's way
+            flight, _ = custom_versions(autopilot, build_hash())
+            assert bytes(reversed(flight)).hex().startswith(shown), version
+            assert ardupilot or build_hash().startswith(shown), version
+            vendor = (version.flight_sw_vendor_major, version.flight_sw_vendor_minor,
+                      version.flight_sw_vendor_patch)
+            assert ardupilot or vendor == (0, 0, 0), version
 
         # --- Telemetry that users read first, with sane values.
         await until(tel.health(), lambda h: h.is_global_position_ok, w(60), "position ok")
