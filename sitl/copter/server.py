@@ -182,6 +182,7 @@ class MavlinkServer:
             "SETUP_SIGNING": self._on_setup_signing,
             "TIMESYNC": self._on_timesync,
             "FILE_TRANSFER_PROTOCOL": self._on_file_transfer,
+            "AUTOPILOT_VERSION_REQUEST": self._on_autopilot_version_request,
             **self.params.handlers,
             **self.missions.handlers,
         }
@@ -444,6 +445,13 @@ class MavlinkServer:
         """TIMESYNC with tc1 = 0 is a request: answer with our time in tc1, theirs in ts1."""
         if msg.tc1 == 0:
             link.mav.send(mavlink.MAVLink_timesync_message(int(self.time * 1e9), msg.ts1))
+
+    def _on_autopilot_version_request(self, link: Link, msg) -> None:
+        """ArduPilot's own older request (a message, so no ACK): answered while its
+        AP_MAVLINK_AUTOPILOT_VERSION_REQUEST_ENABLED stays on, by default
+        (GCS_MAVLINK::handle_send_autopilot_version). PX4 has no handler for it."""
+        if self.autopilot.name == "ardupilot":
+            link.once.append(mavlink.MAVLINK_MSG_ID_AUTOPILOT_VERSION)
 
     def _on_file_transfer(self, link: Link, msg) -> None:
         answer = ftp.reply(msg)

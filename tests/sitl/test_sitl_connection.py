@@ -110,6 +110,17 @@ def test_request_autopilot_capabilities(autopilot, param1, result):
     assert len(of_type(msgs, "AUTOPILOT_VERSION")) == (result == C.MAV_RESULT_ACCEPTED)
 
 
+@pytest.mark.parametrize("autopilot, answered", [("ardupilot", True), ("px4", False)])
+def test_autopilot_version_request_message_is_ardupilots(autopilot, answered):
+    sim, gcs = connect(autopilot)
+    gcs.received.clear()
+    gcs.mav.autopilot_version_request_send(1, 1)
+    for _ in range(10):
+        sim.step(DT)
+        gcs.poll()
+    assert len(of_type(gcs.received, "AUTOPILOT_VERSION")) == answered
+
+
 # ----------------------------------------------------------------------------- PROTOCOL_VERSION
 @pytest.mark.parametrize("command, params", [
     (C.MAV_CMD_REQUEST_MESSAGE, (protocol_version.MSG_ID,)),
