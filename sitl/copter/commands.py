@@ -155,16 +155,21 @@ class Commands:
         return FAILED
 
     def _request_message(self, link: Link, r: CommandRequest) -> int:
-        return self._send_once(link, r.integer(1))
+        msgid = r.integer(1)
+        if (self.autopilot.name == "ardupilot" and msgid is not None
+                and self.server.can_build(msgid) and not self.server.can_send(msgid)):
+            # ArduPilot queues a message it knows and ACCEPTs, whether or not it has one to
+            # send (handle_command_request_message; send_home_position sends nothing before
+            # home is set, FENCE_STATUS nothing without a fence): a client must not take
+            # ACCEPTED as the message's promise, and this simulator does not teach it to.
+            return ACCEPTED
+        return self._send_once(link, msgid)
 
     def _send_once(self, link: Link, msgid: int | None) -> int:
-        """Send ``msgid`` once, or refuse it: never ACCEPTED for a message that will not come.
-        PX4 denies what it cannot send now (MavlinkReceiver::handle_request_message_command:
-        the stream's request_message() sent nothing). ArduPilot fails an unknown message
-        (handle_command_request_message) and a home not yet set
-        (handle_command_get_home_position); for a known message it cannot send now (home,
-        FENCE_STATUS without a fence) it would ACCEPT and send nothing, which the simulator
-        fails instead."""
+        """Send ``msgid`` once, or refuse it. PX4 denies what it cannot send now
+        (MavlinkReceiver::handle_request_message_command: the stream's request_message()
+        sent nothing). ArduPilot fails an unknown message (handle_command_request_message)
+        and GET_HOME_POSITION before home is set (handle_command_get_home_position)."""
         if msgid is None or not self.server.can_send(msgid):
             return self._cannot_send(msgid, stream=False)
         link.once.append(msgid)

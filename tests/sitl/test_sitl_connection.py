@@ -147,13 +147,20 @@ def test_ardupilot_has_no_protocol_version(decodes_protocol_version, command, pa
 
 
 # ----------------------------------------------------------------------------- refusals
+# Before home: GET_HOME_POSITION is refused on both; REQUEST_MESSAGE HOME_POSITION is
+# refused by PX4, and ACCEPTED by ArduPilot, which then sends nothing.
+BEFORE_HOME = {"ardupilot": (C.MAV_RESULT_ACCEPTED, C.MAV_RESULT_FAILED),
+               "px4": (C.MAV_RESULT_DENIED, C.MAV_RESULT_DENIED)}
+
+
 @pytest.mark.parametrize("autopilot", ["ardupilot", "px4"])
 def test_home_is_refused_until_there_is_one_then_sent(autopilot):
     sim, gcs = connect(autopilot)
-    for command, params in ((C.MAV_CMD_REQUEST_MESSAGE, (C.MAVLINK_MSG_ID_HOME_POSITION,)),
-                            (C.MAV_CMD_GET_HOME_POSITION, ())):
+    for (command, params), expected in zip(
+            ((C.MAV_CMD_REQUEST_MESSAGE, (C.MAVLINK_MSG_ID_HOME_POSITION,)),
+             (C.MAV_CMD_GET_HOME_POSITION, ())), BEFORE_HOME[autopilot], strict=True):
         result, msgs = ask(sim, gcs, command, *params)
-        assert result == REFUSED[autopilot], command
+        assert result == expected, command
         assert not of_type(msgs, "HOME_POSITION")
     while not sim.server.autopilot.position_known:
         sim.step(DT)
@@ -165,10 +172,10 @@ def test_home_is_refused_until_there_is_one_then_sent(autopilot):
         assert of_type(msgs, "HOME_POSITION")
 
 
-def test_ardupilot_refuses_fence_status_without_a_fence():
+def test_ardupilot_accepts_fence_status_without_a_fence_and_sends_none():
     sim, gcs = connect("ardupilot")
     result, msgs = ask(sim, gcs, C.MAV_CMD_REQUEST_MESSAGE, C.MAVLINK_MSG_ID_FENCE_STATUS)
-    assert result == C.MAV_RESULT_FAILED
+    assert result == C.MAV_RESULT_ACCEPTED
     assert not of_type(msgs, "FENCE_STATUS")
 
 
