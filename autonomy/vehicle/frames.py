@@ -101,3 +101,31 @@ def geodetic_to_local(
     d_lon = (lon - lon0 + 180.0) % 360.0 - 180.0
     east = d_lon * scale * math.cos(math.radians((lat + lat0) / 2.0))
     return east, (lat - lat0) * scale
+
+
+def local_to_geodetic(
+    east: float, north: float, lat0: float, lon0: float, autopilot: str = "ardupilot"
+) -> tuple[float, float]:
+    """Latitude and longitude (degrees) of the point ``east``, ``north`` metres from
+    (lat0, lon0) as ``autopilot`` projects its local frame: the inverse of
+    :func:`geodetic_to_local`, so that a point of the flight's ENU frame sent to the
+    autopilot as lat/lon (a geofence vertex) is where the autopilot's local frame has it.
+
+    PX4: ``map_projection_reproject`` (azimuthal equidistant); ArduPilot: the flat scaling
+    of ``Location::offset`` about the mid latitude, solved for the latitude first.
+    """
+    if autopilot == "px4":
+        x, y = north / PX4_EARTH_RADIUS, east / PX4_EARTH_RADIUS
+        c = math.hypot(x, y)
+        phi0 = math.radians(lat0)
+        if c < 1e-15:
+            return lat0, lon0
+        sin_c, cos_c = math.sin(c), math.cos(c)
+        lat = math.asin(cos_c * math.sin(phi0) + x * sin_c * math.cos(phi0) / c)
+        lon = math.radians(lon0) + math.atan2(
+            y * sin_c, c * math.cos(phi0) * cos_c - x * math.sin(phi0) * sin_c)
+        return math.degrees(lat), (math.degrees(lon) + 180.0) % 360.0 - 180.0
+    scale = math.radians(1.0) * ARDUPILOT_EARTH_RADIUS
+    lat = lat0 + north / scale
+    lon = lon0 + east / (scale * math.cos(math.radians((lat + lat0) / 2.0)))
+    return lat, (lon + 180.0) % 360.0 - 180.0

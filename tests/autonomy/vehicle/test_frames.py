@@ -80,3 +80,13 @@ def frames_lat_lon(home, east, north):
     from sitl.copter.geo import LocalToGlobal
 
     return LocalToGlobal(*home)(east, north)
+
+
+@pytest.mark.parametrize("autopilot", ["ardupilot", "px4"])
+@given(east=st.floats(-50_000, 50_000), north=st.floats(-50_000, 50_000),
+       lat0=st.floats(-80, 80), lon0=st.floats(-180, 180))
+def test_local_to_geodetic_inverts_each_autopilots_projection(autopilot, east, north, lat0,
+                                                              lon0):
+    lat, lon = frames.local_to_geodetic(east, north, lat0, lon0, autopilot)
+    back = geodetic_to_local(lat, lon, lat0, lon0, autopilot)
+    assert back == pytest.approx((east, north), abs=1e-4)
