@@ -118,6 +118,14 @@ class VehiclePort(Protocol):
 
     def land(self) -> CommandHandle: ...
 
+    def upload_fence(
+        self, polygon: list[tuple[float, float]], max_altitude: float | None = None
+    ) -> CommandHandle:
+        """Make the autopilot itself enforce the operating area: ``polygon`` (ENU x, y m)
+        as its inclusion geofence, ``max_altitude`` (m above home) as its ceiling, enabled.
+        Only called when the mission asks for it (``geofence.upload``)."""
+        ...
+
 
 class Trajectory(Protocol):
     """A planned flight in time: ENU positions (m) and velocities (m/s) from t = 0 s."""

@@ -36,9 +36,11 @@ from autonomy.vehicle.commands import (
     Wait,
     finished_handle,
 )
+from autonomy.vehicle.fence import FenceUpload, ardupilot_fence_type, fence_items
 from autonomy.vehicle.home import FlightFrame, HomeMove
 from autonomy.vehicle.settings import LOG_STREAMS, VehicleLinkSettings
 from autonomy.vehicle.tlog import TlogWriter
+from autonomy.vehicle.transfers import MissionUpload, ParamSet
 from behaviors.ports import Clock, CommandStatus, LandedState, VehicleState
 from sitl.copter.codec import (  # pymavlink's codec, byte for byte, in fewer steps
     FastMAVLink,
@@ -214,6 +216,8 @@ class MavlinkVehicle:
             ),
         )
         self._procedures: list[Procedure] = []
+        self._transfers: list[MissionUpload | ParamSet] = []  # followed until done
+        self.fence_upload: FenceUpload | None = None  # the last upload_fence(), if any
 
         # What the autopilot last reported (raw, NED where it says so).
         self._wanted_system = target_system
@@ -268,6 +272,10 @@ class MavlinkVehicle:
             "NAMED_VALUE_INT": self._on_named_value_int,
             "STATUSTEXT": self._on_statustext,
             "COMMAND_ACK": self._on_command_ack,
+            "MISSION_REQUEST_INT": self._on_mission_request,
+            "MISSION_REQUEST": self._on_mission_request,
+            "MISSION_ACK": self._on_mission_ack,
+            "PARAM_VALUE": self._on_param_value,
         }
         # The snapshot built by the last poll(): a plain attribute, not a property, since
         # the tree reads it a dozen times a tick (behaviors.ports.VehiclePort.state).
@@ -329,6 +337,8 @@ class MavlinkVehicle:
                 self._lost_since = None
             self._request_streams(now)
         self._tracker.update(now)
+        if self._transfers:
+            self._update_transfers(now)
         self._advance_procedures(now)
         if now - self._last_heartbeat_sent >= self.settings.heartbeat_period - _SLACK:
             self._send_heartbeat(now)
@@ -463,6 +473,26 @@ class MavlinkVehicle:
             )
         return self._mode_step("LAND")
 
+    def upload_fence(
+        self, polygon: list[tuple[float, float]], max_altitude: float | None = None
+    ) -> Handle:
+        """Make the autopilot enforce the operating area: ``polygon`` (ENU x, y m of the
+        flight's frame) uploaded as its inclusion geofence about its home, ``max_altitude``
+        (m above home) as its ceiling, and the fence enabled (:mod:`autonomy.vehicle.fence`
+        says what is set on each autopilot). ACCEPTED once the autopilot has taken all of it;
+        the record is :attr:`fence_upload`."""
+        name = f"upload geofence ({len(polygon)} vertices)"
+        refused = self._start(name)
+        if refused:
+            self.fence_upload = FenceUpload(len(polygon), max_altitude, refused)
+            return refused
+        record = FenceUpload(len(polygon), max_altitude, Handle(name, self.clock.now()))
+        record.handle = self._procedure(
+            name, self._fence_steps(record, [tuple(map(float, v)) for v in polygon],
+                                    max_altitude))
+        self.fence_upload = record
+        return record.handle
+
     def close(self) -> None:
         """Close the link, the telemetry log and an owned simulator; commands still pending
         end as TIMED_OUT."""
@@ -470,6 +500,7 @@ class MavlinkVehicle:
         for proc in self._procedures:
             proc.cancel("vehicle closed", now, CommandStatus.TIMED_OUT)
         self._procedures.clear()
+        self._end_transfers("vehicle closed", now)
         self._tracker.fail_all(CommandStatus.TIMED_OUT, "vehicle closed", now)
         self._clear_setpoint()
         try:
@@ -730,6 +761,34 @@ class MavlinkVehicle:
             return  # the answer to another ground station
         self._tracker.on_ack(msg.command, msg.result, now)
 
+    def _for_us(self, msg: Any) -> bool:
+        return (msg.target_system == self.settings.source_system
+                and msg.target_component in (0, self.settings.source_component))
+
+    def _on_mission_request(self, msg: Any, now: float) -> None:
+        if not self._for_us(msg):
+            return  # another ground station's transfer
+        for transfer in self._transfers:
+            if isinstance(transfer, MissionUpload):
+                transfer.on_request(msg.seq, msg.mission_type, now)
+
+    def _on_mission_ack(self, msg: Any, now: float) -> None:
+        if not self._for_us(msg):
+            return
+        for transfer in self._transfers:
+            if isinstance(transfer, MissionUpload):
+                transfer.on_ack(msg.type, msg.mission_type, now)
+
+    def _on_param_value(self, msg: Any, now: float) -> None:
+        # PARAM_VALUE is broadcast (no target): any answer shows the value now in force.
+        name = msg.param_id
+        if isinstance(name, (bytes, bytearray)):
+            name = name.decode("ascii", "replace")
+        name = name.rstrip("\x00")
+        for transfer in self._transfers:
+            if isinstance(transfer, ParamSet):
+                transfer.on_value(name, float(msg.param_value), now)
+
     # ------------------------------------------------------------------ state snapshot
     def _position_estimate(self) -> bool:
         """Whether the autopilot knows where it is (what GUIDED/OFFBOARD need to arm)."""
@@ -784,6 +843,7 @@ class MavlinkVehicle:
         for proc in self._procedures:
             proc.cancel(reason, now, CommandStatus.TIMED_OUT)
         self._procedures.clear()
+        self._end_transfers(reason, now)
         self._clear_setpoint()
 
     def _send_heartbeat(self, now: float) -> None:
@@ -881,6 +941,76 @@ class MavlinkVehicle:
         self._mav.send_fields(_SET_POSITION_TARGET, (
             int(now * 1000) & 0xFFFFFFFF, self._target_system, self._target_component,
             mavlink.MAV_FRAME_LOCAL_NED, mask, *pos, *vel, 0.0, 0.0, 0.0, 0.0, 0.0))
+
+    # ------------------------------------------------------------------ transfers
+    def _update_transfers(self, now: float) -> None:
+        for transfer in self._transfers:
+            transfer.update(now)
+        self._transfers = [t for t in self._transfers if not t.done]
+
+    def _end_transfers(self, reason: str, now: float) -> None:
+        for transfer in self._transfers:
+            transfer.cancel(reason, now, CommandStatus.TIMED_OUT)
+        self._transfers.clear()
+
+    def _send_transfer(self, name: str, fields: tuple) -> None:
+        """A mission-protocol message of a :class:`MissionUpload` to our autopilot."""
+        assert self._target_system is not None
+        target = (self._target_system, self._target_component)
+        if name == "MISSION_COUNT":
+            self._mav.mission_count_send(*target, *fields)
+        elif name == "MISSION_ITEM_INT":
+            self._mav.mission_item_int_send(*target, *fields)
+        else:
+            self._mav.mission_ack_send(*target, *fields)
+
+    def _send_param_set(self, param: str, value: float, param_type: int) -> None:
+        assert self._target_system is not None
+        self._mav.param_set_send(self._target_system, self._target_component,
+                                 param.encode("ascii"), value, param_type)
+
+    def _set_param(self, param: str, value: float, param_type: int) -> ParamSet:
+        now = self.clock.now()
+        step = ParamSet(now, param, value, param_type, self._send_param_set,
+                        timeout=self.settings.ack_timeout,
+                        attempts=self.settings.command_attempts).start(now)
+        self._transfers.append(step)
+        return step
+
+    def _fence_steps(self, record: FenceUpload, polygon: list[tuple[float, float]],
+                     max_altitude: float | None) -> StepGenerator:
+        yield Wait(
+            "home position",
+            self.clock.now(),
+            lambda: self._frame.origin is not None,
+            self.settings.link_timeout,
+            "no HOME_POSITION from the autopilot (the fence is placed about home)",
+        )
+        home = self._frame.origin
+        assert home is not None
+        record.polygon, items = fence_items(polygon, (home[0], home[1]), self._autopilot)
+        now = self.clock.now()
+        upload = MissionUpload("fence plan", now, items, mavlink.MAV_MISSION_TYPE_FENCE,
+                               self._send_transfer).start(now)
+        self._transfers.append(upload)
+        yield upload
+        real32 = mavlink.MAV_PARAM_TYPE_REAL32
+        if self._autopilot == modes.PX4:
+            if max_altitude is not None:
+                yield self._set_param("GF_MAX_VER_DIST", max_altitude, real32)
+            record.enabled = ("enforced by PX4 with a fence plan, by its GF_ACTION" + (
+                f"; GF_MAX_VER_DIST {max_altitude:g}" if max_altitude is not None else ""))
+            return
+        if max_altitude is not None:
+            yield self._set_param("FENCE_ALT_MAX", max_altitude, real32)
+        # ArduPilot reads integer parameters from PARAM_SET's float (C cast), unlike PX4.
+        fence_type = ardupilot_fence_type(max_altitude)
+        yield self._set_param("FENCE_TYPE", fence_type, mavlink.MAV_PARAM_TYPE_INT8)
+        yield self._submit(CommandStep("fence enable", self.clock.now(),
+                                       mavlink.MAV_CMD_DO_FENCE_ENABLE, (1.0,)))
+        record.enabled = (f"FENCE_TYPE {fence_type}" + (
+            f", FENCE_ALT_MAX {max_altitude:g}" if max_altitude is not None else "")
+            + ", enabled with MAV_CMD_DO_FENCE_ENABLE")
 
     # ------------------------------------------------------------------ command building
     def _start(self, name: str) -> Handle | None:

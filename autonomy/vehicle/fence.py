@@ -1,0 +1,85 @@
+"""The mission's operating area as the autopilot's own geofence.
+
+What is uploaded (docs/reference/mission-file.md#geofence):
+
+* the polygon as one inclusion zone of the fence plan (MAV_MISSION_TYPE_FENCE): one
+  MAV_CMD_NAV_FENCE_POLYGON_VERTEX_INCLUSION item per vertex, param1 = the vertex count,
+  lat/lon in 1e7 degrees, MAV_FRAME_GLOBAL (as MAVProxy's fence module, ArduPilot's autotest
+  and MAVSDK's geofence plugin send them; ArduPilot's AC_PolyFence_loader and PX4's
+  navigator Geofence read a polygon as a run of param1 vertices of one kind);
+* the ceiling, when the mission gives one: ArduPilot FENCE_ALT_MAX, PX4 GF_MAX_VER_DIST
+  (both metres above home);
+* ArduPilot only: FENCE_TYPE = polygon (+ max altitude with a ceiling; AC_Fence.h bits), which
+  also turns off its circle (FENCE_RADIUS, 300 m by default, would end missions the area
+  allows) and floor, then MAV_CMD_DO_FENCE_ENABLE 1 (what MAVProxy's ``fence enable`` sends;
+  GCS_Fence.cpp). PX4 enforces an uploaded fence plan whenever GF_ACTION is not 0
+  (navigator's Geofence), so nothing needs enabling there.
+
+What happens on a breach stays the autopilot's own setting (FENCE_ACTION, GF_ACTION): the user
+chooses it on the vehicle, as with every other failsafe.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+from pymavlink.dialects.v20 import ardupilotmega as mavlink
+
+from autonomy.vehicle import frames
+from autonomy.vehicle.commands import Handle
+from autonomy.vehicle.transfers import ItemFields
+from behaviors.ports import CommandStatus
+
+# AC_Fence.h: FENCE_TYPE bits.
+ARDUPILOT_ALT_MAX = 1
+ARDUPILOT_POLYGON = 4
+
+
+def fence_items(polygon: Sequence[tuple[float, float]], home: tuple[float, float],
+                autopilot: str) -> tuple[list[tuple[float, float]], list[ItemFields]]:
+    """The lat/lon of each ENU vertex (m about ``home``, lat/lon degrees) as ``autopilot``
+    projects its local frame, and the fence plan's MISSION_ITEM_INT fields."""
+    geo = [frames.local_to_geodetic(x, y, home[0], home[1], autopilot) for x, y in polygon]
+    n = float(len(geo))
+    items: list[ItemFields] = [
+        (mavlink.MAV_FRAME_GLOBAL, mavlink.MAV_CMD_NAV_FENCE_POLYGON_VERTEX_INCLUSION, 0, 1,
+         n, 0.0, 0.0, 0.0, round(lat * 1e7), round(lon * 1e7), 0.0)
+        for lat, lon in geo
+    ]
+    return geo, items
+
+
+def ardupilot_fence_type(max_altitude: float | None) -> int:
+    return ARDUPILOT_POLYGON | (ARDUPILOT_ALT_MAX if max_altitude is not None else 0)
+
+
+@dataclass
+class FenceUpload:
+    """The operating area sent to the autopilot as its geofence; ``handle`` follows it."""
+
+    vertices: int
+    max_altitude: float | None
+    handle: Handle
+    polygon: list[tuple[float, float]] = field(default_factory=list)  # lat, lon degrees
+    enabled: str = ""  # how it was enabled, e.g. "FENCE_TYPE 5, MAV_CMD_DO_FENCE_ENABLE"
+
+    @property
+    def uploaded(self) -> bool:
+        return self.handle.status is CommandStatus.ACCEPTED
+
+    def describe(self) -> str:
+        ceiling = (f", ceiling {self.max_altitude:g} m above home"
+                   if self.max_altitude is not None else ", no ceiling")
+        if self.uploaded:
+            return (f"geofence uploaded to the autopilot: inclusion polygon of "
+                    f"{self.vertices} vertices{ceiling}; {self.enabled}")
+        return f"geofence upload failed ({self.handle.status.value}): {self.handle.reason}"
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"status": self.handle.status.value, "reason": self.handle.reason,
+                "vertices": self.vertices, "max_altitude": self.max_altitude,
+                "polygon": [[frames.Degrees(lat), frames.Degrees(lon)]
+                            for lat, lon in self.polygon],
+                "enabled": self.enabled, "text": self.describe()}

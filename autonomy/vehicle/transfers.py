@@ -1,0 +1,187 @@
+"""Mission-protocol uploads and parameter sets, as handles the driver follows.
+
+:class:`MissionUpload` is the ground station's side of MAVLink's mission upload
+(mavlink.io, services/mission.md "Upload a Mission to the Vehicle"): MISSION_COUNT with the
+plan's ``mission_type``, then each item the vehicle asks for by ``seq`` (MISSION_REQUEST_INT,
+or the older MISSION_REQUEST, answered the same way: ArduPilot's autotest
+``upload_using_mission_protocol`` and pymavlink's mavwp do so too) as MISSION_ITEM_INT, until
+the vehicle's MISSION_ACK of that type. What was last sent is sent again after
+``timeout`` clock seconds of silence, at most ``retries`` times (the protocol's "Timeouts and
+Retries": 1500 ms, 5 retries); giving up cancels the operation on the vehicle with a
+MISSION_ACK MAV_MISSION_OPERATION_CANCELLED.
+
+:class:`ParamSet` is one PARAM_SET followed until the vehicle's PARAM_VALUE of that name
+shows the value (services/parameter.md: the answer to PARAM_SET is PARAM_VALUE; re-send
+when it does not come). Nothing here waits: the driver feeds messages in and calls
+``update`` on every poll.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+
+from pymavlink.dialects.v20 import ardupilotmega as mavlink
+
+from autonomy.vehicle.commands import Handle
+from behaviors.ports import CommandStatus
+
+MISSION_TIMEOUT = 1.5  # s; mission protocol "Timeout (default): 1500 ms"
+MISSION_RETRIES = 5  # mission protocol "Retries (max): 5"
+
+# The fields of one MISSION_ITEM_INT after seq: frame, command, current, autocontinue,
+# param1..4, x, y (int), z.
+ItemFields = tuple[int, int, int, int, float, float, float, float, int, int, float]
+
+
+def mission_result_name(result: int) -> str:
+    """MAV_MISSION_RESULT number -> its name (``MAV_MISSION_INVALID``), or the number."""
+    entry = mavlink.enums["MAV_MISSION_RESULT"].get(result)
+    return entry.name if entry is not None else f"MAV_MISSION_RESULT {result}"
+
+
+class MissionUpload(Handle):
+    """The upload of one plan (``items``) of ``mission_type`` to the vehicle.
+
+    ``send(name, fields)`` puts a message on the link: ``("MISSION_COUNT", (count,
+    mission_type))``, ``("MISSION_ITEM_INT", (seq, *item, mission_type))`` or
+    ``("MISSION_ACK", (result, mission_type))``.
+    """
+
+    def __init__(
+        self,
+        name: str,
+        created: float,
+        items: Sequence[ItemFields],
+        mission_type: int,
+        send: Callable[[str, tuple], None],
+        *,
+        timeout: float = MISSION_TIMEOUT,
+        retries: int = MISSION_RETRIES,
+    ) -> None:
+        super().__init__(name, created)
+        self.items = list(items)
+        self.mission_type = mission_type
+        self._send = send
+        self.timeout = timeout
+        self.retries = retries
+        self.requested: set[int] = set()  # seqs the vehicle asked for
+        self._last: tuple[str, tuple] | None = None
+        self._last_sent = created
+        self._resent = 0
+
+    def start(self, now: float) -> MissionUpload:
+        self._put("MISSION_COUNT", (len(self.items), self.mission_type), now)
+        return self
+
+    def _put(self, name: str, fields: tuple, now: float) -> None:
+        self._last = (name, fields)
+        self._last_sent = now
+        self._send(name, fields)
+
+    def on_request(self, seq: int, mission_type: int, now: float) -> None:
+        """MISSION_REQUEST_INT or MISSION_REQUEST addressed to us."""
+        if self.done or mission_type != self.mission_type:
+            return
+        if not 0 <= seq < len(self.items):
+            return  # not an item of this plan: the vehicle will ask again or refuse
+        self.requested.add(seq)
+        self._resent = 0  # the vehicle is answering: the retry count starts again
+        self._set(CommandStatus.IN_PROGRESS)
+        self._put("MISSION_ITEM_INT", (seq, *self.items[seq], self.mission_type), now)
+
+    def on_ack(self, result: int, mission_type: int, now: float) -> None:
+        """MISSION_ACK addressed to us: the vehicle's verdict on the whole plan."""
+        if self.done or mission_type != self.mission_type:
+            return
+        if result == mavlink.MAV_MISSION_ACCEPTED:
+            if len(self.requested) == len(self.items):
+                self._set(CommandStatus.ACCEPTED, now=now)
+            return  # an ACK of an earlier transfer, before ours asked for its items
+        self._set(CommandStatus.DENIED, f"the autopilot answered MISSION_ACK "
+                  f"{mission_result_name(result)}", now)
+
+    def update(self, now: float) -> None:
+        """Re-send what the vehicle has not answered, or give up."""
+        if self.done or now - self._last_sent < self.timeout - 1e-6:  # float tick sums
+            return
+        if self._resent >= self.retries:
+            self._send("MISSION_ACK", (mavlink.MAV_MISSION_OPERATION_CANCELLED,
+                                       self.mission_type))
+            waited = "MISSION_REQUEST" if self._last and self._last[0] == "MISSION_COUNT" \
+                else "MISSION_REQUEST or MISSION_ACK"
+            self._set(CommandStatus.TIMED_OUT, f"no {waited} from the autopilot after "
+                      f"{self.retries + 1} attempts {self.timeout:g} s apart", now)
+            return
+        self._resent += 1
+        assert self._last is not None
+        self._put(*self._last, now)
+
+    def cancel(self, reason: str, now: float, status: CommandStatus) -> None:
+        self._set(status, reason, now)
+
+
+class ParamSet(Handle):
+    """PARAM_SET ``param`` = ``value`` (as ``param_type``), done when PARAM_VALUE shows it.
+
+    ``send(param, value, param_type)`` puts the PARAM_SET on the link. A PARAM_VALUE with
+    another value is answered with the PARAM_SET again (it may have been sent before ours
+    arrived); after ``attempts`` the set is DENIED with the value the vehicle kept.
+    """
+
+    def __init__(
+        self,
+        created: float,
+        param: str,
+        value: float,
+        param_type: int,
+        send: Callable[[str, float, int], None],
+        *,
+        timeout: float,
+        attempts: int,
+    ) -> None:
+        super().__init__(f"set {param} {value:g}", created)
+        self.param = param
+        self.value = float(value)
+        self.param_type = param_type
+        self._send = send
+        self.timeout = timeout
+        self.attempts = attempts
+        self.sent = 0
+        self._last_sent = created
+        self.kept: float | None = None  # another value the vehicle answered with
+
+    def start(self, now: float) -> ParamSet:
+        self._transmit(now)
+        return self
+
+    def _transmit(self, now: float) -> None:
+        self.sent += 1
+        self._last_sent = now
+        self._send(self.param, self.value, self.param_type)
+
+    def on_value(self, param: str, value: float, now: float) -> None:
+        if self.done or param != self.param:
+            return
+        # PARAM_VALUE carries a float32: compare at its precision.
+        if math.isclose(value, self.value, rel_tol=1e-6, abs_tol=1e-6):
+            self._set(CommandStatus.ACCEPTED, now=now)
+            return
+        self.kept = value
+        if self.sent >= self.attempts:
+            self._set(CommandStatus.DENIED, f"the autopilot kept {self.param} = {value:g} "
+                      f"(asked for {self.value:g})", now)
+        else:
+            self._transmit(now)
+
+    def update(self, now: float) -> None:
+        if self.done or now - self._last_sent < self.timeout - 1e-6:
+            return
+        if self.sent >= self.attempts:
+            self._set(CommandStatus.TIMED_OUT, f"no PARAM_VALUE for {self.param} after "
+                      f"{self.sent} PARAM_SETs (unknown to the autopilot?)", now)
+            return
+        self._transmit(now)
+
+    def cancel(self, reason: str, now: float, status: CommandStatus) -> None:
+        self._set(status, reason, now)
