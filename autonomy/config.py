@@ -284,6 +284,11 @@ class GeofenceConfig(BaseModel):
         None, gt=0, le=MAX_ALTITUDE, description="m above home no waypoint, cruise, takeoff "
         "or failsafe (clear) altitude may exceed, up to 10 km; unset: no ceiling"
     )
+    upload: bool = Field(
+        True, description="before takeoff, upload the polygon (and max_altitude) to the "
+        "autopilot as its own geofence and enable it, so the autopilot enforces the area "
+        "too; a refusal fails preflight. false: only this software keeps to the area"
+    )
 
 
 class PerceptionConfig(BaseModel):
@@ -545,6 +550,7 @@ class Mission(BaseModel):
             cruise_altitude=self.cruise_altitude,
             landing=self.landing,
             geofence=self.operating_area(home, project),
+            geofence_upload=self.geofence is not None and self.geofence.upload,
         )
 
     def source_data(self) -> dict[str, Any]:

@@ -6,7 +6,8 @@ from py_trees.common import Access, Status
 
 from behaviors import blackboard as keys
 from behaviors.base import MissionBehaviour, Point, RouteAction, VehicleAction
-from behaviors.ports import Clock, LandedState, VehiclePort
+from behaviors.ports import Clock, CommandHandle, CommandStatus, LandedState, VehiclePort
+from lsm.area import OperatingArea
 
 GPS_FIX_3D = 3
 
@@ -16,19 +17,27 @@ class Preflight(MissionBehaviour):
     autopilot's own position estimate (ArduPilot judges its prearm bit for the current mode,
     e.g. STABILIZE, and still refuses to arm in GUIDED without one), prearm ok.
 
-    Sends no command. Wrap it in :class:`behaviors.decorators.ClockTimeout` to bound the wait.
+    With a ``fence`` (the operating area, when the mission uploads it: ``geofence.upload``)
+    it then has the autopilot enforce it (``vehicle.upload_fence``), once per flight; else it
+    sends no command. Wrap it in :class:`behaviors.decorators.ClockTimeout` to bound the wait.
 
-    * SUCCESS: every check passes
-    * FAILURE: the battery is already at or below ``battery_reserve`` percent
+    * SUCCESS: every check passes (and the fence is on the autopilot)
+    * FAILURE: the battery is already at or below ``battery_reserve`` percent, or the
+      autopilot refused the fence or did not answer (taking off without the fence the
+      mission asked for would fly the area unguarded; ``geofence.upload: false`` flies
+      without it)
     * RUNNING: waiting; the feedback message lists what is missing
     """
 
     def __init__(
-        self, name: str, vehicle: VehiclePort, *, battery_reserve: float | None = None
+        self, name: str, vehicle: VehiclePort, *, battery_reserve: float | None = None,
+        fence: OperatingArea | None = None,
     ) -> None:
         super().__init__(name, phase="preflight")
         self.vehicle = vehicle
         self.battery_reserve = battery_reserve
+        self.fence = fence
+        self._fence_handle: CommandHandle | None = None  # kept across re-entries: once
 
     def update(self) -> Status:
         state = self.vehicle.state
@@ -56,6 +65,17 @@ class Preflight(MissionBehaviour):
         if missing:
             self.feedback_message = "waiting for " + ", ".join(missing)
             return Status.RUNNING
+        if self.fence is not None:
+            handle = self._fence_handle
+            if handle is None:
+                handle = self._fence_handle = self.vehicle.upload_fence(
+                    list(self.fence.vertices), self.fence.max_altitude)
+            if not handle.status.done:
+                self.feedback_message = "uploading the geofence to the autopilot"
+                return Status.RUNNING
+            if handle.status is not CommandStatus.ACCEPTED:
+                return self.fail(f"geofence not uploaded ({handle.status.value}): "
+                                 f"{handle.reason}")
         self.feedback_message = "ready"
         return Status.SUCCESS
 

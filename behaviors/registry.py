@@ -398,8 +398,12 @@ def _cost(value: Any) -> Callable[[], float] | str:
 
 
 _leaf("Preflight", "Action", "waits for link, position, 3D GPS fix, the autopilot's position "
-      "estimate and prearm checks; fails at or below the battery reserve",
-      lambda c, n, v, ch: Preflight(n, c.vehicle, battery_reserve=v["battery_reserve"]),
+      "estimate and prearm checks, then has the autopilot enforce the geofence when the mission "
+      "uploads it (geofence.upload); fails at or below the battery reserve or when the "
+      "autopilot refuses the fence",
+      lambda c, n, v, ch: Preflight(
+          n, c.vehicle, battery_reserve=v["battery_reserve"],
+          fence=c.plan.geofence if c.plan.geofence_upload else None),
       [_RESERVE])
 _leaf("Takeoff", "Action", "takes off to `altitude` above home (climbs with a goto when "
       "already flying)",

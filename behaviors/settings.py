@@ -271,6 +271,10 @@ class MissionPlan(BaseModel):
         None, description="the operating area (ENU) sites, search patterns and the approach "
         "stay in; None: anywhere"
     )
+    geofence_upload: bool = Field(
+        False, description="Preflight uploads ``geofence`` to the autopilot as its own "
+        "geofence and enables it"
+    )
 
     @model_validator(mode="after")
     def _check(self) -> MissionPlan:
