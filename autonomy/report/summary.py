@@ -155,6 +155,8 @@ def build_summary(data: FlightData) -> dict[str, Any]:
     }
     if data.geofence is not None:  # only then: summaries of flights without one unchanged
         summary["geofence"] = [list(v) for v in data.geofence]
+    if data.geofence_upload is not None:
+        summary["geofence_upload"] = data.geofence_upload
     return _clean(summary)
 
 
@@ -193,6 +195,8 @@ def format_summary(summary: dict[str, Any]) -> str:
                      f"{first['obstacle']} at {first['t']:.1f} s")
     for move in summary.get("home_moves") or ():
         lines.append(move["text"])
+    if summary.get("geofence_upload"):
+        lines.append(summary["geofence_upload"]["text"])
     energy = summary["energy"]
     lines.append(
         f"mission time {num(summary['mission_time'], '.1f', ' s')}, time to land "

@@ -115,6 +115,7 @@ class Flight:
         self.touchdown_speed: float | None = None
         self.home: Any = None  # autonomy.runner.home.HomeChoice of a live flight
         self.home_moves: list[Any] = []  # autonomy.vehicle.home.HomeMove, recorded so far
+        self.fence_noted: dict[str, Any] | None = None  # the geofence upload, once it ended
         self.link = LinkWatch(vehicle, log, loss_wait,
                               note=console.note if console is not None else None)
         self._airborne = False
@@ -223,6 +224,9 @@ class Flight:
         moves = getattr(self.vehicle, "home_moves", ())
         if len(moves) > len(self.home_moves):
             self._note_home_moves(moves)
+        fence = getattr(self.vehicle, "fence_upload", None)
+        if fence is not None and self.fence_noted is None and fence.handle.status.done:
+            self._note_fence(fence)
         truth = self._truth = self.truth() if self.truth is not None else None
         if truth is not None:
             p = truth.position
@@ -263,6 +267,14 @@ class Flight:
             self.log.add("flight", event="home_moved", **move.as_dict())
             if self.console is not None:
                 self.console.note(move.time, move.describe())
+
+    def _note_fence(self, fence: Any) -> None:
+        """Record how the geofence upload ended (autonomy.vehicle.fence.FenceUpload)."""
+        self.fence_noted = fence.as_dict()
+        event = "geofence_uploaded" if fence.uploaded else "geofence_refused"
+        self.log.add("flight", event=event, **self.fence_noted)
+        if self.console is not None:
+            self.console.note(self.now(), fence.describe())
 
     def _track_touchdown(self, now: float, truth: Any, state: Any) -> None:
         if truth is not None:

@@ -374,6 +374,7 @@ def _flight_data(mission: Mission, seed: int, flight: Flight, terrain: Any,
         collisions=None if flight.collisions is None else flight.collisions.count,
         first_collision=None if flight.collisions is None else flight.collisions.first,
         geofence=None if lsm.area is None else list(lsm.area.vertices),
+        geofence_upload=flight.fence_noted,
     )
 
 
