@@ -1,0 +1,172 @@
+"""The operating area uploaded to the autopilot (``geofence.upload``): lockstep ``lander fly``
+flights on both personalities leave the embedded SITL holding the polygon and the ceiling
+and enforcing them; the autopilot then answers a breach with its own fence action; a refused
+upload fails preflight with one clear line; ``upload: false`` leaves the autopilot alone."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+import yaml
+from pymavlink.dialects.v20 import ardupilotmega as mavlink
+
+import autonomy.runner.run as runner
+from autonomy.cli import main
+from autonomy.cli.demo import mission_path
+from autonomy.clock import SimClock
+from autonomy.vehicle import connect
+from behaviors.ports import CommandStatus
+
+DEMO = mission_path("demo.yaml")
+FENCE = mavlink.MAV_MISSION_TYPE_FENCE
+POLYGON = [[-20.0, -20.0], [70.0, -20.0], [70.0, 70.0], [-20.0, 70.0]]
+GEOFENCE = {"polygon": POLYGON, "max_altitude": 60}
+DT = 0.05
+
+
+def _mission(tmp_path, autopilot: str, geofence: dict, **changes) -> str:
+    data = yaml.safe_load(DEMO.read_text())
+    data["vehicle"]["autopilot"] = autopilot
+    data["geofence"] = geofence
+    data.setdefault("landing", {})["failsafe_altitude"] = 50.0  # under the ceiling
+    for key, value in changes.items():
+        data.setdefault(key, {}).update(value)
+    path = tmp_path / f"fenced_{autopilot}.yaml"
+    path.write_text(yaml.safe_dump(data, sort_keys=False))
+    return str(path)
+
+
+@pytest.fixture
+def sitls(monkeypatch):
+    """The embedded SITLs the flights of the test build (to look at them afterwards)."""
+    built = []
+    build = runner.build_sitl
+
+    def keep(*args, **kwargs):
+        sim = build(*args, **kwargs)
+        built.append(sim)
+        return sim
+
+    monkeypatch.setattr(runner, "build_sitl", keep)
+    return built
+
+
+def _fly(path: str, out) -> int:
+    return main(["fly", path, "--out", str(out)])
+
+
+def _events(out, event: str) -> list[dict]:
+    lines = (out / "events.jsonl").read_text().splitlines()
+    return [e for e in map(json.loads, lines) if e.get("event") == event]
+
+
+@pytest.mark.parametrize("autopilot", ["ardupilot", "px4"])
+def test_a_flight_leaves_the_autopilot_holding_and_enforcing_the_area(
+        autopilot, tmp_path, sitls, capsys):
+    out = tmp_path / "out"
+    assert _fly(_mission(tmp_path, autopilot, GEOFENCE), out) == 0
+    console = capsys.readouterr().out
+    assert ("geofence uploaded to the autopilot: inclusion polygon of 4 vertices, ceiling "
+            "60 m above home") in console
+    [event] = _events(out, "geofence_uploaded")
+    assert (event["vertices"], event["max_altitude"], event["status"]) == (4, 60.0, "accepted")
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["outcome"] == "landed"
+    assert summary["geofence_upload"]["status"] == "accepted"
+    preflight_end = next(e["t"] for e in map(json.loads, (out / "events.jsonl").read_text()
+                                              .splitlines()) if e.get("phase") == "takeoff")
+    assert event["t"] <= preflight_end, "uploaded before takeoff"
+
+    [sim] = sitls
+    ap = sim.autopilot
+    plan = ap.mission.plans[FENCE]
+    assert [item.command for item in plan] == [
+        mavlink.MAV_CMD_NAV_FENCE_POLYGON_VERTEX_INCLUSION] * 4
+    assert all(item.param1 == 4 for item in plan)
+    # The SITL places the vertices where the mission has them (its own projection).
+    [zone] = ap.fence.zones().inclusion
+    hx, hy = ap.home_xy
+    assert zone.ravel().tolist() == pytest.approx(
+        [v for x, y in POLYGON for v in (x + hx, y + hy)], abs=0.05)
+    if autopilot == "ardupilot":
+        assert ap.params.stored("FENCE_ALT_MAX") == 60.0
+        assert ap.fence.enabled() == 5, "polygon and max altitude enforced (FENCE_TYPE bits)"
+    else:
+        assert ap.params.stored("GF_MAX_VER_DIST") == 60.0
+        assert ap.params.stored("GF_ACTION") != 0, "PX4 enforces a fence plan with an action"
+
+
+@pytest.mark.parametrize("autopilot, action_mode", [("ardupilot", "RTL"),
+                                                    ("px4", "AUTO.LOITER")])
+def test_the_autopilot_answers_a_breach_of_the_uploaded_fence(autopilot, action_mode):
+    # Flown past the edge at a constant velocity (a position target beyond an enabled fence
+    # is refused by ArduPilot): the autopilot's own action takes over (ArduPilot
+    # FENCE_ACTION 1: RTL; PX4 GF_ACTION 2: Hold).
+    clock = SimClock()
+    vehicle = connect(f"sim://{autopilot}", clock)
+    sim = vehicle.sitl
+
+    def until(condition, timeout: float, what: str):
+        end = clock.now() + timeout
+        while clock.now() < end:
+            sim.step(DT)
+            clock.advance(DT)
+            state = vehicle.poll()
+            if condition(state):
+                return state
+        raise AssertionError(f"{what}: not in {timeout} s; {vehicle.state}")
+
+    try:
+        until(lambda s: s.prearm_ok and s.position_estimate, 60, "ready")
+        upload = vehicle.upload_fence([(-30.0, -30.0), (30.0, -30.0), (30.0, 30.0),
+                                       (-30.0, 30.0)], 40.0)
+        until(lambda s: upload.done, 30, "upload")
+        assert upload.status is CommandStatus.ACCEPTED, upload.reason
+        takeoff = vehicle.takeoff(10.0)
+        until(lambda s: s.position is not None and s.position[2] > 9.0, 60, "takeoff")
+        assert takeoff.status is CommandStatus.ACCEPTED
+        vehicle.set_velocity(5.0, 0.0, 0.0)
+        state = until(lambda s: s.mode == action_mode, 60, "the autopilot's fence action")
+        assert 25.0 < state.position[0] < 45.0, "it acted at the edge (x = 30 m)"
+        assert sim.autopilot.fence.breach_count >= 1
+    finally:
+        vehicle.close()
+
+
+def test_a_refused_upload_fails_preflight_with_one_clear_line(tmp_path, sitls, capsys):
+    # The SITL holds at most 3 items per plan: it answers the 4-vertex fence's MISSION_COUNT
+    # with MAV_MISSION_NO_SPACE, as an autopilot with FENCE_TOTAL too small does.
+    out = tmp_path / "out"
+    path = _mission(tmp_path, "ardupilot", GEOFENCE, sitl={"mission_capacity": 3})
+    assert _fly(path, out) == 1
+    console = capsys.readouterr().out
+    line = ("geofence upload failed (denied): fence plan: the autopilot answered MISSION_ACK "
+            "MAV_MISSION_NO_SPACE")
+    assert line in console
+    assert "Traceback" not in console
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["outcome"] == "aborted"
+    assert summary["failure_reason"].startswith("Preflight: geofence not uploaded (denied)")
+    assert summary["geofence_upload"]["status"] == "denied"
+    assert _events(out, "geofence_refused")[0]["text"] == line
+    assert not sitls[0].autopilot.armed and not sitls[0].autopilot.fence.enabled()
+
+
+def test_upload_false_leaves_the_autopilots_fence_alone(tmp_path, sitls, capsys):
+    out = tmp_path / "out"
+    assert _fly(_mission(tmp_path, "ardupilot", {**GEOFENCE, "upload": False}), out) == 0
+    assert "geofence upload" not in capsys.readouterr().out
+    summary = json.loads((out / "summary.json").read_text())
+    assert "geofence_upload" not in summary and summary["geofence"]
+    ap = sitls[0].autopilot
+    assert ap.mission.plans[FENCE] == [] and not ap.fence.enabled()
+    assert ap.params.stored("FENCE_ALT_MAX") == 100.0  # the autopilot's default, untouched
+
+
+def test_a_bad_upload_setting_is_one_line_naming_the_field(tmp_path, capsys):
+    path = _mission(tmp_path, "ardupilot", {**GEOFENCE, "upload": "sometimes"})
+    assert main(["validate", path]) == 2
+    (line,) = capsys.readouterr().err.strip().splitlines()
+    assert line.startswith("lander validate: error: ")
+    assert line.endswith(": geofence.upload: must be true or false (got 'sometimes')")
