@@ -36,11 +36,17 @@ from autonomy.vehicle.commands import (
     Wait,
     finished_handle,
 )
-from autonomy.vehicle.fence import FenceUpload, ardupilot_fence_type, fence_items
+from autonomy.vehicle.fence import (
+    BREACH_ACTION,
+    FenceUpload,
+    ardupilot_fence_type,
+    describe_action,
+    fence_items,
+)
 from autonomy.vehicle.home import FlightFrame, HomeMove
 from autonomy.vehicle.settings import LOG_STREAMS, VehicleLinkSettings
 from autonomy.vehicle.tlog import TlogWriter
-from autonomy.vehicle.transfers import MissionUpload, ParamSet
+from autonomy.vehicle.transfers import MissionUpload, ParamRead, ParamSet, param_value
 from behaviors.ports import Clock, CommandStatus, LandedState, VehicleState
 from sitl.copter.codec import (  # pymavlink's codec, byte for byte, in fewer steps
     FastMAVLink,
@@ -216,7 +222,7 @@ class MavlinkVehicle:
             ),
         )
         self._procedures: list[Procedure] = []
-        self._transfers: list[MissionUpload | ParamSet] = []  # followed until done
+        self._transfers: list[MissionUpload | ParamSet | ParamRead] = []  # until done
         self.fence_upload: FenceUpload | None = None  # the last upload_fence(), if any
 
         # What the autopilot last reported (raw, NED where it says so).
@@ -785,9 +791,10 @@ class MavlinkVehicle:
         if isinstance(name, (bytes, bytearray)):
             name = name.decode("ascii", "replace")
         name = name.rstrip("\x00")
+        value = param_value(msg.param_value, msg.param_type, self._autopilot == modes.PX4)
         for transfer in self._transfers:
-            if isinstance(transfer, ParamSet):
-                transfer.on_value(name, float(msg.param_value), now)
+            if isinstance(transfer, (ParamSet, ParamRead)):
+                transfer.on_value(name, value, now)
 
     # ------------------------------------------------------------------ state snapshot
     def _position_estimate(self) -> bool:
@@ -977,6 +984,18 @@ class MavlinkVehicle:
         self._transfers.append(step)
         return step
 
+    def _read_param(self, param: str) -> ParamRead:
+        now = self.clock.now()
+        step = ParamRead(now, param, self._send_param_read, timeout=self.settings.ack_timeout,
+                         attempts=self.settings.command_attempts).start(now)
+        self._transfers.append(step)
+        return step
+
+    def _send_param_read(self, param: str) -> None:
+        assert self._target_system is not None
+        self._mav.param_request_read_send(self._target_system, self._target_component,
+                                          param.encode("ascii"), -1)
+
     def _fence_steps(self, record: FenceUpload, polygon: list[tuple[float, float]],
                      max_altitude: float | None) -> StepGenerator:
         yield Wait(
@@ -996,21 +1015,29 @@ class MavlinkVehicle:
         yield upload
         real32 = mavlink.MAV_PARAM_TYPE_REAL32
         if self._autopilot == modes.PX4:
+            # Only a REAL32 is set on PX4 (its integers travel byte-wise, param_value).
             if max_altitude is not None:
                 yield self._set_param("GF_MAX_VER_DIST", max_altitude, real32)
-            record.enabled = ("enforced by PX4 with a fence plan, by its GF_ACTION" + (
-                f"; GF_MAX_VER_DIST {max_altitude:g}" if max_altitude is not None else ""))
-            return
-        if max_altitude is not None:
-            yield self._set_param("FENCE_ALT_MAX", max_altitude, real32)
-        # ArduPilot reads integer parameters from PARAM_SET's float (C cast), unlike PX4.
-        fence_type = ardupilot_fence_type(max_altitude)
-        yield self._set_param("FENCE_TYPE", fence_type, mavlink.MAV_PARAM_TYPE_INT8)
-        yield self._submit(CommandStep("fence enable", self.clock.now(),
-                                       mavlink.MAV_CMD_DO_FENCE_ENABLE, (1.0,)))
-        record.enabled = (f"FENCE_TYPE {fence_type}" + (
-            f", FENCE_ALT_MAX {max_altitude:g}" if max_altitude is not None else "")
-            + ", enabled with MAV_CMD_DO_FENCE_ENABLE")
+            done = ["fence plan in force" + (
+                f", GF_MAX_VER_DIST {max_altitude:g}" if max_altitude is not None else "")]
+        else:
+            if max_altitude is not None:
+                yield self._set_param("FENCE_ALT_MAX", max_altitude, real32)
+            # ArduPilot reads integer parameters from PARAM_SET's float (C cast), unlike PX4.
+            fence_type = ardupilot_fence_type(max_altitude)
+            yield self._set_param("FENCE_TYPE", fence_type, mavlink.MAV_PARAM_TYPE_INT8)
+            yield self._submit(CommandStep("fence enable", self.clock.now(),
+                                           mavlink.MAV_CMD_DO_FENCE_ENABLE, (1.0,)))
+            done = [f"FENCE_TYPE {fence_type}" + (
+                f", FENCE_ALT_MAX {max_altitude:g}" if max_altitude is not None else "")
+                + ", enabled (MAV_CMD_DO_FENCE_ENABLE)"]
+        # The breach action stays the autopilot's own; say which it is (0: report only).
+        action = self._read_param(BREACH_ACTION[self._autopilot])
+        yield action
+        assert action.value is not None
+        record.action = (action.param, int(action.value))
+        done.append(describe_action(self._autopilot, int(action.value)))
+        record.enabled = "; ".join(done)
 
     # ------------------------------------------------------------------ command building
     def _start(self, name: str) -> Handle | None:

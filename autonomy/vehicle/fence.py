@@ -16,7 +16,9 @@ What is uploaded (docs/reference/mission-file.md#geofence):
   (navigator's Geofence), so nothing needs enabling there.
 
 What happens on a breach stays the autopilot's own setting (FENCE_ACTION, GF_ACTION): the user
-chooses it on the vehicle, as with every other failsafe.
+chooses it on the vehicle, as with every other failsafe. It is read back and reported, with a
+warning when it would not keep the vehicle in (ArduPilot 0: report only; PX4 0 or 1: none or a
+warning).
 """
 
 from __future__ import annotations
@@ -51,6 +53,27 @@ def fence_items(polygon: Sequence[tuple[float, float]], home: tuple[float, float
     return geo, items
 
 
+# The parameter holding what the autopilot does on a breach, and its values' meaning
+# (ArduPilot AC_Fence FENCE_ACTION; PX4 GF_ACTION, geofence_params.c).
+BREACH_ACTION = {"ardupilot": "FENCE_ACTION", "px4": "GF_ACTION"}
+_ACTIONS = {
+    "ardupilot": {0: "report only", 1: "RTL or land", 2: "land", 3: "SmartRTL, RTL or land",
+                  4: "brake or land", 5: "SmartRTL or land"},
+    "px4": {0: "none", 1: "warning only", 2: "Hold", 3: "Return", 4: "terminate", 5: "Land"},
+}
+
+
+def describe_action(autopilot: str, value: int) -> str:
+    """``FENCE_ACTION 1 (RTL or land) on a breach``; a warning for an action that does not
+    keep the vehicle in."""
+    param = BREACH_ACTION.get(autopilot, "FENCE_ACTION")
+    name = _ACTIONS.get(autopilot, _ACTIONS["ardupilot"]).get(value, "unknown")
+    text = f"{param} {value} ({name}) on a breach"
+    if (autopilot == "px4" and value <= 1) or (autopilot != "px4" and value == 0):
+        text += f": the autopilot will not act; set {param} on it to have it keep the area"
+    return text
+
+
 def ardupilot_fence_type(max_altitude: float | None) -> int:
     return ARDUPILOT_POLYGON | (ARDUPILOT_ALT_MAX if max_altitude is not None else 0)
 
@@ -64,6 +87,7 @@ class FenceUpload:
     handle: Handle
     polygon: list[tuple[float, float]] = field(default_factory=list)  # lat, lon degrees
     enabled: str = ""  # how it was enabled, e.g. "FENCE_TYPE 5, MAV_CMD_DO_FENCE_ENABLE"
+    action: tuple[str, int] | None = None  # the breach action parameter and its value
 
     @property
     def uploaded(self) -> bool:
@@ -82,4 +106,6 @@ class FenceUpload:
                 "vertices": self.vertices, "max_altitude": self.max_altitude,
                 "polygon": [[frames.Degrees(lat), frames.Degrees(lon)]
                             for lat, lon in self.polygon],
-                "enabled": self.enabled, "text": self.describe()}
+                "enabled": self.enabled,
+                "action": None if self.action is None else {self.action[0]: self.action[1]},
+                "text": self.describe()}

@@ -19,6 +19,7 @@ when it does not come). Nothing here waits: the driver feeds messages in and cal
 from __future__ import annotations
 
 import math
+import struct
 from collections.abc import Callable, Sequence
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
@@ -38,6 +39,25 @@ def mission_result_name(result: int) -> str:
     """MAV_MISSION_RESULT number -> its name (``MAV_MISSION_INVALID``), or the number."""
     entry = mavlink.enums["MAV_MISSION_RESULT"].get(result)
     return entry.name if entry is not None else f"MAV_MISSION_RESULT {result}"
+
+
+# struct formats of the integer MAV_PARAM_TYPEs, for PX4's byte-wise encoding.
+_INTEGER_FORMATS = {
+    mavlink.MAV_PARAM_TYPE_UINT8: "<B", mavlink.MAV_PARAM_TYPE_INT8: "<b",
+    mavlink.MAV_PARAM_TYPE_UINT16: "<H", mavlink.MAV_PARAM_TYPE_INT16: "<h",
+    mavlink.MAV_PARAM_TYPE_UINT32: "<I", mavlink.MAV_PARAM_TYPE_INT32: "<i",
+}
+
+
+def param_value(value: float, param_type: int, bytewise: bool) -> float:
+    """PARAM_VALUE.param_value as the number it stands for. PX4 puts an integer's bytes in
+    the float (MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_BYTEWISE); ArduPilot casts it (C cast,
+    MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_C_CAST)."""
+    fmt = _INTEGER_FORMATS.get(param_type)
+    if not bytewise or fmt is None:
+        return float(value)
+    raw = struct.pack("<f", value)
+    return float(struct.unpack(fmt, raw[:struct.calcsize(fmt)])[0])
 
 
 class MissionUpload(Handle):
@@ -116,6 +136,48 @@ class MissionUpload(Handle):
         self._resent += 1
         assert self._last is not None
         self._put(*self._last, now)
+
+    def cancel(self, reason: str, now: float, status: CommandStatus) -> None:
+        self._set(status, reason, now)
+
+
+class ParamRead(Handle):
+    """PARAM_REQUEST_READ ``param``, done with the first PARAM_VALUE of that name (``value``);
+    re-sent after ``timeout``, TIMED_OUT after ``attempts``."""
+
+    def __init__(self, created: float, param: str, send: Callable[[str], None], *,
+                 timeout: float, attempts: int) -> None:
+        super().__init__(f"read {param}", created)
+        self.param = param
+        self._send = send
+        self.timeout = timeout
+        self.attempts = attempts
+        self.sent = 0
+        self._last_sent = created
+        self.value: float | None = None
+
+    def start(self, now: float) -> ParamRead:
+        self._transmit(now)
+        return self
+
+    def _transmit(self, now: float) -> None:
+        self.sent += 1
+        self._last_sent = now
+        self._send(self.param)
+
+    def on_value(self, param: str, value: float, now: float) -> None:
+        if not self.done and param == self.param:
+            self.value = value
+            self._set(CommandStatus.ACCEPTED, now=now)
+
+    def update(self, now: float) -> None:
+        if self.done or now - self._last_sent < self.timeout - 1e-6:
+            return
+        if self.sent >= self.attempts:
+            self._set(CommandStatus.TIMED_OUT, f"no PARAM_VALUE for {self.param} after "
+                      f"{self.sent} requests", now)
+            return
+        self._transmit(now)
 
     def cancel(self, reason: str, now: float, status: CommandStatus) -> None:
         self._set(status, reason, now)

@@ -67,8 +67,10 @@ def test_a_flight_leaves_the_autopilot_holding_and_enforcing_the_area(
     out = tmp_path / "out"
     assert _fly(_mission(tmp_path, autopilot, GEOFENCE), out) == 0
     console = capsys.readouterr().out
+    action = {"ardupilot": "FENCE_ACTION 1 (RTL or land)", "px4": "GF_ACTION 2 (Hold)"}
     assert ("geofence uploaded to the autopilot: inclusion polygon of 4 vertices, ceiling "
             "60 m above home") in console
+    assert f"{action[autopilot]} on a breach\n" in console
     [event] = _events(out, "geofence_uploaded")
     assert (event["vertices"], event["max_altitude"], event["status"]) == (4, 60.0, "accepted")
     summary = json.loads((out / "summary.json").read_text())

@@ -2,6 +2,8 @@
 plan, the parameters and the enable command, and the clear failures when the vehicle refuses
 or does not answer."""
 
+import struct
+
 import pytest
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
@@ -67,10 +69,22 @@ def test_the_fence_plan_is_sent_item_by_item_about_the_vehicles_home(rig):
     assert enable.param1 == 1
     rig.peer.ack(mavlink.MAV_CMD_DO_FENCE_ENABLE)
     rig.tick()
+    # The breach action stays the autopilot's: read and reported, not set.
+    [read] = _sent(rig, "PARAM_REQUEST_READ")
+    assert (read.param_id, read.param_index) == ("FENCE_ACTION", -1)
+    rig.peer.send(rig.peer.mav.param_value_encode(b"FENCE_ACTION", 0.0,
+                                                  mavlink.MAV_PARAM_TYPE_INT8, 40, 5))
+    rig.tick()
     assert handle.status is CommandStatus.ACCEPTED
+    assert len(_sent(rig, "PARAM_SET")) == 2
     record = rig.vehicle.fence_upload
     assert record.uploaded and record.vertices == 4 and record.max_altitude == 60.0
-    assert "FENCE_TYPE 5" in record.describe()
+    assert record.action == ("FENCE_ACTION", 0)
+    assert record.describe() == (
+        "geofence uploaded to the autopilot: inclusion polygon of 4 vertices, ceiling 60 m "
+        "above home; FENCE_TYPE 5, FENCE_ALT_MAX 60, enabled (MAV_CMD_DO_FENCE_ENABLE); "
+        "FENCE_ACTION 0 (report only) on a breach: the autopilot will not act; set "
+        "FENCE_ACTION on it to have it keep the area")
 
 
 def test_a_refused_fence_plan_ends_the_upload_with_the_autopilots_answer(rig):
@@ -124,3 +138,37 @@ def test_without_a_link_the_upload_ends_at_once(rig):
     handle = rig.vehicle.upload_fence(SQUARE, None)
     assert handle.status is CommandStatus.TIMED_OUT
     assert rig.vehicle.fence_upload.handle is handle
+
+
+def test_px4_gets_the_plan_and_ceiling_only_and_its_integer_action_is_read_bytewise(rig):
+    peer = rig.peer
+    beat = {"custom_mode": 0x03040000, "autopilot": mavlink.MAV_AUTOPILOT_PX4}
+    peer.heartbeat(**beat)
+    peer.send(peer.mav.home_position_encode(
+        round(HOME[0] * 1e7), round(HOME[1] * 1e7), round(HOME[2] * 1e3), 0, 0, 0,
+        [1, 0, 0, 0], 0, 0, 0))
+    rig.tick()
+    handle = rig.vehicle.upload_fence(SQUARE, 45.0)
+    rig.tick()
+    for seq in range(4):
+        _request(rig, seq)
+    item = _sent(rig, "MISSION_ITEM_INT")[1]
+    east, north = frames.geodetic_to_local(item.x * 1e-7, item.y * 1e-7, *HOME[:2], "px4")
+    assert (east, north) == pytest.approx(SQUARE[1], abs=0.02), "PX4's own projection"
+    peer.send(peer.mav.mission_ack_encode(255, 190, mavlink.MAV_MISSION_ACCEPTED, FENCE))
+    rig.tick()
+    [ceiling] = _sent(rig, "PARAM_SET")
+    assert (ceiling.param_id, ceiling.param_value) == ("GF_MAX_VER_DIST", 45.0)
+    peer.send(peer.mav.param_value_encode(b"GF_MAX_VER_DIST", 45.0,
+                                          mavlink.MAV_PARAM_TYPE_REAL32, 900, 1))
+    rig.tick()
+    [read] = _sent(rig, "PARAM_REQUEST_READ")
+    assert read.param_id == "GF_ACTION"
+    return_mode = struct.unpack("<f", struct.pack("<i", 3))[0]  # PX4: the int's bytes
+    peer.send(peer.mav.param_value_encode(b"GF_ACTION", return_mode,
+                                          mavlink.MAV_PARAM_TYPE_INT32, 900, 2))
+    rig.tick()
+    assert handle.status is CommandStatus.ACCEPTED, handle.reason
+    assert not rig.peer.commands(mavlink.MAV_CMD_DO_FENCE_ENABLE), "PX4 needs no enabling"
+    assert rig.vehicle.fence_upload.action == ("GF_ACTION", 3)
+    assert rig.vehicle.fence_upload.describe().endswith("GF_ACTION 3 (Return) on a breach")
