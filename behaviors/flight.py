@@ -37,7 +37,13 @@ class Preflight(MissionBehaviour):
         self.vehicle = vehicle
         self.battery_reserve = battery_reserve
         self.fence = fence
-        self._fence_handle: CommandHandle | None = None  # kept across re-entries: once
+        self._fence_handle: CommandHandle | None = None  # kept once accepted: uploaded once
+
+    def initialise(self) -> None:
+        super().initialise()
+        handle = self._fence_handle
+        if handle is not None and handle.status is not CommandStatus.ACCEPTED:
+            self._fence_handle = None  # re-entered (the link came back): upload again
 
     def update(self) -> Status:
         state = self.vehicle.state

@@ -163,6 +163,10 @@ class FakeVehicle:
         self.target = self.position
         return FakeHandle("hold")
 
+    def upload_fence(self, polygon, max_altitude=None) -> FakeHandle:
+        return self._answer("upload_fence", tuple(polygon), max_altitude) or FakeHandle(
+            "upload_fence")
+
     def land(self) -> FakeHandle:
         refused = self._answer("land")
         if refused:
