@@ -115,7 +115,8 @@ class Flight:
         self.touchdown_speed: float | None = None
         self.home: Any = None  # autonomy.runner.home.HomeChoice of a live flight
         self.home_moves: list[Any] = []  # autonomy.vehicle.home.HomeMove, recorded so far
-        self.fence_noted: dict[str, Any] | None = None  # the geofence upload, once it ended
+        self.fence_noted: dict[str, Any] | None = None  # the last geofence upload that ended
+        self._fence_seen: Any = None  # its autonomy.vehicle.fence.FenceUpload
         self.link = LinkWatch(vehicle, log, loss_wait,
                               note=console.note if console is not None else None)
         self._airborne = False
@@ -225,7 +226,8 @@ class Flight:
         if len(moves) > len(self.home_moves):
             self._note_home_moves(moves)
         fence = getattr(self.vehicle, "fence_upload", None)
-        if fence is not None and self.fence_noted is None and fence.handle.status.done:
+        if fence is not None and fence is not self._fence_seen and fence.handle.status.done:
+            self._fence_seen = fence
             self._note_fence(fence)
         truth = self._truth = self.truth() if self.truth is not None else None
         if truth is not None:
