@@ -4,16 +4,23 @@ What is uploaded (docs/reference/mission-file.md#geofence):
 
 * the polygon as one inclusion zone of the fence plan (MAV_MISSION_TYPE_FENCE): one
   MAV_CMD_NAV_FENCE_POLYGON_VERTEX_INCLUSION item per vertex, param1 = the vertex count,
-  lat/lon in 1e7 degrees, MAV_FRAME_GLOBAL (as MAVProxy's fence module, ArduPilot's autotest
-  and MAVSDK's geofence plugin send them; ArduPilot's AC_PolyFence_loader and PX4's
-  navigator Geofence read a polygon as a run of param1 vertices of one kind);
+  lat/lon in 1e7 degrees, MAV_FRAME_GLOBAL, as ArduPilot's autotest
+  (``upload_fences_from_locations``) and MAVProxy's fence module send them. ArduPilot
+  (GCS_MAVLink/MissionItemProtocol_Fence.cpp, AC_PolyFence_loader) and PX4 (navigator's
+  Geofence) read a polygon as a run of param1 vertices of one kind; PX4's own tests send
+  MAV_FRAME_GLOBAL_INT, and its mission manager reads either global frame of a
+  MISSION_ITEM_INT as 1e7 degrees. The vertices are placed with the autopilot's own
+  projection about its home (:func:`autonomy.vehicle.frames.local_to_geodetic`), so the
+  fence lies where the flight's ENU polygon is;
 * the ceiling, when the mission gives one: ArduPilot FENCE_ALT_MAX, PX4 GF_MAX_VER_DIST
   (both metres above home);
-* ArduPilot only: FENCE_TYPE = polygon (+ max altitude with a ceiling; AC_Fence.h bits), which
-  also turns off its circle (FENCE_RADIUS, 300 m by default, would end missions the area
-  allows) and floor, then MAV_CMD_DO_FENCE_ENABLE 1 (what MAVProxy's ``fence enable`` sends;
-  GCS_Fence.cpp). PX4 enforces an uploaded fence plan whenever GF_ACTION is not 0
-  (navigator's Geofence), so nothing needs enabling there.
+* ArduPilot only: FENCE_TYPE = polygon (+ max altitude with a ceiling; AC_Fence.h bits 4 and
+  1), which also turns off its circle (AC_FENCE_TYPE_DEFAULT for Copter is 7: max altitude,
+  circle of FENCE_RADIUS, 300 m by default, which would end missions the area allows, and
+  polygon) and floor, then MAV_CMD_DO_FENCE_ENABLE 1 (what MAVProxy's ``fence enable`` and
+  the autotest's ``do_fence_enable`` send; GCS_Fence.cpp). PX4 checks an uploaded fence plan
+  whenever GF_ACTION is not 0 (navigator's Geofence, GeofenceResult.msg), so nothing needs
+  enabling there.
 
 What happens on a breach stays the autopilot's own setting (FENCE_ACTION, GF_ACTION): the user
 chooses it on the vehicle, as with every other failsafe. It is read back and reported, with a
