@@ -259,6 +259,11 @@ FENCE_TOTAL tops out at some 80 on small boards), and the simple-polygon check i
 quadratic."""
 
 
+CEILING_MARGIN = 2.0
+"""m every flying altitude keeps under an uploaded geofence ceiling: ArduPilot's default
+FENCE_MARGIN, the distance it keeps from a fence to avoid a breach."""
+
+
 class GeofenceConfig(BaseModel):
     """The mission's operating area, an inclusion geofence: the vehicle flies and lands only
     inside ``polygon`` (and below ``max_altitude``), keeping ``margin`` from its edge.
@@ -469,17 +474,22 @@ class Mission(BaseModel):
         ceiling = fence.max_altitude
         if ceiling is None:
             return self
+        # The autopilot breaches at its ceiling (ArduPilot: altitude >= FENCE_ALT_MAX), so
+        # a climb's overshoot to an altitude at the ceiling would meet its breach action:
+        # with the fence uploaded, altitudes stay FENCE_MARGIN under it.
+        room = CEILING_MARGIN if fence.upload else 0.0
+        under = (f"not {room:g} m under geofence.max_altitude ({ceiling:g} m), which the "
+                 "autopilot enforces (geofence.upload): a climb's overshoot would breach it"
+                 if room else f"above geofence.max_altitude ({ceiling:g} m)")
         for i, (_, _, z) in enumerate(waypoints):
-            if z > ceiling:
-                raise ValueError(f"waypoints.{i}: altitude {z:g} m is above "
-                                 f"geofence.max_altitude ({ceiling:g} m)")
+            if z > ceiling - room:
+                raise ValueError(f"waypoints.{i}: altitude {z:g} m is {under}")
         for name, value in (("cruise_altitude", self.cruise_altitude),
                             ("takeoff_altitude", self.takeoff_altitude),
                             ("landing.failsafe_altitude", self.landing.failsafe_altitude)):
-            if value is not None and value > ceiling:
+            if value is not None and value > ceiling - room:
                 what = " (the cap of the clear altitude)" if name.startswith("landing") else ""
-                raise ValueError(f"{name}: {value:g} m{what} is above "
-                                 f"geofence.max_altitude ({ceiling:g} m)")
+                raise ValueError(f"{name}: {value:g} m{what} is {under}")
         return self
 
     def operating_area(

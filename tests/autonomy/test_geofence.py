@@ -20,7 +20,7 @@ DEMO = mission_path("demo.yaml")
 # Excludes the demo's second-best site (25, 55), where it lands without a geofence once
 # the best (8, 46) fails verification; the third (55, 20) is inside.
 DEMO_FENCE = {"polygon": [[-20, -20], [70, -20], [70, 50], [-20, 50]], "margin": 2,
-              "max_altitude": 120}
+              "max_altitude": 122}
 # An L: the search rectangle around the last waypoint (0, 40) and most pattern centres
 # drawn within 50 m of it would leave it.
 L_FENCE = [[-30, -10], [60, -10], [60, 25], [20, 25], [20, 70], [-30, 70]]
@@ -101,9 +101,13 @@ def test_search_patterns_and_pattern_centres_stay_inside_a_non_convex_area(tmp_p
     ({**DEMO_FENCE, "margin": 12}, "waypoints.1", "is not at least 12 m inside"),
     ({"polygon": [[-20, -20], [60, -20], [60, 15], [30, 15], [30, 25], [60, 25], [60, 60],
                   [-20, 60]]}, "waypoints.1", "straight leg from waypoint 0 leaves the geofence"),
-    ({**DEMO_FENCE, "max_altitude": 32}, "waypoints.1", "above geofence.max_altitude"),
-    ({**DEMO_FENCE, "max_altitude": 100}, "landing.failsafe_altitude",
-     "above geofence.max_altitude (100 m)"),
+    ({**DEMO_FENCE, "max_altitude": 32}, "waypoints.1",
+     "not 2 m under geofence.max_altitude (32 m), which the autopilot enforces"),
+    ({**DEMO_FENCE, "max_altitude": 121}, "landing.failsafe_altitude",
+     "120 m (the cap of the clear altitude) is not 2 m under geofence.max_altitude (121 m), "
+     "which the autopilot enforces (geofence.upload): a climb's overshoot would breach it"),
+    ({**DEMO_FENCE, "max_altitude": 100, "upload": False}, "landing.failsafe_altitude",
+     "120 m (the cap of the clear altitude) is above geofence.max_altitude (100 m)"),
     ({**DEMO_FENCE, "margn": 3}, "geofence.margn", "did you mean margin"),
 ])
 @pytest.mark.parametrize("command", ["validate", "fly"])
@@ -121,7 +125,8 @@ def test_cruise_altitude_above_the_ceiling_is_named(tmp_path, capsys):
     path = _demo_with(tmp_path, geofence={**DEMO_FENCE, "max_altitude": 34},
                       waypoints=[[40.0, 0.0, 30.0]])
     assert main(["validate", path]) == 2
-    assert ": cruise_altitude: 35 m is above geofence.max_altitude (34 m)" in _error(capsys)
+    assert ": cruise_altitude: 35 m is not 2 m under geofence.max_altitude (34 m)" \
+        in _error(capsys)
 
 
 def test_lat_lon_vertices_are_converted_about_home(tmp_path, capsys):
