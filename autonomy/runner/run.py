@@ -78,6 +78,19 @@ class FlightResult:
         return self.summary["exit_code"]
 
 
+def _projection(sitl: Any):
+    """The lat/lon projection of the embedded SITL's personality (``project`` of
+    :meth:`Mission.plan`)."""
+    from autonomy.vehicle.frames import geodetic_to_local
+
+    autopilot = sitl.personality if sitl is not None else "ardupilot"
+
+    def project(lat: float, lon: float, lat0: float, lon0: float) -> tuple[float, float]:
+        return geodetic_to_local(lat, lon, lat0, lon0, autopilot)
+
+    return project
+
+
 def fly(
     mission: Mission,
     *,
@@ -205,7 +218,10 @@ def fly(
         )
         try:
             if lockstep:
-                flight.attach_tree(build_tree(mission.plan()))
+                # Lat/lon waypoints and geofence vertices as the simulated autopilot projects
+                # them, as a live flight converts them (and as the geofence upload sends
+                # them back), not on the tangent plane: 0.1-0.2 % of the distance apart.
+                flight.attach_tree(build_tree(mission.plan(project=_projection(sitl))))
                 vehicle.keep_frame()  # about the SITL's home (docs/how-to/live-flights.md)
             log.add("flight", event="start", mission=mission.name, seed=seed,
                     connection=mission.vehicle.connection, lockstep=lockstep)

@@ -138,3 +138,4 @@ def test_lat_lon_vertices_are_converted_about_home(tmp_path, capsys):
     area = load_mission(path).operating_area()
     x, y = np.asarray(area.vertices).T
     assert -45 < x.min() < -35 and 65 < x.max() < 75 and -45 < y.min() < -35
+
