@@ -345,7 +345,10 @@ def _las_arrays(points, georef: Georeference) -> tuple[np.ndarray, np.ndarray | 
     xyz[:, 0] = points.x
     xyz[:, 1] = points.y
     xyz[:, 2] = points.z
-    xyz[:, :2] *= georef.horizontal_unit
+    if georef.projection is None:
+        xyz[:, :2] *= georef.horizontal_unit
+    else:  # lon/lat degrees: projected to metres (pyproj, over the arrays)
+        xyz[:, 0], xyz[:, 1] = georef.to_metres(xyz[:, 0], xyz[:, 1])
     xyz[:, 2] *= georef.vertical_unit
     withheld = np.asarray(points.withheld, dtype=bool)
     if withheld.any():

@@ -118,18 +118,20 @@ def _write_outputs(
     georef=None,
 ) -> list[dict]:
     """sites.csv: x, y, z and obstacle_altitude in the file's CRS and units (metres
-    without one), lat/lon WGS84 when the CRS is known, size in metres."""
+    without one; x, y to 1e-8 deg, about a millimetre, in degrees), lat/lon WGS84 when the
+    CRS is known, size in metres."""
     xyz = np.array([[o.x, o.y, o.z] for o in obs]).reshape(-1, 3)
     obst = np.array([[o.x, o.y, o.obstacle_altitude] for o in obs]).reshape(-1, 3)
     lonlat = None
     if georef is not None:
         lonlat = georef.to_lonlat(xyz[:, :2]) if len(xyz) else None
         xyz, obst = georef.to_file(xyz), georef.to_file(obst)
+    places = _xy_places(georef)
     rows = []
     for i, (o, sc) in enumerate(zip(obs, scores, strict=True)):
         rows.append(
             {
-                "rank": i + 1, "x": round(xyz[i, 0], 3), "y": round(xyz[i, 1], 3),
+                "rank": i + 1, "x": round(xyz[i, 0], places), "y": round(xyz[i, 1], places),
                 "z": round(xyz[i, 2], 3),
                 "lat": "" if lonlat is None else round(float(lonlat[i, 1]), 8),
                 "lon": "" if lonlat is None else round(float(lonlat[i, 0]), 8),
@@ -146,6 +148,11 @@ def _write_outputs(
     return rows
 
 
+def _xy_places(georef) -> int:
+    """Decimals of x and y in sites.csv: a millimetre in metres or feet, 1e-8 in degrees."""
+    return 8 if georef is not None and georef.projection is not None else 3
+
+
 def _remove_stale_geojson(out_dir: Path) -> None:
     """A sites.geojson of an earlier run into the same folder would sit beside this run's
     sites.csv as if it were its own: remove it (this run has no CRS to write one)."""
@@ -155,16 +162,18 @@ def _remove_stale_geojson(out_dir: Path) -> None:
         print(f"removed {stale}: an earlier run's (this input has no CRS for one)")
 
 
-def _print_table(rows: list[dict], limit: int) -> None:
+def _print_table(rows: list[dict], limit: int, degrees: bool = False) -> None:
     if not rows:
         return
     with_class = any(r["class"] for r in rows)
-    head = f"{'#':>4} {'x':>10} {'y':>10} {'z':>8} {'size':>6} {'rough':>6} {'unc':>6} "
+    w, d = (13, 7) if degrees else (10, 2)  # 1e-7 deg: about a centimetre
+    head = f"{'#':>4} {'x':>{w}} {'y':>{w}} {'z':>8} {'size':>6} {'rough':>6} {'unc':>6} "
     head += f"{'obst_z':>8} {'score':>6}" + ("  class" if with_class else "")
     print(head)
     for r in rows[:limit]:
         line = (
-            f"{r['rank']:>4} {r['x']:>10.2f} {r['y']:>10.2f} {r['z']:>8.2f} {r['size']:>6.2f} "
+            f"{r['rank']:>4} {r['x']:>{w}.{d}f} {r['y']:>{w}.{d}f} {r['z']:>8.2f} "
+            f"{r['size']:>6.2f} "
             f"{r['roughness']:>6.3f} {r['uncertainty']:>6.3f} {r['obstacle_altitude']:>8.2f} "
             f"{r['score']:>6.3f}"
         )
@@ -194,6 +203,8 @@ def _overlay_cloud(path: Path, cloud: np.ndarray, obs: list[SiteObservation], se
         keep = np.random.default_rng(seed).choice(len(pts), MAX_PLOTTED_POINTS, replace=False)
         pts = pts[keep]
     frame = "" if georef is None or georef.crs is None else f", {georef.label} in metres"
+    if georef is not None and georef.projection is not None:
+        frame = f", {georef.label} projected to a transverse Mercator (metres)"
     fig, ax = plt.subplots(figsize=(8, 8))
     if len(pts):
         # Highest point per pixel of a 600 px raster: as fast for a million points as for
@@ -351,7 +362,7 @@ def run_lidar(args: argparse.Namespace, out_dir: Path) -> int:
         print(f"{len(obs)} sites (score = spot grade, eq. 6{where}; size in m)")
     else:
         print(f"0 sites, because {_why_none(counts)}")
-    _print_table(rows, args.limit)
+    _print_table(rows, args.limit, degrees=_xy_places(georef) == 8)
     if args.judge:
         _judge(raw, codes, spots, settings, args.seed)
     print("wrote " + ", ".join(str(w) for w in wrote))
@@ -374,9 +385,15 @@ def _print_georef(georef) -> None:
     if georef is None:
         return
     if georef.crs is not None:
-        conv = "" if georef.horizontal_unit == 1.0 else (
-            f", x and y converted from {georef.unit_name} to metres")
         name = "" if georef.label == georef.crs.name else f": {georef.crs.name}"
+        if georef.projection is not None:
+            lon, lat = georef.centre
+            conv = (", geographic (degrees): projected to a transverse Mercator centred at "
+                    f"{lat:.6f}, {lon:.6f}")
+        elif georef.horizontal_unit != 1.0:
+            conv = f", x and y converted from {georef.unit_name} to metres"
+        else:
+            conv = ""
         print(f"CRS {georef.label}{name}{conv}")
     if georef.note:
         print(georef.note)
