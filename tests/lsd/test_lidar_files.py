@@ -166,6 +166,86 @@ def test_no_crs_is_said_in_one_line_and_taken_as_metres(tmp_path, capsys):
     assert rows and rows[0]["lat"] == "" and not (tmp_path / "o" / "sites.geojson").exists()
 
 
+
+def local_tm(lat: float, lon: float):
+    """A transverse Mercator (metres, scale 1) centred at ``lat, lon`` on WGS84."""
+    from pyproj.crs import GeographicCRS, ProjectedCRS
+    from pyproj.crs.coordinate_operation import TransverseMercatorConversion
+
+    return ProjectedCRS(TransverseMercatorConversion(lat, lon), geodetic_crs=GeographicCRS())
+
+
+def write_degrees_and_metres(tmp_path, crs="EPSG:4326"):
+    """A classified scene as LAS in lon/lat degrees (1e-7 deg, about a centimetre) and the
+    same stored points projected by pyproj to metres in the transverse Mercator centred on
+    the degrees file's extent (the detector's own frame, so the seeding grid is the same;
+    UTM would not do: its 0.9996 scale and offset grid give other search points)."""
+    import laspy
+    from pyproj import Transformer
+
+    points, codes = scene("urban", size=40.0, seed=3)
+    lon, lat = Transformer.from_crs(local_tm(36.1, -81.0), "EPSG:4326",
+                                    always_xy=True).transform(points[:, 0], points[:, 1])
+    write_las(tmp_path / "deg.las", np.c_[lon, lat, points[:, 2] + 100.0], codes, crs,
+              scale=1e-7)
+    stored = laspy.read(tmp_path / "deg.las")
+    centre = (stored.header.mins + stored.header.maxs) / 2
+    metres = local_tm(centre[1], centre[0])
+    x, y = Transformer.from_crs("EPSG:4326", metres, always_xy=True).transform(
+        np.asarray(stored.x), np.asarray(stored.y))
+    write_las(tmp_path / "m.las", np.c_[x, y, np.asarray(stored.z)], codes, metres,
+              scale=1e-4)
+    return metres
+
+
+def test_a_degrees_file_gives_the_sites_of_its_projection_in_metres(tmp_path, capsys):
+    from pyproj import Transformer
+
+    metres = write_degrees_and_metres(tmp_path)
+    assert lander("--lidar", tmp_path / "deg.las", "--out", tmp_path / "deg") == 0
+    text = capsys.readouterr().out
+    assert "CRS EPSG:4326: WGS 84, geographic (degrees): projected to a transverse " \
+        "Mercator centred at 36.1" in text
+    assert "deg.las: no vertical CRS; z taken as metres" in text
+    assert lander("--lidar", tmp_path / "m.las", "--out", tmp_path / "m") == 0
+    deg, ref = read_sites(tmp_path / "deg"), read_sites(tmp_path / "m")
+    assert len(deg) >= 3 and len(deg) == len(ref)
+    to_wgs84 = Transformer.from_crs(metres, "EPSG:4326", always_xy=True)
+    for d, r in zip(deg, ref, strict=True):
+        lon, lat = to_wgs84.transform(float(r["x"]), float(r["y"]))
+        # x, y are the file's lon/lat degrees; 3e-7 deg is about 3 cm.
+        assert float(d["x"]) == pytest.approx(lon, abs=3e-7)
+        assert float(d["y"]) == pytest.approx(lat, abs=3e-7)
+        assert float(d["lon"]) == pytest.approx(float(r["lon"]), abs=3e-7)
+        assert float(d["lat"]) == pytest.approx(float(r["lat"]), abs=3e-7)
+        assert float(d["z"]) == pytest.approx(float(r["z"]), abs=0.02)
+        assert d["size"] == r["size"]
+    features = json.loads((tmp_path / "deg" / "sites.geojson").read_text())["features"]
+    assert [f["geometry"]["coordinates"] for f in features] == [
+        [float(d["lon"]), float(d["lat"])] for d in deg]
+
+
+def test_a_degrees_file_streamed_in_tiles_and_judged(tmp_path, capsys):
+    write_degrees_and_metres(tmp_path)
+    assert lander("--lidar", tmp_path / "deg.las", "--judge", "--out", tmp_path / "whole") == 0
+    assert "judge: sites" in capsys.readouterr().out
+    assert lander("--lidar", tmp_path / "deg.las", "--tile-size", 12, "--out",
+                  tmp_path / "tiles") == 0
+    whole, tiles = read_sites(tmp_path / "whole"), read_sites(tmp_path / "tiles")
+    assert len(whole) >= 3 and [{k: v for k, v in r.items() if k != "class"} for r in whole] \
+        == [{k: v for k, v in r.items() if k != "class"} for r in tiles]
+
+
+def test_a_compound_degrees_crs_gives_z_in_its_vertical_unit(tmp_path):
+    """WGS 84 + NAVD88 height in US feet: z converted to metres, no note."""
+    write_degrees_and_metres(tmp_path, "EPSG:4326+6360")
+    data = read_point_cloud(tmp_path / "deg.las")
+    assert data.georef.note is None
+    assert data.georef.vertical_unit == pytest.approx(US_FOOT, rel=1e-12)
+    heights = read_point_cloud(tmp_path / "m.las").points[:, 2]
+    np.testing.assert_allclose(data.points[:, 2], heights * US_FOOT)
+
+
 def bad_inputs(tmp_path):
     points, codes = scene("bare", size=20.0, seed=6)
     write_las(tmp_path / "good.laz", points, codes, NC_METRES)
@@ -174,14 +254,18 @@ def bad_inputs(tmp_path):
     (tmp_path / "text.las").write_text("x y z\n1 2 3\n")
     write_las(tmp_path / "empty.las", np.empty((0, 3)))
     np.save(tmp_path / "image.npy", np.ones((256, 256), dtype=np.float32))
-    write_las(tmp_path / "degrees.las", np.c_[points[:, :2] * 1e-5 + [-97, 41], points[:, 2]],
+    # Degrees too wide for one transverse Mercator (20 m read as 5 deg), or near a pole.
+    write_las(tmp_path / "wide.las", np.c_[points[:, :2] * 0.25 + [-97, 41], points[:, 2]],
+              codes, "EPSG:4326", scale=1e-7)
+    write_las(tmp_path / "polar.las", np.c_[points[:, :2] * 1e-5 + [10, 88], points[:, 2]],
               codes, "EPSG:4326", scale=1e-7)
     return {
         "truncated.laz": "truncated.laz",
         "text.las": "not a readable LAS/LAZ file",
         "empty.las": "holds no points",
         "image.npy": "expected an (N, 3) array",
-        "degrees.las": "geographic coordinates (degrees",
+        "wide.las": "more than the 3 deg one transverse Mercator takes",
+        "polar.las": "latitude beyond 85 deg",
     }
 
 
