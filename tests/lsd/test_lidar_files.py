@@ -243,7 +243,7 @@ def test_a_compound_degrees_crs_gives_z_in_its_vertical_unit(tmp_path):
     assert data.georef.note is None
     assert data.georef.vertical_unit == pytest.approx(US_FOOT, rel=1e-12)
     heights = read_point_cloud(tmp_path / "m.las").points[:, 2]
-    np.testing.assert_allclose(data.points[:, 2], heights * US_FOOT)
+    np.testing.assert_allclose(data.points[:, 2], heights * US_FOOT, atol=1e-4)
 
 
 def bad_inputs(tmp_path):
