@@ -358,6 +358,9 @@ def run_lidar(args: argparse.Namespace, out_dir: Path) -> int:
     wrote.append(out_dir / "overlay.png")
     unit = "m" if georef is None or georef.crs is None else georef.unit_name
     where = "" if georef is None else f"; x, y, z in {georef.label} ({unit})"
+    if georef is not None and georef.projection is not None:
+        z_unit = "m" if georef.vertical_unit == 1.0 else "its vertical unit"
+        where = f"; x, y in {georef.label} (lon, lat degrees), z in {z_unit}"
     if obs:
         print(f"{len(obs)} sites (score = spot grade, eq. 6{where}; size in m)")
     else:

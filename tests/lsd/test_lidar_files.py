@@ -207,6 +207,7 @@ def test_a_degrees_file_gives_the_sites_of_its_projection_in_metres(tmp_path, ca
     assert "CRS EPSG:4326: WGS 84, geographic (degrees): projected to a transverse " \
         "Mercator centred at 36.1" in text
     assert "deg.las: no vertical CRS; z taken as metres" in text
+    assert "x, y in EPSG:4326 (lon, lat degrees), z in m" in text
     assert lander("--lidar", tmp_path / "m.las", "--out", tmp_path / "m") == 0
     deg, ref = read_sites(tmp_path / "deg"), read_sites(tmp_path / "m")
     assert len(deg) >= 3 and len(deg) == len(ref)
