@@ -425,7 +425,7 @@ def _judge(points, codes, spots, settings, seed: int) -> None:
     safe, why = judge.judge(spots.centre[:, :2], spots.radius)
     centres = random_discs(points, 500, settings.r_min, np.random.default_rng(seed + 1))
     base, base_why = judge.judge(centres, settings.r_min)
-    print(f"judge: sites {score(safe, why)}")
+    print(f"judge: sites {score(safe, why)}" if len(safe) else "judge: no sites to judge")
     print(f"judge: random {settings.r_min:g} m discs {score(base, base_why)}")
 
 

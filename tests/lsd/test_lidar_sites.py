@@ -91,6 +91,7 @@ def test_a_tile_whose_non_ground_is_unclassified_says_why_it_has_no_site(monkeyp
                                                                         capsys):
     monkeypatch.setattr(cli, "COMMAND_MODULES", ("autonomy.cli.detect",))
     assert cli.main(["detect", "--lidar", str(REAL / "autzen_suburban_ft.laz"),
-                     "--out", str(tmp_path)]) == 0
+                     "--out", str(tmp_path), "--judge"]) == 0
     out = capsys.readouterr().out
     assert "0 sites, because the site rules dropped all" in out and "(class " in out
+    assert "judge: no sites to judge" in out.splitlines()
