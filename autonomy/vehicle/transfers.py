@@ -141,41 +141,39 @@ class MissionUpload(Handle):
         self._set(status, reason, now)
 
 
-class ParamRead(Handle):
-    """PARAM_REQUEST_READ ``param``, done with the first PARAM_VALUE of that name (``value``);
-    re-sent after ``timeout``, TIMED_OUT after ``attempts``."""
+class _ParamExchange(Handle):
+    """A parameter request sent again every ``timeout`` until its PARAM_VALUE comes,
+    TIMED_OUT after ``attempts`` (what the two exchanges below share)."""
 
-    def __init__(self, created: float, param: str, send: Callable[[str], None], *,
-                 timeout: float, attempts: int) -> None:
-        super().__init__(f"read {param}", created)
+    silence = "requests"  # what went unanswered, for the TIMED_OUT reason
+
+    def __init__(self, label: str, created: float, param: str, *, timeout: float,
+                 attempts: int) -> None:
+        super().__init__(label, created)
         self.param = param
-        self._send = send
         self.timeout = timeout
         self.attempts = attempts
         self.sent = 0
         self._last_sent = created
-        self.value: float | None = None
 
-    def start(self, now: float) -> ParamRead:
+    def start(self, now: float) -> _ParamExchange:
         self._transmit(now)
         return self
 
     def _transmit(self, now: float) -> None:
         self.sent += 1
         self._last_sent = now
-        self._send(self.param)
+        self._put()
 
-    def on_value(self, param: str, value: float, now: float) -> None:
-        if not self.done and param == self.param:
-            self.value = value
-            self._set(CommandStatus.ACCEPTED, now=now)
+    def _put(self) -> None:
+        raise NotImplementedError
 
     def update(self, now: float) -> None:
         if self.done or now - self._last_sent < self.timeout - 1e-6:
             return
         if self.sent >= self.attempts:
             self._set(CommandStatus.TIMED_OUT, f"no PARAM_VALUE for {self.param} after "
-                      f"{self.sent} requests", now)
+                      f"{self.sent} {self.silence}", now)
             return
         self._transmit(now)
 
@@ -183,13 +181,34 @@ class ParamRead(Handle):
         self._set(status, reason, now)
 
 
-class ParamSet(Handle):
+class ParamRead(_ParamExchange):
+    """PARAM_REQUEST_READ ``param``, done with the first PARAM_VALUE of that name (``value``);
+    re-sent after ``timeout``, TIMED_OUT after ``attempts``."""
+
+    def __init__(self, created: float, param: str, send: Callable[[str], None], *,
+                 timeout: float, attempts: int) -> None:
+        super().__init__(f"read {param}", created, param, timeout=timeout, attempts=attempts)
+        self._send = send
+        self.value: float | None = None
+
+    def _put(self) -> None:
+        self._send(self.param)
+
+    def on_value(self, param: str, value: float, now: float) -> None:
+        if not self.done and param == self.param:
+            self.value = value
+            self._set(CommandStatus.ACCEPTED, now=now)
+
+
+class ParamSet(_ParamExchange):
     """PARAM_SET ``param`` = ``value`` (as ``param_type``), done when PARAM_VALUE shows it.
 
     ``send(param, value, param_type)`` puts the PARAM_SET on the link. A PARAM_VALUE with
     another value is answered with the PARAM_SET again (it may have been sent before ours
     arrived); after ``attempts`` the set is DENIED with the value the vehicle kept.
     """
+
+    silence = "PARAM_SETs (unknown to the autopilot?)"
 
     def __init__(
         self,
@@ -202,24 +221,14 @@ class ParamSet(Handle):
         timeout: float,
         attempts: int,
     ) -> None:
-        super().__init__(f"set {param} {value:g}", created)
-        self.param = param
+        super().__init__(f"set {param} {value:g}", created, param, timeout=timeout,
+                         attempts=attempts)
         self.value = float(value)
         self.param_type = param_type
         self._send = send
-        self.timeout = timeout
-        self.attempts = attempts
-        self.sent = 0
-        self._last_sent = created
         self.kept: float | None = None  # another value the vehicle answered with
 
-    def start(self, now: float) -> ParamSet:
-        self._transmit(now)
-        return self
-
-    def _transmit(self, now: float) -> None:
-        self.sent += 1
-        self._last_sent = now
+    def _put(self) -> None:
         self._send(self.param, self.value, self.param_type)
 
     def on_value(self, param: str, value: float, now: float) -> None:
@@ -236,14 +245,4 @@ class ParamSet(Handle):
         else:
             self._transmit(now)
 
-    def update(self, now: float) -> None:
-        if self.done or now - self._last_sent < self.timeout - 1e-6:
-            return
-        if self.sent >= self.attempts:
-            self._set(CommandStatus.TIMED_OUT, f"no PARAM_VALUE for {self.param} after "
-                      f"{self.sent} PARAM_SETs (unknown to the autopilot?)", now)
-            return
-        self._transmit(now)
 
-    def cancel(self, reason: str, now: float, status: CommandStatus) -> None:
-        self._set(status, reason, now)

@@ -8,10 +8,11 @@ from __future__ import annotations
 import pytest
 from pymavlink.dialects.v20 import ardupilotmega as C
 
-from sitl import MemoryLink, Sitl
+from sitl import Sitl
 from sitl.copter import protocol_version
 from sitl.copter.gcs import MiniGcs
 from sitl.copter.telemetry import build_hash, custom_versions
+from tests.sitl.test_sitl_ground_station import connect
 
 DT = 0.05
 # What the vehicle cannot send: ArduPilot fails the request, PX4 denies it.
@@ -32,15 +33,6 @@ NOT_SERVED = {
 def decodes_protocol_version(monkeypatch):
     """Teach this process's pymavlink PROTOCOL_VERSION, which its definitions lack."""
     monkeypatch.setitem(C.mavlink_map, protocol_version.MSG_ID, protocol_version.message_class())
-
-
-def connect(autopilot: str) -> tuple[Sitl, MiniGcs]:
-    sim = Sitl(autopilot=autopilot)
-    link = MemoryLink()
-    sim.attach(link.vehicle)
-    gcs = MiniGcs(link.gcs)
-    gcs.heartbeat()
-    return sim, gcs
 
 
 def ask(sim: Sitl, gcs: MiniGcs, command: int, *params: float) -> tuple[int, list]:

@@ -11,12 +11,10 @@ import struct
 import pytest
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
-from sitl import MemoryLink, Sitl
 from sitl.copter.fence import Zones, fence_names, zones_from_plan
-from sitl.copter.gcs import MiniGcs
 from sitl.copter.geo import AzimuthalEquidistant, LocalToGlobal
 from sitl.copter.mission import MissionItem
-from tests.sitl.test_sitl_ground_station import airborne, run
+from tests.sitl.test_sitl_ground_station import airborne, connect, run
 
 C = mavlink
 DT = 0.05
@@ -37,15 +35,6 @@ def px4_int(value: int) -> float:
 def said(gcs, text: str) -> bool:
     """``text`` arrived in a STATUSTEXT (whose 50 characters cut PX4's longer lines)."""
     return text[:50] in gcs.texts()
-
-
-def connect(autopilot: str = "ardupilot") -> tuple[Sitl, MiniGcs]:
-    sim = Sitl(autopilot=autopilot)
-    link = MemoryLink()
-    sim.attach(link.vehicle)
-    gcs = MiniGcs(link.gcs)
-    gcs.heartbeat()
-    return sim, gcs
 
 
 def latlon(sim, east, north):
