@@ -21,7 +21,7 @@ from typing import Any, Protocol
 
 from autonomy.campaign.plan import RunTask
 from autonomy.campaign.warm import preload_modules
-from autonomy.campaign.worker import error_record, fly_run, fly_with_page
+from autonomy.campaign.worker import error_record, fly_alone, fly_run, fly_with_page
 from autonomy.errors import UserError
 
 WORKER_DIED = "worker process died while flying this run"
@@ -81,9 +81,11 @@ class LocalPool:
     """A ``concurrent.futures.ProcessPoolExecutor`` of fresh worker processes.
 
     At most ``workers`` runs are in flight. If a worker process dies (a crash, the OOM
-    killer), the pool breaks and every run in flight fails with it; those runs are then
-    flown again one at a time in a fresh single-worker pool, so only the run that kills its
-    worker again is recorded as ``error``, and the campaign goes on with a new pool.
+    killer), the pool breaks and every run in flight fails with it; the pool's remaining
+    workers are killed (so that shutting it down never waits on one), and those runs are
+    flown again one at a time, each in a process of its own, so only the run that kills its
+    worker again is recorded as ``error``, naming how the worker died (``worker_died``:
+    the signal, e.g. ``SIGKILL``, or the exit code), and the campaign goes on with a new pool.
     """
 
     def __init__(self, workers: int | None = None) -> None:
@@ -108,16 +110,20 @@ class LocalPool:
         empty_breaks = 0
         while pending:
             suspects: list[RunTask] = []
+            others = set(multiprocessing.active_children())  # not this pool's workers
             pool = self._pool(min(self.workers, len(pending)))
+            broken = False
             try:
                 in_flight: dict[Future, RunTask] = {}
-                broken = False
                 while (pending or in_flight) and not broken:
                     while pending and len(in_flight) < self.workers:
                         task = pending.popleft()
                         try:
                             in_flight[pool.submit(fly_run, task)] = task
-                        except BrokenProcessPool:  # a worker died since the last wait
+                        except (BrokenProcessPool, OSError, EOFError):
+                            # A worker died since the last wait. The pool may have broken
+                            # while this submit started a worker: the standard library then
+                            # fails it with OSError or EOFError instead.
                             pending.appendleft(task)
                             broken = True
                             break
@@ -142,6 +148,8 @@ class LocalPool:
                         else:
                             yield future.result()
             finally:
+                if broken:
+                    _kill_workers(others)
                 pool.shutdown(wait=True, cancel_futures=True)
             empty_breaks = empty_breaks + 1 if broken and not suspects else 0
             if empty_breaks >= 3:
@@ -150,18 +158,75 @@ class LocalPool:
                 yield self._isolated(task)
 
     def _isolated(self, task: RunTask) -> dict[str, Any]:
-        """Fly one run alone in its own worker, to tell which run killed the pool."""
-        with self._pool(1) as pool:
-            future = pool.submit(fly_run, task)
+        """Fly one run alone in a process of its own, to tell whether it kills its worker
+        and, if it does, how the worker died (a pool's workers do not say)."""
+        assert self._context is not None
+        receiving, sending = self._context.Pipe(duplex=False)
+        worker = self._context.Process(target=fly_alone, args=(task, sending),
+                                       name=f"lander-{task.run_id}")
+        try:
+            worker.start()
+            sending.close()  # the worker holds the only writer: its death ends the pipe
             try:
-                return future.result()
-            except BrokenProcessPool:
-                return error_record(task, f"{WORKER_DIED} (twice, alone the second time)")
-            except Exception as exc:
-                return error_record(task, _format(exc))
+                kind, record = receiving.recv()
+            except EOFError:
+                kind, record = "died", None
+        finally:
+            receiving.close()
+            worker.join()  # it sent its record (or died, or stops on Ctrl-C): it ends
+        if kind == "interrupted":
+            raise KeyboardInterrupt
+        if kind == "died":
+            how = death(worker.exitcode)
+            return error_record(
+                task, f"{WORKER_DIED}, twice (the second time alone): {how}",
+                worker_died=death_name(worker.exitcode))
+        return record
 
     def close(self) -> None:
         """Nothing to release: each :meth:`run` shuts its pools down."""
+
+
+def _kill_workers(others: set[Any]) -> None:
+    """Kill the workers a broken pool still has: this process's children but ``others``.
+    The standard library sends them SIGTERM and then waits for each without a time limit;
+    a worker it was starting while the pool broke gets no SIGTERM, and would first fly a
+    run nobody waits for any more, or wait for work forever."""
+    for process in set(multiprocessing.active_children()) - others:
+        process.kill()
+
+
+def death_name(exitcode: int | None) -> str:
+    """``"SIGKILL"`` for a process killed by SIGKILL, ``"exit code 3"`` for one that
+    exited with code 3 (as ``multiprocessing.Process.exitcode`` tells them apart)."""
+    if exitcode is None:
+        return "unknown"
+    if exitcode < 0:
+        try:
+            return signal.Signals(-exitcode).name
+        except ValueError:
+            return f"signal {-exitcode}"
+    return f"exit code {exitcode}"
+
+
+# Why the usual senders of a deadly signal send it.
+_LIKELY_CAUSES = {
+    "SIGKILL": "possibly out of memory: the kernel's OOM killer sends SIGKILL",
+    "SIGSEGV": "a segmentation fault: a crash in compiled code",
+    "SIGBUS": "a bus error: a crash in compiled code, or a file mapped in memory shrank",
+    "SIGABRT": "aborted by compiled code",
+    "SIGTERM": "asked to stop by another process",
+}
+
+
+def death(exitcode: int | None) -> str:
+    """How a worker process died, in words, e.g. ``"killed by SIGKILL (possibly out of
+    memory: ...)"``."""
+    name = death_name(exitcode)
+    if exitcode is None or exitcode >= 0:
+        return f"it ended with {name}"
+    cause = _LIKELY_CAUSES.get(name)
+    return f"killed by {name}" + (f" ({cause})" if cause else "")
 
 
 def _format(exc: BaseException) -> str:

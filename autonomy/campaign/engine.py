@@ -8,6 +8,11 @@
                               vary=["landing.verification_altitude=2.5,5"], out_dir="out/demo")
         print(result.table())
 
+A run whose worker process dies (the OOM killer's SIGKILL, a segmentation fault) is flown
+once more alone; if its worker dies again it is recorded as ``error`` with ``worker_died``
+(the signal, e.g. ``"SIGKILL"``), the other runs go on, and re-running the campaign flies it
+again (see :class:`autonomy.campaign.backends.LocalPool`).
+
 Output directory: ``runs.jsonl`` (one record per finished run, appended as runs finish),
 ``summary.json`` (per-variant table), ``campaign.png``, ``campaign.html`` (outcomes per
 variant, each run linked to its flight page) and ``runs/<run id>/`` (each run's report.html
@@ -70,6 +75,11 @@ class CampaignResult:
     def table(self) -> str:
         """The per-variant summary table as text."""
         return format_table(self.rows)
+
+    def died(self) -> list[dict[str, Any]]:
+        """Records of the runs whose worker process died under them (twice, the second time
+        alone): ``error`` runs that re-running the campaign flies again."""
+        return [r for r in self.records if r.get("worker_died")]
 
     def throughput_line(self) -> str | None:
         """The simulated flight-hours per wall-clock hour of the runs flown by this call,
@@ -195,7 +205,8 @@ def run_campaign(
         flight: the flight function (default :func:`autonomy.runner.fly`); a top-level
             function, since worker processes unpickle it by reference.
         apply_overrides: default :func:`autonomy.config.apply_overrides`.
-        retry_errors: fly again the runs recorded as ``error`` (default: skip them too).
+        retry_errors: fly again the runs recorded as ``error`` (default: skip them too,
+            except runs whose worker process died, which are always flown again).
         progress: stream for the progress line (default stderr); ``quiet`` silences it.
         name: title of the plot.
         pages: each run writes its report folder ``runs/<run id>/`` (report.html and its
@@ -221,6 +232,7 @@ def run_campaign(
     todo = [
         t for t in tasks
         if t.identity not in recorded
+        or recorded[t.identity].get("worker_died")  # not a result: flown again
         or (retry_errors and recorded[t.identity].get("outcome") == "error")
     ]
     own_backend = None

@@ -77,12 +77,17 @@ def base_record(task: RunTask) -> dict[str, Any]:
     }
 
 
-def error_record(task: RunTask, message: str, wall_time: float | None = None) -> dict[str, Any]:
-    """Record of a run that raised or whose worker died; ``message`` is the traceback."""
+def error_record(task: RunTask, message: str, wall_time: float | None = None,
+                 worker_died: str | None = None) -> dict[str, Any]:
+    """Record of a run that raised or whose worker died; ``message`` is the traceback or
+    how the worker died. ``worker_died`` (e.g. ``"SIGKILL"``) marks a run whose worker
+    process died under it: re-running the campaign flies it again."""
     record = base_record(task)
     record.update({field: None for field in SUMMARY_FIELDS})
     record.update({"outcome": "error", "battery_used": None, "touchdown": None,
                    "error": message})
+    if worker_died is not None:
+        record["worker_died"] = worker_died
     record["wall_time"] = wall_time
     return record
 
@@ -141,6 +146,17 @@ def fly_run(task: RunTask) -> dict[str, Any]:
             return _fly(task)
         finally:
             _flying = False
+
+
+def fly_alone(task: RunTask, results: Any) -> None:
+    """Fly one task in a process of its own and send ``("record", record)`` through the
+    ``results`` connection, or ``("interrupted", None)`` when Ctrl-C stopped the run."""
+    try:
+        outcome = ("record", fly_run(task))
+    except KeyboardInterrupt:
+        outcome = ("interrupted", None)
+    results.send(outcome)
+    results.close()
 
 
 def _fly(task: RunTask) -> dict[str, Any]:

@@ -7,6 +7,7 @@ which spawned workers inherit) so that worker processes can unpickle these funct
 from __future__ import annotations
 
 import os
+import signal
 from typing import Any
 
 import numpy as np
@@ -19,6 +20,7 @@ class FakeMission(BaseModel):
     success_rate: float = 0.7
     raise_when_above: float | None = None  # the flight raises when success_rate exceeds it
     die_on_seed: int | None = None  # the worker process exits abruptly on this seed
+    kill_on_seed: int | None = None  # the worker process is killed (SIGKILL) on this seed
 
 
 def apply(mission: FakeMission, overrides: dict[str, Any]) -> FakeMission:
@@ -33,6 +35,8 @@ def apply(mission: FakeMission, overrides: dict[str, Any]) -> FakeMission:
 def fly(mission: FakeMission, seed: int, out_dir: Any = None) -> dict[str, Any]:
     if mission.die_on_seed == seed:
         os._exit(3)
+    if mission.kill_on_seed == seed:  # as the kernel's OOM killer does
+        os.kill(os.getpid(), signal.SIGKILL)
     if mission.raise_when_above is not None and mission.success_rate > mission.raise_when_above:
         raise RuntimeError("deliberate failure of this variant")
     rng = np.random.default_rng(seed)

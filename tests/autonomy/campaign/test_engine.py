@@ -163,3 +163,29 @@ def test_malformed_scheduler_address_is_a_user_error(fakes, tmp_path, address):
     pytest.importorskip("distributed")
     with pytest.raises(UserError, match="expected tcp://HOST:PORT"):
         campaign(fakes, tmp_path, runs=1, scheduler=address)
+
+
+def test_a_run_whose_worker_is_killed_is_named_with_its_signal_and_flown_again(fakes, tmp_path):
+    from autonomy.campaign import run_seed
+
+    undisturbed = campaign(fakes, tmp_path / "undisturbed", workers=2)
+    killed = run_seed(5, 2)
+    mission = fakes.FakeMission(kill_on_seed=killed)
+    result = campaign(fakes, tmp_path / "killed", mission=mission, workers=2)
+    (died,) = result.died()
+    assert (died["run_id"], died["outcome"], died["worker_died"]) == (
+        "v000-r00002", "error", "SIGKILL")
+    assert "killed by SIGKILL (possibly out of memory" in died["error"]
+    # Every other run is on disk, as an undisturbed campaign flew it (but for the mission
+    # fingerprint: the missions differ in kill_on_seed).
+    def others(path):
+        records = [json.loads(line) for line in lines_without_wall_time(path / "runs.jsonl")]
+        return [{**r, "mission": None} for r in records if r["seed_index"] != 2]
+
+    assert others(tmp_path / "killed") == others(tmp_path / "undisturbed")
+    assert [r["outcome"] for r in result.records] == [
+        r["outcome"] if r["seed_index"] != 2 else "error" for r in undisturbed.records]
+    # Re-running flies exactly the run that died, and nothing else.
+    again = campaign(fakes, tmp_path / "killed", mission=mission, workers=2)
+    assert (again.flown, again.skipped) == (1, 3)
+    assert [r["run_id"] for r in again.died()] == ["v000-r00002"]
