@@ -6,7 +6,8 @@ parsed arguments and returning an exit code. Bad user input raises
 :class:`autonomy.errors.UserError`; :func:`main` prints it as one line and exits 2.
 
 Exit codes of every command: 0 done (``fly``: landed), 1 did not succeed (``fly``: did not
-land as planned; ``link``: no autopilot heard), 2 bad input (a file, a flag, a value, a URL,
+land as planned; ``link``: no autopilot heard; ``campaign``: a run's worker process died
+twice, e.g. out of memory), 2 bad input (a file, a flag, a value, a URL,
 a port in use; ``fly``: also refused before takeoff), 3 and 4 ``fly`` only (a live landing
 not judged; link lost), 130 interrupted (Ctrl-C) before a flight started, 141 the reader of
 the output went away, 70 an internal error (a bug: one line says so; ``LANDER_TRACEBACK=1``

@@ -33,7 +33,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
             "from --seed, on a local process pool or a Dask cluster. Finished runs are "
             "appended to DIR/runs.jsonl at once; re-running the same command skips them. "
             "Writes DIR/summary.json, DIR/campaign.png and DIR/campaign.html (each run linked "
-            "to its flight page in DIR/runs/) and prints the summary table."
+            "to its flight page in DIR/runs/) and prints the summary table. A run whose "
+            "worker process dies (out of memory, a crash) is flown once more alone; if it "
+            "dies again it is recorded as an error naming the signal, the command exits 1, "
+            "and re-running it flies that run again."
         ),
     )
     parser.add_argument("mission", nargs="?", metavar="MISSION.yaml", help="mission file")
@@ -92,6 +95,15 @@ def _resumable(out: Path) -> Iterator[None]:
         raise
 
 
+def _report_died(results: list) -> int:
+    """Name each run whose worker process died, on stderr; 1 if any did, else 0."""
+    died = [r for result in results for r in result.died()]
+    for record in died:
+        print(f"run {record['run_id']} (seed {record['seed']}) failed: its "
+              f"{record['error']}; the same command flies it again", file=sys.stderr)
+    return 1 if died else 0
+
+
 def run(args: argparse.Namespace) -> int:
     from autonomy.campaign import compare_campaigns, run_campaign
     from autonomy.cli.outdir import check_campaign_folder, writing_into
@@ -124,7 +136,7 @@ def run(args: argparse.Namespace) -> int:
             print()
         print(result.table())
         print(f"wrote {result.out_dir}/compare.json and one directory per mission")
-        return 0
+        return _report_died(result.campaigns)
     if args.mission is None:
         raise UserError("a mission file is required (or --compare A.yaml B.yaml ...)")
     mission = load_mission(args.mission)
@@ -145,4 +157,4 @@ def run(args: argparse.Namespace) -> int:
         print(result.throughput_line())
     print(f"wrote {result.out_dir}/runs.jsonl, summary.json, campaign.png, campaign.html "
           f"(lander replay {result.out_dir})")
-    return 0
+    return _report_died([result])

@@ -1,7 +1,13 @@
 """``lander campaign`` end to end with the real runner on missions/demo.yaml (few runs)."""
 
+import contextlib
 import json
+import os
+import signal
 import socket
+import subprocess
+import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -139,3 +145,57 @@ def test_the_mission_fingerprint_follows_the_file_not_the_schema_defaults():
     assert mission_digest(demo) == mission_digest(parse_mission(text + "\n# a comment\n"))
     changed = apply_overrides(demo, {"landing.verification_altitude": 5.0})
     assert mission_digest(changed) != mission_digest(demo)
+
+
+def _children(pid):
+    """Pids of the processes whose parent is ``pid``, with their command lines."""
+    found = {}
+    for entry in Path("/proc").iterdir():
+        try:
+            if int((entry / "stat").read_text().rsplit(")", 1)[1].split()[1]) == pid:
+                found[int(entry.name)] = (entry / "cmdline").read_bytes()
+        except (OSError, ValueError, IndexError):
+            continue
+    return found
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="reads /proc")
+def test_a_run_whose_worker_is_killed_fails_by_name_and_the_same_command_flies_it(tmp_path):
+    # As the OOM killer would: every worker process lander's fork server starts is killed
+    # (SIGKILL), whether it is starting or flying, until lander ends.
+    out = tmp_path / "campaign"
+    command = [sys.executable, "-m", "autonomy", "campaign", str(DEMO), "--runs", "1",
+               "--workers", "1", "--no-pages", "--quiet", "--out", str(out)]
+    env = {**os.environ, "PYTHONPATH": str(DEMO.parents[1])}
+    lander_process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                      text=True, env=env)
+    try:
+        while lander_process.poll() is None:
+            for server, cmdline in _children(lander_process.pid).items():
+                if b"forkserver" in cmdline:
+                    for worker in _children(server):
+                        with contextlib.suppress(ProcessLookupError):
+                            os.kill(worker, signal.SIGKILL)
+            time.sleep(0.01)
+        stdout, stderr = lander_process.communicate(timeout=60)
+    finally:
+        if lander_process.poll() is None:
+            lander_process.kill()
+            lander_process.wait()
+    assert lander_process.returncode == 1, stderr
+    assert "Traceback" not in stderr, stderr
+    seed = json.loads((out / "runs.jsonl").read_text())["seed"]
+    assert stderr.strip().splitlines()[-1] == (
+        f"run v000-r00000 (seed {seed}) failed: its worker process died while flying this "
+        "run, twice (the second time alone): killed by SIGKILL (possibly out of memory: the "
+        "kernel's OOM killer sends SIGKILL); the same command flies it again")
+    assert "flew 1 run(s), 0 already recorded; 1 run(s) raised" in stdout
+    (record,) = [json.loads(line) for line in (out / "runs.jsonl").read_text().splitlines()]
+    assert (record["outcome"], record["worker_died"]) == ("error", "SIGKILL")
+
+    # Undisturbed, the same command flies that run again (and only it), and exits 0.
+    again = subprocess.run(command, capture_output=True, text=True, env=env, timeout=100)
+    assert again.returncode == 0, again.stderr
+    assert "flew 1 run(s), 0 already recorded" in again.stdout
+    latest = json.loads((out / "runs.jsonl").read_text().splitlines()[-1])
+    assert latest["outcome"] == "landed" and "worker_died" not in latest
