@@ -92,6 +92,13 @@ class LocalPool:
         self.workers = max(1, int(workers or default_workers()))
         self._context: multiprocessing.context.BaseContext | None = None
 
+    def _ensure_fork_server(self) -> None:
+        """Start the fork server, or again if it died and is gone (the OOM killer may take
+        it too); here, not by the pool: Ctrl-C would reach a server the pool starts at once."""
+        assert self._context is not None
+        if self._context.get_start_method() == "forkserver":
+            start_fork_server()
+
     def _pool(self, workers: int) -> ProcessPoolExecutor:
         return ProcessPoolExecutor(max_workers=workers, mp_context=self._context)
 
@@ -105,10 +112,9 @@ class LocalPool:
             if tasks[0].flight is fly_with_page:  # lander flights: the stack, warm
                 preload += preload_modules({id(t.mission): t.mission for t in tasks}.values())
             self._context = _start_context(preload)
-            if self._context.get_start_method() == "forkserver":
-                start_fork_server()  # not by the pool: Ctrl-C would reach it at once
         empty_breaks = 0
         while pending:
+            self._ensure_fork_server()
             suspects: list[RunTask] = []
             others = set(multiprocessing.active_children())  # not this pool's workers
             pool = self._pool(min(self.workers, len(pending)))
@@ -160,17 +166,21 @@ class LocalPool:
     def _isolated(self, task: RunTask) -> dict[str, Any]:
         """Fly one run alone in a process of its own, to tell whether it kills its worker
         and, if it does, how the worker died (a pool's workers do not say)."""
-        assert self._context is not None
+        self._ensure_fork_server()
         receiving, sending = self._context.Pipe(duplex=False)
         worker = self._context.Process(target=fly_alone, args=(task, sending),
                                        name=f"lander-{task.run_id}")
         try:
             worker.start()
+        except BaseException:
+            receiving.close()
+            raise
+        finally:
             sending.close()  # the worker holds the only writer: its death ends the pipe
-            try:
-                kind, record = receiving.recv()
-            except EOFError:
-                kind, record = "died", None
+        try:
+            kind, record = receiving.recv()
+        except EOFError:
+            kind, record = "died", None
         finally:
             receiving.close()
             worker.join()  # it sent its record (or died, or stops on Ctrl-C): it ends
