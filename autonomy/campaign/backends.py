@@ -11,6 +11,7 @@ from __future__ import annotations
 import multiprocessing
 import os
 import signal
+import time
 import traceback
 import uuid
 from collections import deque
@@ -160,6 +161,10 @@ class LocalPool:
             empty_breaks = empty_breaks + 1 if broken and not suspects else 0
             if empty_breaks >= 3:
                 raise RuntimeError("worker processes keep dying without flying any run")
+            if empty_breaks:
+                # No worker started: the fork server died. The next pool starts it again
+                # once it is gone; a moment for the system to reap it first.
+                time.sleep(0.5 * empty_breaks)
             for task in suspects:
                 yield self._isolated(task)
 

@@ -199,3 +199,33 @@ def test_a_run_whose_worker_is_killed_fails_by_name_and_the_same_command_flies_i
     assert "flew 1 run(s), 0 already recorded" in again.stdout
     latest = json.loads((out / "runs.jsonl").read_text().splitlines()[-1])
     assert latest["outcome"] == "landed" and "worker_died" not in latest
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="reads /proc")
+def test_a_campaign_whose_fork_server_is_killed_while_it_starts_flies_on(tmp_path):
+    # The fork server dies (the OOM killer, a Ctrl-C meant for it) while lander starts a
+    # worker from it: lander starts it again instead of failing with an internal error.
+    out = tmp_path / "campaign"
+    lander_process = subprocess.Popen(
+        [sys.executable, "-m", "autonomy", "campaign", str(DEMO), "--runs", "1", "--workers",
+         "1", "--no-pages", "--quiet", "--out", str(out)],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        env={**os.environ, "PYTHONPATH": str(DEMO.parents[1])})
+    try:
+        killed = False
+        while lander_process.poll() is None and not killed:
+            for server, cmdline in _children(lander_process.pid).items():
+                if b"forkserver" in cmdline and not _children(server):  # no worker yet
+                    os.kill(server, signal.SIGKILL)
+                    killed = True
+            time.sleep(0.01)
+        stdout, stderr = lander_process.communicate(timeout=100)
+    finally:
+        if lander_process.poll() is None:
+            lander_process.kill()
+            lander_process.wait()
+    assert killed
+    assert lander_process.returncode == 0, stderr
+    assert "flew 1 run(s), 0 already recorded" in stdout
+    (record,) = [json.loads(line) for line in (out / "runs.jsonl").read_text().splitlines()]
+    assert record["outcome"] == "landed"
