@@ -159,6 +159,22 @@ def _children(pid):
     return found
 
 
+def _lander_while(command: list[str], env: dict, meddle) -> tuple[int, str, str]:
+    """Run ``command`` (lander) and call ``meddle(its pid)`` every 10 ms while it runs,
+    until ``meddle`` returns True or lander ends; (exit code, stdout, stderr)."""
+    lander_process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                      text=True, env=env)
+    try:
+        while lander_process.poll() is None and not meddle(lander_process.pid):
+            time.sleep(0.01)
+        stdout, stderr = lander_process.communicate(timeout=100)
+    finally:
+        if lander_process.poll() is None:
+            lander_process.kill()
+            lander_process.wait()
+    return lander_process.returncode, stdout, stderr
+
+
 @pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="reads /proc")
 def test_a_run_whose_worker_is_killed_fails_by_name_and_the_same_command_flies_it(tmp_path):
     # As the OOM killer would: every worker process lander's fork server starts is killed
@@ -167,22 +183,17 @@ def test_a_run_whose_worker_is_killed_fails_by_name_and_the_same_command_flies_i
     command = [sys.executable, "-m", "autonomy", "campaign", str(DEMO), "--runs", "1",
                "--workers", "1", "--no-pages", "--quiet", "--out", str(out)]
     env = {**os.environ, "PYTHONPATH": str(DEMO.parents[1])}
-    lander_process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                                      text=True, env=env)
-    try:
-        while lander_process.poll() is None:
-            for server, cmdline in _children(lander_process.pid).items():
-                if b"forkserver" in cmdline:
-                    for worker in _children(server):
-                        with contextlib.suppress(ProcessLookupError):
-                            os.kill(worker, signal.SIGKILL)
-            time.sleep(0.01)
-        stdout, stderr = lander_process.communicate(timeout=60)
-    finally:
-        if lander_process.poll() is None:
-            lander_process.kill()
-            lander_process.wait()
-    assert lander_process.returncode == 1, stderr
+
+    def kill_workers(lander_pid: int) -> bool:
+        for server, cmdline in _children(lander_pid).items():
+            if b"forkserver" in cmdline:
+                for worker in _children(server):
+                    with contextlib.suppress(ProcessLookupError):
+                        os.kill(worker, signal.SIGKILL)
+        return False  # until lander ends
+
+    returncode, stdout, stderr = _lander_while(command, env, kill_workers)
+    assert returncode == 1, stderr
     assert "Traceback" not in stderr, stderr
     seed = json.loads((out / "runs.jsonl").read_text())["seed"]
     assert stderr.strip().splitlines()[-1] == (
@@ -206,26 +217,21 @@ def test_a_campaign_whose_fork_server_is_killed_while_it_starts_flies_on(tmp_pat
     # The fork server dies (the OOM killer, a Ctrl-C meant for it) while lander starts a
     # worker from it: lander starts it again instead of failing with an internal error.
     out = tmp_path / "campaign"
-    lander_process = subprocess.Popen(
+    killed = []
+
+    def kill_the_server_before_a_worker(lander_pid: int) -> bool:
+        for server, cmdline in _children(lander_pid).items():
+            if b"forkserver" in cmdline and not _children(server):  # no worker yet
+                os.kill(server, signal.SIGKILL)
+                killed.append(server)
+        return bool(killed)
+
+    returncode, stdout, stderr = _lander_while(
         [sys.executable, "-m", "autonomy", "campaign", str(DEMO), "--runs", "1", "--workers",
          "1", "--no-pages", "--quiet", "--out", str(out)],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-        env={**os.environ, "PYTHONPATH": str(DEMO.parents[1])})
-    try:
-        killed = False
-        while lander_process.poll() is None and not killed:
-            for server, cmdline in _children(lander_process.pid).items():
-                if b"forkserver" in cmdline and not _children(server):  # no worker yet
-                    os.kill(server, signal.SIGKILL)
-                    killed = True
-            time.sleep(0.01)
-        stdout, stderr = lander_process.communicate(timeout=100)
-    finally:
-        if lander_process.poll() is None:
-            lander_process.kill()
-            lander_process.wait()
+        {**os.environ, "PYTHONPATH": str(DEMO.parents[1])}, kill_the_server_before_a_worker)
     assert killed
-    assert lander_process.returncode == 0, stderr
+    assert returncode == 0, stderr
     assert "flew 1 run(s), 0 already recorded" in stdout
     (record,) = [json.loads(line) for line in (out / "runs.jsonl").read_text().splitlines()]
     assert record["outcome"] == "landed"
