@@ -36,7 +36,21 @@ def run(args: argparse.Namespace) -> int:
 
         for line in describe_elevation(mission.world):  # the model, its window, notes
             print(line)
+    if mission.geofence is not None:
+        print(describe_geofence(mission))
     return 0
+
+
+def describe_geofence(mission: Mission) -> str:
+    """One line: the operating area, and whether the autopilot is to enforce it too."""
+    fence = mission.geofence
+    assert fence is not None
+    ceiling = (f", ceiling {fence.max_altitude:g} m above home" if fence.max_altitude
+               is not None else ", no ceiling")
+    who = ("uploaded to the autopilot before takeoff, which enforces it too" if fence.upload
+           else "kept by this software only (geofence.upload: false)")
+    return (f"geofence: {len(fence.polygon)} vertices, margin {fence.margin:g} m{ceiling}; "
+            f"{who}")
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:

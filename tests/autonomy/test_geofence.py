@@ -139,3 +139,13 @@ def test_lat_lon_vertices_are_converted_about_home(tmp_path, capsys):
     x, y = np.asarray(area.vertices).T
     assert -45 < x.min() < -35 and 65 < x.max() < 75 and -45 < y.min() < -35
 
+
+
+@pytest.mark.parametrize(("upload", "who"), [
+    (True, "uploaded to the autopilot before takeoff, which enforces it too"),
+    (False, "kept by this software only (geofence.upload: false)")])
+def test_lander_validate_says_what_keeps_the_area(tmp_path, capsys, upload, who):
+    path = _demo_with(tmp_path, geofence={**DEMO_FENCE, "upload": upload})
+    assert main(["validate", path]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert out[-1] == f"geofence: 4 vertices, margin 2 m, ceiling 122 m above home; {who}"
