@@ -830,7 +830,7 @@ class LandingSiteManager:
         """:meth:`_validate`'s last checks, on the rows not rejected yet: outside the
         operating area, inside a ban zone, beyond max_distance from the drone."""
         if self._area is not None:
-            outside = ~bad.copy()
+            outside = ~bad  # a new array: the rows not rejected yet
             outside[outside] = ~self._area.contains(vals[outside, :2])
             for i in np.flatnonzero(outside).tolist():
                 if reasons[i] is None:

@@ -207,8 +207,7 @@ class ArduPilotFence(Fence):
         super().__init__(autopilot)
         self._enable_param = 0.0
         self.enabled_fences = 0  # AC_Fence::_enabled_fences
-        self._backup_radius = 0.0
-        self._backup_alt = 0.0
+        self._backup: dict[int, float] = {}  # fence bit -> its backup fence (0: none)
 
     def _sync(self) -> None:
         # AC_Fence::update: a change of FENCE_ENABLE enables or disables every configured
@@ -246,28 +245,15 @@ class ArduPilotFence(Fence):
         x, y, east, north, alt = self._where()
         now = new = 0
         distance = -math.inf
-        if fences & ALT_MAX:
-            limit = self._param("FENCE_ALT_MAX")
-            if alt >= limit:
-                now |= ALT_MAX
-                if not self.breaches & ALT_MAX or (self._backup_alt and alt >= self._backup_alt):
-                    new |= ALT_MAX
-                    self._backup_alt = alt + _BACKUP_DISTANCE
-                    distance = max(distance, alt - limit)
-            else:
-                self._backup_alt = 0.0
-        if fences & CIRCLE:
-            radius = self._param("FENCE_RADIUS")
-            d = math.hypot(east, north)
-            if d >= radius:
-                now |= CIRCLE
-                if not self.breaches & CIRCLE or (self._backup_radius
-                                                  and d >= self._backup_radius):
-                    new |= CIRCLE
-                    self._backup_radius = d + _BACKUP_DISTANCE
-                    distance = max(distance, d - radius)
-            else:
-                self._backup_radius = 0.0
+        for bit, value, limit in ((ALT_MAX, alt, "FENCE_ALT_MAX"),
+                                  (CIRCLE, math.hypot(east, north), "FENCE_RADIUS")):
+            if fences & bit:
+                beyond = self._beyond(bit, value, self._param(limit))
+                if beyond is not None:
+                    now |= bit
+                    if beyond >= 0:
+                        new |= bit
+                        distance = max(distance, beyond)
         if fences & POLYGON:
             zones = self.zones()
             if zones.breached_intersection(x, y):
@@ -276,6 +262,19 @@ class ArduPilotFence(Fence):
                     new |= POLYGON
                     distance = max(distance, zones.distance_outside(x, y))
         return now, new, distance
+
+    def _beyond(self, bit: int, value: float, limit: float) -> float | None:
+        """A distance-like fence (altitude, radius): None inside it; else how far beyond
+        the limit a new breach is, or -1 for a breach already reported and still short of
+        its backup fence, which then moves 20 m further out (AC_Fence's backup fences)."""
+        if value < limit:
+            self._backup[bit] = 0.0
+            return None
+        backup = self._backup.get(bit, 0.0)
+        if self.breaches & bit and not (backup and value >= backup):
+            return -1.0
+        self._backup[bit] = value + _BACKUP_DISTANCE
+        return value - limit
 
     def step(self) -> None:
         ap = self.ap

@@ -81,12 +81,18 @@ def check_parameters(mp, vehicle, autopilot: str) -> None:
     assert float(fetched.group(1)) == pytest.approx(value, abs=1e-4), fetched.group(0)
 
 
+def relayed(mavproxy, vehicle, keep=()):
+    """MAVProxy on ``vehicle``, and a pymavlink Monitor of what MAVProxy relays to its
+    --out port: (the MAVProxy process, the Monitor)."""
+    out = free_port()
+    mp = mavproxy(mavproxy_master(vehicle), "--out", f"udp:127.0.0.1:{out}")
+    return mp, Monitor(f"udpin:127.0.0.1:{out}", keep=keep)
+
+
 @pytest.mark.parametrize("autopilot", ["ardupilot", "px4"])
 def test_mavproxy_parameters_and_no_false_alarms(start_vehicle, mavproxy, autopilot):
     vehicle = start_vehicle(autopilot, px4_speedup=PX4_MAVPROXY_SPEEDUP)
-    out = free_port()
-    mp = mavproxy(mavproxy_master(vehicle), "--out", f"udp:127.0.0.1:{out}")
-    monitor = Monitor(f"udpin:127.0.0.1:{out}", keep=("SYS_STATUS",))
+    mp, monitor = relayed(mavproxy, vehicle, keep=("SYS_STATUS",))
     try:
         check_parameters(mp, vehicle, autopilot)
         # MAVProxy asks ArduPilot for every data stream (PX4 streams anyway), its HUD (and
@@ -118,9 +124,7 @@ def test_mavproxy_sets_home_on_ardupilot(start_vehicle, mavproxy):
     command) moves home 30 m east: ACCEPTED, and HOME_POSITION follows at once."""
     vehicle = start_vehicle("ardupilot")
     w = vehicle.wall
-    out = free_port()
-    mp = mavproxy(mavproxy_master(vehicle), "--out", f"udp:127.0.0.1:{out}")
-    monitor = Monitor(f"udpin:127.0.0.1:{out}")
+    mp, monitor = relayed(mavproxy, vehicle)
     try:
         home_msg = monitor.wait(lambda m: m.get("HOME_POSITION"), w(180), "HOME_POSITION")
         home = (home_msg.latitude * 1e-7, home_msg.longitude * 1e-7)
@@ -186,9 +190,7 @@ def test_mavproxy_flies_guided_and_a_mission_on_ardupilot(start_vehicle, mavprox
     landing, see the vehicle disarm; wp list returns what was loaded."""
     vehicle = start_vehicle("ardupilot")
     w = vehicle.wall
-    out = free_port()
-    mp = mavproxy(mavproxy_master(vehicle), "--out", f"udp:127.0.0.1:{out}")
-    monitor = Monitor(f"udpin:127.0.0.1:{out}")
+    mp, monitor = relayed(mavproxy, vehicle)
     try:
         mp.expect(r"Received \d+ parameters", w(120), "parameter download")
         arming = arming_parameters(mp, w(10))
