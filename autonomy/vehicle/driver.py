@@ -42,11 +42,18 @@ from autonomy.vehicle.fence import (
     ardupilot_fence_type,
     describe_action,
     fence_items,
+    kept_from_vehicle,
 )
 from autonomy.vehicle.home import FlightFrame, HomeMove
 from autonomy.vehicle.settings import LOG_STREAMS, VehicleLinkSettings
 from autonomy.vehicle.tlog import TlogWriter
-from autonomy.vehicle.transfers import MissionUpload, ParamRead, ParamSet, param_value
+from autonomy.vehicle.transfers import (
+    MissionDownload,
+    MissionUpload,
+    ParamRead,
+    ParamSet,
+    param_value,
+)
 from behaviors.ports import Clock, CommandStatus, LandedState, VehicleState
 from sitl.copter.codec import (  # pymavlink's codec, byte for byte, in fewer steps
     FastMAVLink,
@@ -222,7 +229,8 @@ class MavlinkVehicle:
             ),
         )
         self._procedures: list[Procedure] = []
-        self._transfers: list[MissionUpload | ParamSet | ParamRead] = []  # until done
+        # Mission-protocol and parameter exchanges, until done.
+        self._transfers: list[MissionUpload | MissionDownload | ParamSet | ParamRead] = []
         self.fence_upload: FenceUpload | None = None  # the last upload_fence(), if any
 
         # What the autopilot last reported (raw, NED where it says so).
@@ -281,6 +289,8 @@ class MavlinkVehicle:
             "MISSION_REQUEST_INT": self._on_mission_request,
             "MISSION_REQUEST": self._on_mission_request,
             "MISSION_ACK": self._on_mission_ack,
+            "MISSION_COUNT": self._on_mission_count,
+            "MISSION_ITEM_INT": self._on_mission_item_int,
             "PARAM_VALUE": self._on_param_value,
         }
         # The snapshot built by the last poll(): a plain attribute, not a property, since
@@ -782,8 +792,24 @@ class MavlinkVehicle:
         if not self._for_us(msg):
             return
         for transfer in self._transfers:
-            if isinstance(transfer, MissionUpload):
+            if isinstance(transfer, (MissionUpload, MissionDownload)):
                 transfer.on_ack(msg.type, msg.mission_type, now)
+
+    def _on_mission_count(self, msg: Any, now: float) -> None:
+        if not self._for_us(msg):
+            return
+        for transfer in self._transfers:
+            if isinstance(transfer, MissionDownload):
+                transfer.on_count(msg.count, msg.mission_type, now)
+
+    def _on_mission_item_int(self, msg: Any, now: float) -> None:
+        if not self._for_us(msg):
+            return
+        fields = (msg.frame, msg.command, msg.current, msg.autocontinue, msg.param1,
+                  msg.param2, msg.param3, msg.param4, msg.x, msg.y, msg.z)
+        for transfer in self._transfers:
+            if isinstance(transfer, MissionDownload):
+                transfer.on_item(msg.seq, fields, msg.mission_type, now)
 
     def _on_param_value(self, msg: Any, now: float) -> None:
         # PARAM_VALUE is broadcast (no target): any answer shows the value now in force.
@@ -961,13 +987,18 @@ class MavlinkVehicle:
         self._transfers.clear()
 
     def _send_transfer(self, name: str, fields: tuple) -> None:
-        """A mission-protocol message of a :class:`MissionUpload` to our autopilot."""
+        """A mission-protocol message of a :class:`MissionUpload` or
+        :class:`MissionDownload` to our autopilot."""
         assert self._target_system is not None
         target = (self._target_system, self._target_component)
         if name == "MISSION_COUNT":
             self._mav.mission_count_send(*target, *fields)
         elif name == "MISSION_ITEM_INT":
             self._mav.mission_item_int_send(*target, *fields)
+        elif name == "MISSION_REQUEST_LIST":
+            self._mav.mission_request_list_send(*target, *fields)
+        elif name == "MISSION_REQUEST_INT":
+            self._mav.mission_request_int_send(*target, *fields)
         else:
             self._mav.mission_ack_send(*target, *fields)
 
@@ -1008,8 +1039,15 @@ class MavlinkVehicle:
         home = self._frame.origin
         assert home is not None
         record.polygon, items = fence_items(polygon, (home[0], home[1]), self._autopilot)
+        # The upload replaces the vehicle's whole fence plan: read it to keep its no-fly zones.
         now = self.clock.now()
-        upload = MissionUpload("fence plan", now, items, mavlink.MAV_MISSION_TYPE_FENCE,
+        download = MissionDownload("the vehicle's fence plan", now,
+                                   mavlink.MAV_MISSION_TYPE_FENCE, self._send_transfer).start(now)
+        self._transfers.append(download)
+        yield download
+        kept, record.vehicle_fence = kept_from_vehicle(download.items)
+        now = self.clock.now()
+        upload = MissionUpload("fence plan", now, items + kept, mavlink.MAV_MISSION_TYPE_FENCE,
                                self._send_transfer).start(now)
         self._transfers.append(upload)
         yield upload

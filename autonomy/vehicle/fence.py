@@ -22,6 +22,13 @@ What is uploaded (docs/reference/mission-file.md#geofence):
   whenever GF_ACTION is not 0 (navigator's Geofence, GeofenceResult.msg), so nothing needs
   enabling there.
 
+The vehicle's own fence plan is downloaded first. Its exclusion zones (no-fly polygons and
+circles) and its return point are uploaded again after the operating area, so that a flight
+never lifts a no-fly zone the operator put on the vehicle; its inclusion zones are replaced
+by the operating area (both autopilots would otherwise hold the vehicle inside all or any of
+them, which the mission's area does not intend). Without that download the fence is not
+uploaded.
+
 What happens on a breach stays the autopilot's own setting (FENCE_ACTION, GF_ACTION): the user
 chooses it on the vehicle, as with every other failsafe. It is read back and reported, with a
 warning when it would not keep the vehicle in (ArduPilot 0: report only; PX4 0 or 1: none or a
@@ -60,6 +67,52 @@ def fence_items(polygon: Sequence[tuple[float, float]], home: tuple[float, float
     return geo, items
 
 
+# The vehicle's own fence items that the upload keeps, and those it replaces.
+_KEPT = {
+    mavlink.MAV_CMD_NAV_FENCE_POLYGON_VERTEX_EXCLUSION: "exclusion",
+    mavlink.MAV_CMD_NAV_FENCE_CIRCLE_EXCLUSION: "exclusion",
+    mavlink.MAV_CMD_NAV_FENCE_RETURN_POINT: "return point",
+}
+_POLYGON_VERTICES = {mavlink.MAV_CMD_NAV_FENCE_POLYGON_VERTEX_EXCLUSION,
+                     mavlink.MAV_CMD_NAV_FENCE_POLYGON_VERTEX_INCLUSION}
+
+
+def kept_from_vehicle(items: Sequence[ItemFields]) -> tuple[list[ItemFields], str]:
+    """The items of the vehicle's fence plan ``items`` to upload again (exclusion polygons
+    and circles, the return point, in their order: a polygon's vertices stay one run), and a
+    line saying what was kept and replaced."""
+    kept = [item for item in items if item[1] in _KEPT]
+    kept_zones = _zones(kept)
+    replaced = _zones([item for item in items if item[1] not in _KEPT])
+    if not items:
+        return [], "the vehicle had no fence plan"
+    parts = []
+    if kept_zones:
+        parts.append(f"kept the vehicle's {_count(kept_zones, 'exclusion zone')}")
+    if any(item[1] == mavlink.MAV_CMD_NAV_FENCE_RETURN_POINT for item in kept):
+        parts.append("kept its fence return point")
+    if replaced:
+        parts.append(f"replaced its {_count(replaced, 'inclusion zone')} by the operating area")
+    return kept, "; ".join(parts)
+
+
+def _zones(items: Sequence[ItemFields]) -> int:
+    """Zones among fence items: one per circle, one per run of param1 polygon vertices."""
+    zones = left = 0
+    for item in items:
+        if item[1] in _POLYGON_VERTICES:
+            if left <= 0:
+                zones, left = zones + 1, int(item[4])
+            left -= 1
+        elif item[1] != mavlink.MAV_CMD_NAV_FENCE_RETURN_POINT:
+            zones, left = zones + 1, 0
+    return zones
+
+
+def _count(n: int, what: str) -> str:
+    return f"{n} {what}{'' if n == 1 else 's'}"
+
+
 # The parameter holding what the autopilot does on a breach, and its values' meaning
 # (ArduPilot AC_Fence FENCE_ACTION; PX4 GF_ACTION, geofence_params.c).
 BREACH_ACTION = {"ardupilot": "FENCE_ACTION", "px4": "GF_ACTION"}
@@ -95,6 +148,7 @@ class FenceUpload:
     polygon: list[tuple[float, float]] = field(default_factory=list)  # lat, lon degrees
     enabled: str = ""  # how it was enabled, e.g. "FENCE_TYPE 5, MAV_CMD_DO_FENCE_ENABLE"
     action: tuple[str, int] | None = None  # the breach action parameter and its value
+    vehicle_fence: str = ""  # what of the vehicle's own fence plan was kept or replaced
 
     @property
     def uploaded(self) -> bool:
@@ -105,7 +159,8 @@ class FenceUpload:
                    if self.max_altitude is not None else ", no ceiling")
         if self.uploaded:
             return (f"geofence uploaded to the autopilot: inclusion polygon of "
-                    f"{self.vertices} vertices{ceiling}; {self.enabled}")
+                    f"{self.vertices} vertices{ceiling}; {self.vehicle_fence}; "
+                    f"{self.enabled}")
         return f"geofence upload failed ({self.handle.status.value}): {self.handle.reason}"
 
     def as_dict(self) -> dict[str, Any]:
@@ -113,6 +168,6 @@ class FenceUpload:
                 "vertices": self.vertices, "max_altitude": self.max_altitude,
                 "polygon": [[frames.Degrees(lat), frames.Degrees(lon)]
                             for lat, lon in self.polygon],
-                "enabled": self.enabled,
+                "enabled": self.enabled, "vehicle_fence": self.vehicle_fence,
                 "action": None if self.action is None else {self.action[0]: self.action[1]},
                 "text": self.describe()}

@@ -1,4 +1,4 @@
-"""Mission-protocol uploads and parameter sets, as handles the driver follows.
+"""Mission-protocol uploads and downloads and parameter sets, as handles the driver follows.
 
 :class:`MissionUpload` is the ground station's side of MAVLink's mission upload
 (mavlink.io, services/mission.md "Upload a Mission to the Vehicle"): MISSION_COUNT with the
@@ -8,7 +8,8 @@ or the older MISSION_REQUEST, answered the same way: ArduPilot's autotest
 the vehicle's MISSION_ACK of that type. What was last sent is sent again after
 ``timeout`` clock seconds of silence, at most ``retries`` times (the protocol's "Timeouts and
 Retries": 1500 ms, 5 retries); giving up cancels the operation on the vehicle with a
-MISSION_ACK MAV_MISSION_OPERATION_CANCELLED.
+MISSION_ACK MAV_MISSION_OPERATION_CANCELLED. :class:`MissionDownload` is the other way
+(services/mission.md "Download a Mission from the Vehicle"), with the same retries.
 
 :class:`ParamSet` is one PARAM_SET followed until the vehicle's PARAM_VALUE of that name
 shows the value (services/parameter.md: the answer to PARAM_SET is PARAM_VALUE; re-send
@@ -60,7 +61,58 @@ def param_value(value: float, param_type: int, bytewise: bool) -> float:
     return float(struct.unpack(fmt, raw[:struct.calcsize(fmt)])[0])
 
 
-class MissionUpload(Handle):
+class _MissionExchange(Handle):
+    """One mission-protocol transfer of ``mission_type``: what was last sent goes again
+    after ``timeout`` clock seconds of silence, at most ``retries`` times; giving up cancels
+    it on the vehicle (MISSION_ACK MAV_MISSION_OPERATION_CANCELLED) and ends TIMED_OUT.
+
+    ``send(name, fields)`` puts a message on the link (the driver addresses it).
+    """
+
+    def __init__(self, name: str, created: float, mission_type: int,
+                 send: Callable[[str, tuple], None], *, timeout: float, retries: int) -> None:
+        super().__init__(name, created)
+        self.mission_type = mission_type
+        self._send = send
+        self.timeout = timeout
+        self.retries = retries
+        self._last: tuple[str, tuple] | None = None
+        self._last_sent = created
+        self._resent = 0
+
+    def _put(self, name: str, fields: tuple, now: float) -> None:
+        self._last = (name, fields)
+        self._last_sent = now
+        self._send(name, fields)
+
+    def _answered(self) -> None:
+        """The vehicle is answering: the retry count starts again."""
+        self._resent = 0
+        self._set(CommandStatus.IN_PROGRESS)
+
+    def _awaited(self) -> str:
+        """What the vehicle has not sent, for the TIMED_OUT reason."""
+        raise NotImplementedError
+
+    def update(self, now: float) -> None:
+        """Re-send what the vehicle has not answered, or give up."""
+        if self.done or now - self._last_sent < self.timeout - 1e-6:  # float tick sums
+            return
+        if self._resent >= self.retries:
+            self._send("MISSION_ACK", (mavlink.MAV_MISSION_OPERATION_CANCELLED,
+                                       self.mission_type))
+            self._set(CommandStatus.TIMED_OUT, f"no {self._awaited()} from the autopilot "
+                      f"after {self.retries + 1} attempts {self.timeout:g} s apart", now)
+            return
+        self._resent += 1
+        assert self._last is not None
+        self._put(*self._last, now)
+
+    def cancel(self, reason: str, now: float, status: CommandStatus) -> None:
+        self._set(status, reason, now)
+
+
+class MissionUpload(_MissionExchange):
     """The upload of one plan (``items``) of ``mission_type`` to the vehicle.
 
     ``send(name, fields)`` puts a message on the link: ``("MISSION_COUNT", (count,
@@ -79,25 +131,13 @@ class MissionUpload(Handle):
         timeout: float = MISSION_TIMEOUT,
         retries: int = MISSION_RETRIES,
     ) -> None:
-        super().__init__(name, created)
+        super().__init__(name, created, mission_type, send, timeout=timeout, retries=retries)
         self.items = list(items)
-        self.mission_type = mission_type
-        self._send = send
-        self.timeout = timeout
-        self.retries = retries
         self.requested: set[int] = set()  # seqs the vehicle asked for
-        self._last: tuple[str, tuple] | None = None
-        self._last_sent = created
-        self._resent = 0
 
     def start(self, now: float) -> MissionUpload:
         self._put("MISSION_COUNT", (len(self.items), self.mission_type), now)
         return self
-
-    def _put(self, name: str, fields: tuple, now: float) -> None:
-        self._last = (name, fields)
-        self._last_sent = now
-        self._send(name, fields)
 
     def on_request(self, seq: int, mission_type: int, now: float) -> None:
         """MISSION_REQUEST_INT or MISSION_REQUEST addressed to us."""
@@ -106,8 +146,7 @@ class MissionUpload(Handle):
         if not 0 <= seq < len(self.items):
             return  # not an item of this plan: the vehicle will ask again or refuse
         self.requested.add(seq)
-        self._resent = 0  # the vehicle is answering: the retry count starts again
-        self._set(CommandStatus.IN_PROGRESS)
+        self._answered()
         self._put("MISSION_ITEM_INT", (seq, *self.items[seq], self.mission_type), now)
 
     def on_ack(self, result: int, mission_type: int, now: float) -> None:
@@ -121,24 +160,69 @@ class MissionUpload(Handle):
         self._set(CommandStatus.DENIED, f"the autopilot answered MISSION_ACK "
                   f"{mission_result_name(result)}", now)
 
-    def update(self, now: float) -> None:
-        """Re-send what the vehicle has not answered, or give up."""
-        if self.done or now - self._last_sent < self.timeout - 1e-6:  # float tick sums
-            return
-        if self._resent >= self.retries:
-            self._send("MISSION_ACK", (mavlink.MAV_MISSION_OPERATION_CANCELLED,
-                                       self.mission_type))
-            waited = "MISSION_REQUEST" if self._last and self._last[0] == "MISSION_COUNT" \
-                else "MISSION_REQUEST or MISSION_ACK"
-            self._set(CommandStatus.TIMED_OUT, f"no {waited} from the autopilot after "
-                      f"{self.retries + 1} attempts {self.timeout:g} s apart", now)
-            return
-        self._resent += 1
-        assert self._last is not None
-        self._put(*self._last, now)
+    def _awaited(self) -> str:
+        if self._last and self._last[0] == "MISSION_COUNT":
+            return "MISSION_REQUEST"
+        return "MISSION_REQUEST or MISSION_ACK"
 
-    def cancel(self, reason: str, now: float, status: CommandStatus) -> None:
-        self._set(status, reason, now)
+
+class MissionDownload(_MissionExchange):
+    """The download of the vehicle's plan of ``mission_type`` (services/mission.md
+    "Download a Mission from the Vehicle"): MISSION_REQUEST_LIST, the vehicle's
+    MISSION_COUNT, then MISSION_REQUEST_INT for each item in turn, answered by
+    MISSION_ITEM_INT, and our MISSION_ACK ACCEPTED once all came. ``items`` holds them
+    (:data:`ItemFields`) when ACCEPTED.
+
+    ``send(name, fields)``: ``("MISSION_REQUEST_LIST", (mission_type,))``,
+    ``("MISSION_REQUEST_INT", (seq, mission_type))`` or ``("MISSION_ACK", (result,
+    mission_type))``.
+    """
+
+    def __init__(self, name: str, created: float, mission_type: int,
+                 send: Callable[[str, tuple], None], *, timeout: float = MISSION_TIMEOUT,
+                 retries: int = MISSION_RETRIES) -> None:
+        super().__init__(name, created, mission_type, send, timeout=timeout, retries=retries)
+        self.count: int | None = None
+        self.items: list[ItemFields] = []
+
+    def start(self, now: float) -> MissionDownload:
+        self._put("MISSION_REQUEST_LIST", (self.mission_type,), now)
+        return self
+
+    def on_count(self, count: int, mission_type: int, now: float) -> None:
+        """MISSION_COUNT addressed to us."""
+        if self.done or mission_type != self.mission_type or self.count is not None:
+            return
+        self.count = count
+        self._answered()
+        self._next(now)
+
+    def on_item(self, seq: int, fields: ItemFields, mission_type: int, now: float) -> None:
+        """MISSION_ITEM_INT addressed to us; an item out of turn is a repeat and ignored."""
+        if self.done or mission_type != self.mission_type or seq != len(self.items):
+            return
+        self.items.append(fields)
+        self._answered()
+        self._next(now)
+
+    def on_ack(self, result: int, mission_type: int, now: float) -> None:
+        """MISSION_ACK addressed to us: during a download only a refusal (no such plan)."""
+        if self.done or mission_type != self.mission_type or \
+                result == mavlink.MAV_MISSION_ACCEPTED:
+            return
+        self._set(CommandStatus.DENIED, f"the autopilot answered MISSION_ACK "
+                  f"{mission_result_name(result)}", now)
+
+    def _next(self, now: float) -> None:
+        assert self.count is not None
+        if len(self.items) < self.count:
+            self._put("MISSION_REQUEST_INT", (len(self.items), self.mission_type), now)
+            return
+        self._send("MISSION_ACK", (mavlink.MAV_MISSION_ACCEPTED, self.mission_type))
+        self._set(CommandStatus.ACCEPTED, now=now)
+
+    def _awaited(self) -> str:
+        return "MISSION_COUNT" if self.count is None else "MISSION_ITEM_INT"
 
 
 class _ParamExchange(Handle):

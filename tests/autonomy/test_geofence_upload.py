@@ -15,8 +15,9 @@ import autonomy.runner.run as runner
 from autonomy.cli import main
 from autonomy.cli.demo import mission_path
 from autonomy.clock import SimClock
-from autonomy.vehicle import connect
+from autonomy.vehicle import connect, frames
 from behaviors.ports import CommandStatus
+from sitl.copter.mission import MissionItem
 
 DEMO = mission_path("demo.yaml")
 FENCE = mavlink.MAV_MISSION_TYPE_FENCE
@@ -99,41 +100,80 @@ def test_a_flight_leaves_the_autopilot_holding_and_enforcing_the_area(
         assert ap.params.stored("GF_ACTION") != 0, "PX4 enforces a fence plan with an action"
 
 
-@pytest.mark.parametrize("autopilot, action_mode", [("ardupilot", "RTL"),
-                                                    ("px4", "AUTO.LOITER")])
-def test_the_autopilot_answers_a_breach_of_the_uploaded_fence(autopilot, action_mode):
-    # Flown past the edge at a constant velocity (a position target beyond an enabled fence
-    # is refused by ArduPilot): the autopilot's own action takes over (ArduPilot
-    # FENCE_ACTION 1: RTL; PX4 GF_ACTION 2: Hold).
-    clock = SimClock()
-    vehicle = connect(f"sim://{autopilot}", clock)
-    sim = vehicle.sitl
+class Lockstep:
+    """A driver connected to an embedded SITL, stepped together on one simulated clock."""
 
-    def until(condition, timeout: float, what: str):
-        end = clock.now() + timeout
-        while clock.now() < end:
-            sim.step(DT)
-            clock.advance(DT)
-            state = vehicle.poll()
+    def __init__(self, autopilot: str) -> None:
+        self.clock = SimClock()
+        self.vehicle = connect(f"sim://{autopilot}", self.clock)
+        self.sim = self.vehicle.sitl
+
+    def until(self, condition, timeout: float, what: str):
+        end = self.clock.now() + timeout
+        while self.clock.now() < end:
+            self.sim.step(DT)
+            self.clock.advance(DT)
+            state = self.vehicle.poll()
             if condition(state):
                 return state
-        raise AssertionError(f"{what}: not in {timeout} s; {vehicle.state}")
+        raise AssertionError(f"{what}: not in {timeout} s; {self.vehicle.state}")
 
-    try:
-        until(lambda s: s.prearm_ok and s.position_estimate, 60, "ready")
-        upload = vehicle.upload_fence([(-30.0, -30.0), (30.0, -30.0), (30.0, 30.0),
-                                       (-30.0, 30.0)], 40.0)
-        until(lambda s: upload.done, 30, "upload")
+    def upload_and_take_off(self, polygon, max_altitude: float) -> None:
+        self.until(lambda s: s.prearm_ok and s.position_estimate, 60, "ready")
+        upload = self.vehicle.upload_fence(polygon, max_altitude)
+        self.until(lambda s: upload.done, 30, "upload")
         assert upload.status is CommandStatus.ACCEPTED, upload.reason
-        takeoff = vehicle.takeoff(10.0)
-        until(lambda s: s.position is not None and s.position[2] > 9.0, 60, "takeoff")
+        takeoff = self.vehicle.takeoff(10.0)
+        self.until(lambda s: s.position is not None and s.position[2] > 9.0, 60, "takeoff")
         assert takeoff.status is CommandStatus.ACCEPTED
-        vehicle.set_velocity(5.0, 0.0, 0.0)
-        state = until(lambda s: s.mode == action_mode, 60, "the autopilot's fence action")
-        assert 25.0 < state.position[0] < 45.0, "it acted at the edge (x = 30 m)"
-        assert sim.autopilot.fence.breach_count >= 1
+
+
+@pytest.fixture(params=[("ardupilot", "RTL"), ("px4", "AUTO.LOITER")],
+                ids=["ardupilot", "px4"])
+def lockstep(request):
+    """(a Lockstep, the mode its autopilot's breach action puts it in: ArduPilot
+    FENCE_ACTION 1, RTL; PX4 GF_ACTION 2, Hold)."""
+    autopilot, action_mode = request.param
+    rig = Lockstep(autopilot)
+    try:
+        yield rig, action_mode
     finally:
-        vehicle.close()
+        rig.vehicle.close()
+
+
+def test_the_autopilot_answers_a_breach_of_the_uploaded_fence(lockstep):
+    # Flown past the edge at a constant velocity (a position target beyond an enabled fence
+    # is refused by ArduPilot): the autopilot's own action takes over.
+    rig, action_mode = lockstep
+    rig.upload_and_take_off([(-30.0, -30.0), (30.0, -30.0), (30.0, 30.0), (-30.0, 30.0)],
+                            40.0)
+    rig.vehicle.set_velocity(5.0, 0.0, 0.0)
+    state = rig.until(lambda s: s.mode == action_mode, 60, "the autopilot's fence action")
+    assert 25.0 < state.position[0] < 45.0, "it acted at the edge (x = 30 m)"
+    assert rig.sim.autopilot.fence.breach_count >= 1
+
+
+def test_a_no_fly_zone_on_the_vehicle_is_still_enforced_after_the_upload(lockstep):
+    # The operator put a no-fly square 40-60 m east of home on the vehicle. The flight's
+    # operating area (100 m square) covers it; the upload keeps the zone, and the autopilot
+    # acts when the vehicle flies into it.
+    rig, action_mode = lockstep
+    ap = rig.sim.autopilot
+    lat0, lon0 = ap.home_geo[:2]
+    no_fly = [frames.local_to_geodetic(x, y, lat0, lon0, rig.vehicle.autopilot)
+              for x, y in [(40.0, -10.0), (60.0, -10.0), (60.0, 10.0), (40.0, 10.0)]]
+    ap.mission.replace(FENCE, [
+        MissionItem(mavlink.MAV_CMD_NAV_FENCE_POLYGON_VERTEX_EXCLUSION, mavlink.MAV_FRAME_GLOBAL,
+                    param1=4.0, x=lat, y=lon) for lat, lon in no_fly])
+    rig.upload_and_take_off([(-100.0, -100.0), (100.0, -100.0), (100.0, 100.0),
+                             (-100.0, 100.0)], 40.0)
+    assert rig.vehicle.fence_upload.vehicle_fence == "kept the vehicle's 1 exclusion zone"
+    commands = [item.command for item in ap.mission.plans[FENCE]]
+    assert commands == ([mavlink.MAV_CMD_NAV_FENCE_POLYGON_VERTEX_INCLUSION] * 4
+                        + [mavlink.MAV_CMD_NAV_FENCE_POLYGON_VERTEX_EXCLUSION] * 4)
+    rig.vehicle.set_velocity(5.0, 0.0, 0.0)
+    state = rig.until(lambda s: s.mode == action_mode, 60, "the autopilot's fence action")
+    assert 35.0 < state.position[0] < 55.0, "it acted at the no-fly zone (x = 40 m)"
 
 
 def test_a_refused_upload_fails_preflight_with_one_clear_line(tmp_path, sitls, capsys):

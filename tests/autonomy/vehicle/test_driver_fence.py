@@ -1,6 +1,6 @@
-"""The driver's geofence upload against a scripted autopilot: the mission protocol's fence
-plan, the parameters and the enable command, and the clear failures when the vehicle refuses
-or does not answer."""
+"""The driver's geofence upload against a scripted autopilot: the vehicle's own fence plan
+read first (its no-fly zones kept), the mission protocol's fence plan, the parameters and the
+enable command, and the clear failures when the vehicle refuses or does not answer."""
 
 import struct
 
@@ -30,6 +30,22 @@ def _sent(rig, kind):
     return [m for m in rig.peer.received if m.get_type() == kind]
 
 
+def _vehicle_fence(rig, items=()):
+    """Answer the driver's download of the vehicle's fence plan with ``items`` (fields of
+    MISSION_ITEM_INT after seq, before mission_type)."""
+    [ask] = _sent(rig, "MISSION_REQUEST_LIST")
+    assert ask.mission_type == FENCE
+    rig.peer.send(rig.peer.mav.mission_count_encode(255, 190, len(items), FENCE))
+    rig.tick()
+    for seq, item in enumerate(items):
+        request = _sent(rig, "MISSION_REQUEST_INT")[-1]
+        assert (request.seq, request.mission_type) == (seq, FENCE)
+        rig.peer.send(rig.peer.mav.mission_item_int_encode(255, 190, seq, *item, FENCE))
+        rig.tick()
+    [ack] = _sent(rig, "MISSION_ACK")
+    assert (ack.type, ack.mission_type) == (mavlink.MAV_MISSION_ACCEPTED, FENCE)
+
+
 def _request(rig, seq):
     rig.peer.send(rig.peer.mav.mission_request_int_encode(255, 190, seq, FENCE))
     rig.tick()
@@ -39,6 +55,7 @@ def test_the_fence_plan_is_sent_item_by_item_about_the_vehicles_home(rig):
     _connect(rig)
     handle = rig.vehicle.upload_fence(SQUARE, 60.0)
     rig.tick()
+    _vehicle_fence(rig)
     [count] = _sent(rig, "MISSION_COUNT")
     assert (count.count, count.mission_type) == (4, FENCE)
     for seq in range(4):
@@ -82,7 +99,8 @@ def test_the_fence_plan_is_sent_item_by_item_about_the_vehicles_home(rig):
     assert record.action == ("FENCE_ACTION", 0)
     assert record.describe() == (
         "geofence uploaded to the autopilot: inclusion polygon of 4 vertices, ceiling 60 m "
-        "above home; FENCE_TYPE 5, FENCE_ALT_MAX 60, enabled (MAV_CMD_DO_FENCE_ENABLE); "
+        "above home; the vehicle had no fence plan; FENCE_TYPE 5, FENCE_ALT_MAX 60, enabled "
+        "(MAV_CMD_DO_FENCE_ENABLE); "
         "FENCE_ACTION 0 (report only) on a breach: the autopilot will not act; set "
         "FENCE_ACTION on it to have it keep the area")
 
@@ -91,6 +109,7 @@ def test_a_refused_fence_plan_ends_the_upload_with_the_autopilots_answer(rig):
     _connect(rig)
     handle = rig.vehicle.upload_fence(SQUARE, None)
     rig.tick()
+    _vehicle_fence(rig)
     _request(rig, 0)
     rig.peer.send(rig.peer.mav.mission_ack_encode(255, 190, mavlink.MAV_MISSION_NO_SPACE,
                                                   FENCE))
@@ -105,12 +124,15 @@ def test_a_refused_fence_plan_ends_the_upload_with_the_autopilots_answer(rig):
 def test_an_unanswered_upload_is_retried_then_cancelled(rig):
     _connect(rig)
     handle = rig.vehicle.upload_fence(SQUARE, None)
+    rig.tick()
+    _vehicle_fence(rig)
     rig.run(8.9, heartbeat=BEAT)
     assert handle.status is CommandStatus.PENDING
     rig.run(0.2, heartbeat=BEAT)
     assert handle.status is CommandStatus.TIMED_OUT
     assert len(_sent(rig, "MISSION_COUNT")) == 6, "the first and 5 retries, 1.5 s apart"
-    [cancel] = _sent(rig, "MISSION_ACK")
+    downloaded, cancel = _sent(rig, "MISSION_ACK")
+    assert downloaded.type == mavlink.MAV_MISSION_ACCEPTED
     assert (cancel.type, cancel.mission_type) == (
         mavlink.MAV_MISSION_OPERATION_CANCELLED, FENCE)
     assert "no MISSION_REQUEST from the autopilot" in handle.reason
@@ -120,6 +142,7 @@ def test_a_parameter_the_autopilot_keeps_fails_the_upload(rig):
     _connect(rig)
     handle = rig.vehicle.upload_fence(SQUARE, 60.0)
     rig.tick()
+    _vehicle_fence(rig)
     for seq in range(4):
         _request(rig, seq)
     rig.peer.send(rig.peer.mav.mission_ack_encode(255, 190, mavlink.MAV_MISSION_ACCEPTED,
@@ -150,6 +173,7 @@ def test_px4_gets_the_plan_and_ceiling_only_and_its_integer_action_is_read_bytew
     rig.tick()
     handle = rig.vehicle.upload_fence(SQUARE, 45.0)
     rig.tick()
+    _vehicle_fence(rig)
     for seq in range(4):
         _request(rig, seq)
     item = _sent(rig, "MISSION_ITEM_INT")[1]
@@ -172,3 +196,67 @@ def test_px4_gets_the_plan_and_ceiling_only_and_its_integer_action_is_read_bytew
     assert not rig.peer.commands(mavlink.MAV_CMD_DO_FENCE_ENABLE), "PX4 needs no enabling"
     assert rig.vehicle.fence_upload.action == ("GF_ACTION", 3)
     assert rig.vehicle.fence_upload.describe().endswith("GF_ACTION 3 (Return) on a breach")
+
+
+def _global(command, lat, lon, param1=0.0):
+    return (mavlink.MAV_FRAME_GLOBAL, command, 0, 1, param1, 0.0, 0.0, 0.0,
+            round(lat * 1e7), round(lon * 1e7), 0.0)
+
+
+def test_the_vehicles_no_fly_zones_and_return_point_are_uploaded_again(rig):
+    # A vehicle whose operator put an inclusion zone, a no-fly triangle, a no-fly circle and
+    # a return point on it: the flight's upload replaces the whole plan, so it must carry the
+    # no-fly zones and the return point along; the operating area replaces the inclusion.
+    inclusion = mavlink.MAV_CMD_NAV_FENCE_POLYGON_VERTEX_INCLUSION
+    exclusion = mavlink.MAV_CMD_NAV_FENCE_POLYGON_VERTEX_EXCLUSION
+    vehicle_plan = [
+        *(_global(inclusion, HOME[0] + d, HOME[1] + e, 3.0)
+          for d, e in [(-0.01, -0.01), (0.01, -0.01), (0.0, 0.01)]),
+        *(_global(exclusion, HOME[0] + 0.002 + d, HOME[1] + e, 3.0)
+          for d, e in [(0.0, 0.0), (0.001, 0.0), (0.0, 0.001)]),
+        (mavlink.MAV_FRAME_GLOBAL, mavlink.MAV_CMD_NAV_FENCE_CIRCLE_EXCLUSION, 0, 1, 25.0,
+         0.0, 0.0, 0.0, round((HOME[0] - 0.003) * 1e7), round(HOME[1] * 1e7), 0.0),
+        _global(mavlink.MAV_CMD_NAV_FENCE_RETURN_POINT, HOME[0] + 0.0001, HOME[1]),
+    ]
+    _connect(rig)
+    handle = rig.vehicle.upload_fence(SQUARE, None)
+    rig.tick()
+    _vehicle_fence(rig, vehicle_plan)
+    [count] = _sent(rig, "MISSION_COUNT")
+    assert count.count == 4 + 5, "the area's 4 vertices, then the 5 items kept"
+    for seq in range(9):
+        _request(rig, seq)
+    items = _sent(rig, "MISSION_ITEM_INT")
+    assert [i.command for i in items[:4]] == [inclusion] * 4
+    kept = [(i.frame, i.command, i.current, i.autocontinue, i.param1, i.param2, i.param3,
+             i.param4, i.x, i.y, i.z) for i in items[4:]]
+    assert kept == vehicle_plan[3:], "the vehicle's own items, unchanged and in order"
+    rig.peer.send(rig.peer.mav.mission_ack_encode(255, 190, mavlink.MAV_MISSION_ACCEPTED,
+                                                  FENCE))
+    rig.tick()
+    assert rig.vehicle.fence_upload.vehicle_fence == (
+        "kept the vehicle's 2 exclusion zones; kept its fence return point; replaced its 1 "
+        "inclusion zone by the operating area")
+    assert handle.status is CommandStatus.IN_PROGRESS  # on to FENCE_TYPE and the enable
+
+
+@pytest.mark.parametrize("answer", ["refused", "silent"])
+def test_without_the_vehicles_fence_plan_nothing_is_uploaded(rig, answer):
+    # Uploading without having read the vehicle's plan could lift its no-fly zones.
+    _connect(rig)
+    handle = rig.vehicle.upload_fence(SQUARE, None)
+    if answer == "refused":
+        rig.tick()
+        rig.peer.send(rig.peer.mav.mission_ack_encode(
+            255, 190, mavlink.MAV_MISSION_UNSUPPORTED, FENCE))
+        rig.tick()
+        reason = ("the vehicle's fence plan: the autopilot answered MISSION_ACK "
+                  "MAV_MISSION_UNSUPPORTED")
+    else:
+        rig.run(9.1, heartbeat=BEAT)
+        reason = ("the vehicle's fence plan: no MISSION_COUNT from the autopilot after 6 "
+                  "attempts 1.5 s apart")
+    assert handle.status is (CommandStatus.DENIED if answer == "refused"
+                             else CommandStatus.TIMED_OUT)
+    assert handle.reason == reason
+    assert not _sent(rig, "MISSION_COUNT") and not _sent(rig, "PARAM_SET")
