@@ -294,6 +294,11 @@ class GeofenceConfig(BaseModel):
         "autopilot as its own geofence and enable it, so the autopilot enforces the area "
         "too; a refusal fails preflight. false: only this software keeps to the area"
     )
+    restore: bool = Field(
+        True, description="after the flight, once the vehicle is down and disarmed, put "
+        "back the fence plan and parameters the upload changed on the autopilot. false: the "
+        "mission's fence stays in force on the vehicle"
+    )
 
 
 class PerceptionConfig(BaseModel):

@@ -47,8 +47,10 @@ def describe_geofence(mission: Mission) -> str:
     assert fence is not None
     ceiling = (f", ceiling {fence.max_altitude:g} m above home" if fence.max_altitude
                is not None else ", no ceiling")
-    who = ("uploaded to the autopilot before takeoff, which enforces it too" if fence.upload
-           else "kept by this software only (geofence.upload: false)")
+    after = ("; the vehicle's own fence put back after landing" if fence.restore else
+             "; left on the vehicle after landing (geofence.restore: false)")
+    who = ("uploaded to the autopilot before takeoff, which enforces it too" + after
+           if fence.upload else "kept by this software only (geofence.upload: false)")
     return (f"geofence: {len(fence.polygon)} vertices, margin {fence.margin:g} m{ceiling}; "
             f"{who}")
 

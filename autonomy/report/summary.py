@@ -197,6 +197,8 @@ def format_summary(summary: dict[str, Any]) -> str:
         lines.append(move["text"])
     if summary.get("geofence_upload"):
         lines.append(summary["geofence_upload"]["text"])
+        if summary["geofence_upload"].get("restored"):
+            lines.append(summary["geofence_upload"]["restored"])
     energy = summary["energy"]
     lines.append(
         f"mission time {num(summary['mission_time'], '.1f', ' s')}, time to land "

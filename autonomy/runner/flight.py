@@ -21,7 +21,7 @@ from autonomy.report.data import FlightTrace
 from autonomy.report.events import EventLog, TreeStatusRecorder
 from autonomy.runner.link import Link, LinkWatch
 from behaviors import blackboard as bb
-from behaviors.ports import LandedState
+from behaviors.ports import CommandStatus, LandedState
 from lsm import LandingSiteManager
 
 Status = py_trees.common.Status
@@ -296,6 +296,35 @@ class Flight:
     def _touch(self, now: float, xyz: tuple[float, float, float], speed: float | None) -> None:
         self.touchdown, self.touchdown_time, self.touchdown_speed = xyz, now, speed
         self.log.add("flight", event="touchdown", position=xyz, speed=speed)
+
+
+def restore_fence(flight: Flight, advance: Callable[[], None], budget: float = 60.0) -> None:
+    """After the flight: put back the vehicle's own geofence (``Driver.restore_fence``) if
+    the flight uploaded one, once the vehicle is disarmed; follow it at most ``budget`` clock
+    seconds. Recorded as an event ``geofence_restored`` (or ``geofence_not_restored``), a
+    console line and ``restored`` in the upload's record."""
+    vehicle = flight.vehicle
+    fence = getattr(vehicle, "fence_upload", None)
+    if fence is None or not fence.uploaded or flight.link_gave_up is not None:
+        return
+    if vehicle.state.armed:
+        text = ("geofence not restored on the autopilot: the vehicle is still armed; the "
+                "mission's stays in force")
+    else:
+        handle = vehicle.restore_fence()
+        end = flight.now() + budget
+        while not handle.status.done and flight.now() < end:
+            advance()
+            if flight.follow() is Link.GAVE_UP:
+                break
+        text = fence.describe_restore()
+    restored = fence.restore is not None and fence.restore.status is CommandStatus.ACCEPTED
+    if flight.fence_noted is not None:
+        flight.fence_noted["restored"] = text
+    flight.log.add("flight", event="geofence_restored" if restored else "geofence_not_restored",
+                   text=text)
+    if flight.console is not None:
+        flight.console.note(flight.now(), text)
 
 
 def bring_down(flight: Flight, reason: str, action: str, advance: Callable[[], None],

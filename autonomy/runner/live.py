@@ -21,7 +21,7 @@ from pydantic import ValidationError
 
 from autonomy.clock import VehicleClock
 from autonomy.config import Mission
-from autonomy.runner.flight import Flight, bring_down
+from autonomy.runner.flight import Flight, bring_down, restore_fence
 from autonomy.runner.home import HomeMismatch, choose_home
 from autonomy.runner.interrupt import ctrl_c_flag
 from autonomy.runner.link import Link
@@ -75,25 +75,35 @@ def run_live(
                 raise HomeMismatch(f"about the vehicle's home {choice.lat_lon[0]:.6f}, "
                                    f"{choice.lat_lon[1]:.6f}: {reason}") from None
             flight.attach_tree(build_tree(plan))
-            start = clock.now()
-            next_tick = start
-            while not interrupted.is_set():
-                flight.tick()
-                if flight.link_gave_up is not None:
-                    return f"link lost: {flight.link_gave_up}"
-                if flight.status == Status.SUCCESS:
-                    return "landed"
-                if flight.status == Status.FAILURE:
-                    return bring_down(flight, "mission failed", "land", pause)
-                if clock.now() - start >= mission.time_limit:
-                    return bring_down(flight, "time limit", "land", pause)
-                next_tick = max(next_tick + period, clock.now() - period)  # no burst after a lag
-                time.sleep(min(clock.wall_seconds(next_tick - clock.now()), _MAX_SLEEP))
-            print(f"interrupted: {'landing' if on_interrupt == 'land' else 'holding'} "
-                  "(Ctrl-C again to leave at once)", flush=True)
-            return bring_down(flight, "interrupted", on_interrupt, pause)
+            reason = _fly(flight, mission, clock, pause, interrupted, on_interrupt)
+            if mission.geofence is not None and mission.geofence.restore:
+                restore_fence(flight, pause)
+            return reason
         except KeyboardInterrupt:
             return "interrupted twice"
+
+
+def _fly(flight: Flight, mission: Mission, clock: VehicleClock, pause: Callable[[], None],
+         interrupted: threading.Event, on_interrupt: str) -> str:
+    """Tick the tree at the mission's rate until the flight ends; returns the stop reason."""
+    period = 1.0 / mission.tick_rate
+    start = clock.now()
+    next_tick = start
+    while not interrupted.is_set():
+        flight.tick()
+        if flight.link_gave_up is not None:
+            return f"link lost: {flight.link_gave_up}"
+        if flight.status == Status.SUCCESS:
+            return "landed"
+        if flight.status == Status.FAILURE:
+            return bring_down(flight, "mission failed", "land", pause)
+        if clock.now() - start >= mission.time_limit:
+            return bring_down(flight, "time limit", "land", pause)
+        next_tick = max(next_tick + period, clock.now() - period)  # no burst after a lag
+        time.sleep(min(clock.wall_seconds(next_tick - clock.now()), _MAX_SLEEP))
+    print(f"interrupted: {'landing' if on_interrupt == 'land' else 'holding'} "
+          "(Ctrl-C again to leave at once)", flush=True)
+    return bring_down(flight, "interrupted", on_interrupt, pause)
 
 
 def _await_vehicle(flight: Flight, mission: Mission, pause: Callable[[], None],

@@ -31,7 +31,7 @@ from autonomy.report import (
     write_report_png,
     write_summary,
 )
-from autonomy.runner.flight import Flight, PhaseConsole, bring_down
+from autonomy.runner.flight import Flight, PhaseConsole, bring_down, restore_fence
 from autonomy.runner.home import HomeMismatch
 from autonomy.runner.interrupt import ctrl_c_flag
 from autonomy.runner.progress import FlightProgress
@@ -307,21 +307,27 @@ def _run_lockstep(flight: Flight, sitl: Any, clock: SimClock, mission: Mission,
             tip = flight.tree.tip() if flight.tree is not None else None
             meter.show(clock.now(), flight.phase, None if tip is None else tip.name)
 
+    def fly() -> str:
+        for _ in range(math.ceil(mission.time_limit * mission.tick_rate)):
+            advance()
+            flight.tick()
+            if flight.crashed()[0]:
+                return "crashed"
+            if flight.link_gave_up is not None:
+                return f"link lost: {flight.link_gave_up}"
+            status = flight.status
+            if status == Status.SUCCESS:
+                return "landed"
+            if status == Status.FAILURE:
+                return bring_down(flight, "mission failed", "land", advance)
+        return bring_down(flight, "time limit", "land", advance)
+
     with ctrl_c_flag() as interrupted:
         try:
-            for _ in range(math.ceil(mission.time_limit * mission.tick_rate)):
-                advance()
-                flight.tick()
-                if flight.crashed()[0]:
-                    return "crashed"
-                if flight.link_gave_up is not None:
-                    return f"link lost: {flight.link_gave_up}"
-                status = flight.status
-                if status == Status.SUCCESS:
-                    return "landed"
-                if status == Status.FAILURE:
-                    return bring_down(flight, "mission failed", "land", advance)
-            return bring_down(flight, "time limit", "land", advance)
+            reason = fly()
+            if mission.geofence is not None and mission.geofence.restore:
+                restore_fence(flight, advance)
+            return reason
         except (_Interrupted, KeyboardInterrupt):
             flight.note(f"interrupted (Ctrl-C) at {clock.now():.1f} s simulated; the "
                         "simulation stops here")

@@ -509,6 +509,23 @@ class MavlinkVehicle:
         self.fence_upload = record
         return record.handle
 
+    def restore_fence(self) -> Handle:
+        """Put back what :meth:`upload_fence` changed on the vehicle: its own fence plan
+        (as downloaded before the upload), the parameters set (to the values read before),
+        and on ArduPilot its fences on or off as FENCE_ENABLE says. ACCEPTED once all is
+        back; DENIED at once when no upload was accepted."""
+        name = "restore the vehicle's geofence"
+        record = self.fence_upload
+        if record is None or not record.uploaded:
+            return finished_handle(name, self.clock.now(), CommandStatus.DENIED,
+                                   "no geofence was uploaded")
+        refused = self._start(name)
+        if refused:
+            record.restore = refused
+            return refused
+        record.restore = self._procedure(name, self._restore_steps(record))
+        return record.restore
+
     def close(self) -> None:
         """Close the link, the telemetry log and an owned simulator; commands still pending
         end as TIMED_OUT."""
@@ -1045,6 +1062,7 @@ class MavlinkVehicle:
                                    mavlink.MAV_MISSION_TYPE_FENCE, self._send_transfer).start(now)
         self._transfers.append(download)
         yield download
+        record.vehicle_items = download.items
         kept, record.vehicle_fence = kept_from_vehicle(download.items)
         now = self.clock.now()
         upload = MissionUpload("fence plan", now, items + kept, mavlink.MAV_MISSION_TYPE_FENCE,
@@ -1052,18 +1070,24 @@ class MavlinkVehicle:
         self._transfers.append(upload)
         yield upload
         real32 = mavlink.MAV_PARAM_TYPE_REAL32
+        int8 = mavlink.MAV_PARAM_TYPE_INT8
         if self._autopilot == modes.PX4:
             # Only a REAL32 is set on PX4 (its integers travel byte-wise, param_value).
             if max_altitude is not None:
-                yield self._set_param("GF_MAX_VER_DIST", max_altitude, real32)
+                yield from self._change_param(record, "GF_MAX_VER_DIST", max_altitude, real32)
             done = ["fence plan in force" + (
                 f", GF_MAX_VER_DIST {max_altitude:g}" if max_altitude is not None else "")]
         else:
             if max_altitude is not None:
-                yield self._set_param("FENCE_ALT_MAX", max_altitude, real32)
+                yield from self._change_param(record, "FENCE_ALT_MAX", max_altitude, real32)
             # ArduPilot reads integer parameters from PARAM_SET's float (C cast), unlike PX4.
             fence_type = ardupilot_fence_type(max_altitude)
-            yield self._set_param("FENCE_TYPE", fence_type, mavlink.MAV_PARAM_TYPE_INT8)
+            yield from self._change_param(record, "FENCE_TYPE", fence_type, int8)
+            # Whether its fences are on when not enabled by command (restored after the flight).
+            enabled = self._read_param("FENCE_ENABLE")
+            yield enabled
+            assert enabled.value is not None
+            record.enable_before = int(enabled.value)
             yield self._submit(CommandStep("fence enable", self.clock.now(),
                                            mavlink.MAV_CMD_DO_FENCE_ENABLE, (1.0,)))
             done = [f"FENCE_TYPE {fence_type}" + (
@@ -1076,6 +1100,28 @@ class MavlinkVehicle:
         record.action = (action.param, int(action.value))
         done.append(describe_action(self._autopilot, int(action.value)))
         record.enabled = "; ".join(done)
+
+    def _change_param(self, record: FenceUpload, param: str, value: float,
+                      param_type: int) -> StepGenerator:
+        """Set ``param``, having read the value it had (kept in ``record.before``)."""
+        read = self._read_param(param)
+        yield read
+        assert read.value is not None
+        record.before[param] = (read.value, param_type)
+        yield self._set_param(param, value, param_type)
+
+    def _restore_steps(self, record: FenceUpload) -> StepGenerator:
+        now = self.clock.now()
+        upload = MissionUpload("fence plan", now, record.vehicle_items,
+                               mavlink.MAV_MISSION_TYPE_FENCE, self._send_transfer).start(now)
+        self._transfers.append(upload)
+        yield upload
+        for param, (value, param_type) in record.before.items():
+            yield self._set_param(param, value, param_type)
+        if record.enable_before is not None:  # ArduPilot: its fences on or off, as before
+            yield self._submit(CommandStep("fence enable", self.clock.now(),
+                                           mavlink.MAV_CMD_DO_FENCE_ENABLE,
+                                           (float(record.enable_before),)))
 
     # ------------------------------------------------------------------ command building
     def _start(self, name: str) -> Handle | None:

@@ -149,6 +149,13 @@ class FenceUpload:
     enabled: str = ""  # how it was enabled, e.g. "FENCE_TYPE 5, MAV_CMD_DO_FENCE_ENABLE"
     action: tuple[str, int] | None = None  # the breach action parameter and its value
     vehicle_fence: str = ""  # what of the vehicle's own fence plan was kept or replaced
+    # What the upload changed, to restore after the flight (Driver.restore_fence): the
+    # vehicle's fence plan as downloaded, each parameter's value and type before it was set,
+    # ArduPilot's FENCE_ENABLE; ``restore`` follows the restore once started.
+    vehicle_items: list[ItemFields] = field(default_factory=list)
+    before: dict[str, tuple[float, int]] = field(default_factory=dict)
+    enable_before: int | None = None
+    restore: Handle | None = None
 
     @property
     def uploaded(self) -> bool:
@@ -162,6 +169,21 @@ class FenceUpload:
                     f"{self.vertices} vertices{ceiling}; {self.vehicle_fence}; "
                     f"{self.enabled}")
         return f"geofence upload failed ({self.handle.status.value}): {self.handle.reason}"
+
+    def describe_restore(self) -> str:
+        """One line on how the vehicle's own geofence was put back (after the flight)."""
+        if self.restore is None:
+            return "geofence not restored on the autopilot: the mission's stays in force"
+        if self.restore.status is not CommandStatus.ACCEPTED:
+            return (f"geofence not restored on the autopilot ({self.restore.status.value}): "
+                    f"{self.restore.reason}; the mission's may still be in force")
+        params = ", ".join(f"{name} {value:g}" for name, (value, _) in self.before.items())
+        zones = _zones(self.vehicle_items)
+        text = (f"the vehicle's geofence restored on the autopilot: its fence plan "
+                f"({_count(zones, 'zone')})" + (f", {params}" if params else ""))
+        if self.enable_before is not None:
+            text += f", fences {'enabled' if self.enable_before else 'disabled'} as FENCE_ENABLE"
+        return text
 
     def as_dict(self) -> dict[str, Any]:
         return {"status": self.handle.status.value, "reason": self.handle.reason,

@@ -141,11 +141,14 @@ def test_lat_lon_vertices_are_converted_about_home(tmp_path, capsys):
 
 
 
-@pytest.mark.parametrize(("upload", "who"), [
-    (True, "uploaded to the autopilot before takeoff, which enforces it too"),
-    (False, "kept by this software only (geofence.upload: false)")])
-def test_lander_validate_says_what_keeps_the_area(tmp_path, capsys, upload, who):
-    path = _demo_with(tmp_path, geofence={**DEMO_FENCE, "upload": upload})
+@pytest.mark.parametrize(("upload", "restore", "who"), [
+    (True, True, "uploaded to the autopilot before takeoff, which enforces it too; the "
+     "vehicle's own fence put back after landing"),
+    (True, False, "uploaded to the autopilot before takeoff, which enforces it too; left on "
+     "the vehicle after landing (geofence.restore: false)"),
+    (False, True, "kept by this software only (geofence.upload: false)")])
+def test_lander_validate_says_what_keeps_the_area(tmp_path, capsys, upload, restore, who):
+    path = _demo_with(tmp_path, geofence={**DEMO_FENCE, "upload": upload, "restore": restore})
     assert main(["validate", path]) == 0
     out = capsys.readouterr().out.splitlines()
     assert out[-1] == f"geofence: 4 vertices, margin 2 m, ceiling 122 m above home; {who}"

@@ -65,8 +65,9 @@ def _events(out, event: str) -> list[dict]:
 @pytest.mark.parametrize("autopilot", ["ardupilot", "px4"])
 def test_a_flight_leaves_the_autopilot_holding_and_enforcing_the_area(
         autopilot, tmp_path, sitls, capsys):
+    # restore: false keeps the mission's fence on the vehicle after the flight, to look at.
     out = tmp_path / "out"
-    assert _fly(_mission(tmp_path, autopilot, GEOFENCE), out) == 0
+    assert _fly(_mission(tmp_path, autopilot, {**GEOFENCE, "restore": False}), out) == 0
     console = capsys.readouterr().out
     action = {"ardupilot": "FENCE_ACTION 1 (RTL or land)", "px4": "GF_ACTION 2 (Hold)"}
     assert ("geofence uploaded to the autopilot: inclusion polygon of 4 vertices, ceiling "
@@ -98,6 +99,47 @@ def test_a_flight_leaves_the_autopilot_holding_and_enforcing_the_area(
     else:
         assert ap.params.stored("GF_MAX_VER_DIST") == 60.0
         assert ap.params.stored("GF_ACTION") != 0, "PX4 enforces a fence plan with an action"
+
+
+@pytest.mark.parametrize("autopilot", ["ardupilot", "px4"])
+def test_after_the_flight_the_vehicles_own_fence_is_put_back(autopilot, tmp_path, monkeypatch,
+                                                             capsys):
+    # The vehicle holds a no-fly circle of its operator's; the flight uploads the area (with
+    # the circle kept), lands, and then puts back the circle alone, the parameters it changed
+    # and (ArduPilot) the fences off as FENCE_ENABLE 0 says.
+    built = []
+    build = runner.build_sitl
+
+    def with_operators_fence(*args, **kwargs):
+        sim = build(*args, **kwargs)
+        lat, lon = sim.autopilot.home_geo[:2]
+        sim.autopilot.mission.replace(FENCE, [MissionItem(
+            mavlink.MAV_CMD_NAV_FENCE_CIRCLE_EXCLUSION, mavlink.MAV_FRAME_GLOBAL, param1=15.0,
+            x=lat - 0.002, y=lon)])
+        built.append(sim)
+        return sim
+
+    monkeypatch.setattr(runner, "build_sitl", with_operators_fence)
+    out = tmp_path / "out"
+    assert _fly(_mission(tmp_path, autopilot, GEOFENCE), out) == 0
+    console = capsys.readouterr().out
+    ceiling = {"ardupilot": "FENCE_ALT_MAX 100, FENCE_TYPE 7, fences disabled as FENCE_ENABLE",
+               "px4": "GF_MAX_VER_DIST 0"}[autopilot]
+    line = ("the vehicle's geofence restored on the autopilot: its fence plan (1 zone), "
+            f"{ceiling}")
+    assert line in console
+    assert _events(out, "geofence_restored")[0]["text"] == line
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["geofence_upload"]["restored"] == line
+    assert "kept the vehicle's 1 exclusion zone" in summary["geofence_upload"]["text"]
+    ap = built[0].autopilot
+    assert [item.command for item in ap.mission.plans[FENCE]] == [
+        mavlink.MAV_CMD_NAV_FENCE_CIRCLE_EXCLUSION]
+    if autopilot == "ardupilot":
+        assert (ap.params.stored("FENCE_ALT_MAX"), ap.params.stored("FENCE_TYPE")) == (100, 7)
+        assert not ap.fence.enabled()
+    else:
+        assert ap.params.stored("GF_MAX_VER_DIST") == 0
 
 
 class Lockstep:

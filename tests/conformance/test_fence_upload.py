@@ -57,8 +57,9 @@ def test_the_fence_a_flight_uploaded_is_the_vehicles(autopilot, start_vehicle, t
     data = yaml.safe_load(mission_path("demo.yaml").read_text())
     data["vehicle"]["connection"] = url
     data["home"] = {"lat": HOME[0], "lon": HOME[1], "alt": HOME[2]}
+    # restore: false leaves the uploaded fence on the vehicle after landing, to download.
     data["geofence"] = {"polygon": [{"lat": lat, "lon": lon} for lat, lon in corners],
-                        "max_altitude": CEILING}
+                        "max_altitude": CEILING, "restore": False}
     data.setdefault("landing", {})["failsafe_altitude"] = 50.0
     path = tmp_path / "fenced.yaml"
     path.write_text(yaml.safe_dump(data, sort_keys=False))

@@ -14,6 +14,7 @@ FENCE = mavlink.MAV_MISSION_TYPE_FENCE
 HOME = (47.397742, 8.545594, 488.0)
 SQUARE = [(-50.0, -50.0), (50.0, -50.0), (50.0, 50.0), (-50.0, 50.0)]
 BEAT = {"custom_mode": 0}  # ArduPilot, STABILIZE
+REAL32, INT8 = mavlink.MAV_PARAM_TYPE_REAL32, mavlink.MAV_PARAM_TYPE_INT8
 
 
 def _connect(rig):
@@ -46,6 +47,11 @@ def _vehicle_fence(rig, items=()):
     assert (ack.type, ack.mission_type) == (mavlink.MAV_MISSION_ACCEPTED, FENCE)
 
 
+def _param(rig, name, value, kind):
+    rig.peer.send(rig.peer.mav.param_value_encode(name.encode(), value, kind, 40, 3))
+    rig.tick()
+
+
 def _request(rig, seq):
     rig.peer.send(rig.peer.mav.mission_request_int_encode(255, 190, seq, FENCE))
     rig.tick()
@@ -72,26 +78,24 @@ def test_the_fence_plan_is_sent_item_by_item_about_the_vehicles_home(rig):
     rig.peer.send(rig.peer.mav.mission_ack_encode(255, 190, mavlink.MAV_MISSION_ACCEPTED,
                                                   FENCE))
     rig.tick()
-    sets = _sent(rig, "PARAM_SET")
-    assert [s.param_id for s in sets] == ["FENCE_ALT_MAX"]
-    rig.peer.send(rig.peer.mav.param_value_encode(b"FENCE_ALT_MAX", 60.0,
-                                                  mavlink.MAV_PARAM_TYPE_REAL32, 40, 3))
-    rig.tick()
-    fence_type = _sent(rig, "PARAM_SET")[-1]
-    assert (fence_type.param_id, fence_type.param_value) == ("FENCE_TYPE", 5.0)
-    rig.peer.send(rig.peer.mav.param_value_encode(b"FENCE_TYPE", 5.0,
-                                                  mavlink.MAV_PARAM_TYPE_INT8, 40, 4))
-    rig.tick()
+    # Each parameter is read before it is set (its value is put back after the flight).
+    for name, before, after, kind in [("FENCE_ALT_MAX", 100.0, 60.0, REAL32),
+                                      ("FENCE_TYPE", 7.0, 5.0, INT8)]:
+        assert _sent(rig, "PARAM_REQUEST_READ")[-1].param_id == name
+        _param(rig, name, before, kind)
+        last = _sent(rig, "PARAM_SET")[-1]
+        assert (last.param_id, last.param_value) == (name, after)
+        _param(rig, name, after, kind)
+    assert _sent(rig, "PARAM_REQUEST_READ")[-1].param_id == "FENCE_ENABLE"
+    _param(rig, "FENCE_ENABLE", 0.0, INT8)
     [enable] = rig.peer.commands(mavlink.MAV_CMD_DO_FENCE_ENABLE)
     assert enable.param1 == 1
     rig.peer.ack(mavlink.MAV_CMD_DO_FENCE_ENABLE)
     rig.tick()
     # The breach action stays the autopilot's: read and reported, not set.
-    [read] = _sent(rig, "PARAM_REQUEST_READ")
+    read = _sent(rig, "PARAM_REQUEST_READ")[-1]
     assert (read.param_id, read.param_index) == ("FENCE_ACTION", -1)
-    rig.peer.send(rig.peer.mav.param_value_encode(b"FENCE_ACTION", 0.0,
-                                                  mavlink.MAV_PARAM_TYPE_INT8, 40, 5))
-    rig.tick()
+    _param(rig, "FENCE_ACTION", 0.0, INT8)
     assert handle.status is CommandStatus.ACCEPTED
     assert len(_sent(rig, "PARAM_SET")) == 2
     record = rig.vehicle.fence_upload
@@ -148,6 +152,7 @@ def test_a_parameter_the_autopilot_keeps_fails_the_upload(rig):
     rig.peer.send(rig.peer.mav.mission_ack_encode(255, 190, mavlink.MAV_MISSION_ACCEPTED,
                                                   FENCE))
     rig.tick()
+    _param(rig, "FENCE_ALT_MAX", 100.0, REAL32)  # the read before the set
     for _ in range(4):  # each PARAM_SET answered with the old value
         rig.peer.send(rig.peer.mav.param_value_encode(b"FENCE_ALT_MAX", 100.0,
                                                       mavlink.MAV_PARAM_TYPE_REAL32, 40, 3))
@@ -181,12 +186,12 @@ def test_px4_gets_the_plan_and_ceiling_only_and_its_integer_action_is_read_bytew
     assert (east, north) == pytest.approx(SQUARE[1], abs=0.02), "PX4's own projection"
     peer.send(peer.mav.mission_ack_encode(255, 190, mavlink.MAV_MISSION_ACCEPTED, FENCE))
     rig.tick()
+    assert _sent(rig, "PARAM_REQUEST_READ")[-1].param_id == "GF_MAX_VER_DIST"
+    _param(rig, "GF_MAX_VER_DIST", 0.0, REAL32)
     [ceiling] = _sent(rig, "PARAM_SET")
     assert (ceiling.param_id, ceiling.param_value) == ("GF_MAX_VER_DIST", 45.0)
-    peer.send(peer.mav.param_value_encode(b"GF_MAX_VER_DIST", 45.0,
-                                          mavlink.MAV_PARAM_TYPE_REAL32, 900, 1))
-    rig.tick()
-    [read] = _sent(rig, "PARAM_REQUEST_READ")
+    _param(rig, "GF_MAX_VER_DIST", 45.0, REAL32)
+    read = _sent(rig, "PARAM_REQUEST_READ")[-1]
     assert read.param_id == "GF_ACTION"
     return_mode = struct.unpack("<f", struct.pack("<i", 3))[0]  # PX4: the int's bytes
     peer.send(peer.mav.param_value_encode(b"GF_ACTION", return_mode,
@@ -260,3 +265,62 @@ def test_without_the_vehicles_fence_plan_nothing_is_uploaded(rig, answer):
                              else CommandStatus.TIMED_OUT)
     assert handle.reason == reason
     assert not _sent(rig, "MISSION_COUNT") and not _sent(rig, "PARAM_SET")
+
+
+def test_restoring_puts_back_the_vehicles_plan_parameters_and_enable(rig):
+    # After an upload over a vehicle holding a no-fly circle, FENCE_ALT_MAX 100, FENCE_TYPE 7
+    # and FENCE_ENABLE 0, the restore uploads that plan again, sets both parameters back and
+    # disables the fences, as they were.
+    circle = (mavlink.MAV_FRAME_GLOBAL, mavlink.MAV_CMD_NAV_FENCE_CIRCLE_EXCLUSION, 0, 1, 25.0,
+              0.0, 0.0, 0.0, round(HOME[0] * 1e7) + 3000, round(HOME[1] * 1e7), 0.0)
+    _connect(rig)
+    rig.vehicle.upload_fence(SQUARE, 60.0)
+    rig.tick()
+    _vehicle_fence(rig, [circle])
+    for seq in range(5):
+        _request(rig, seq)
+    rig.peer.send(rig.peer.mav.mission_ack_encode(255, 190, mavlink.MAV_MISSION_ACCEPTED,
+                                                  FENCE))
+    rig.tick()
+    for name, before, after, kind in [("FENCE_ALT_MAX", 100.0, 60.0, REAL32),
+                                      ("FENCE_TYPE", 7.0, 5.0, INT8)]:
+        _param(rig, name, before, kind)
+        _param(rig, name, after, kind)
+    _param(rig, "FENCE_ENABLE", 0.0, INT8)
+    rig.peer.ack(mavlink.MAV_CMD_DO_FENCE_ENABLE)
+    rig.tick()
+    _param(rig, "FENCE_ACTION", 1.0, INT8)
+    record = rig.vehicle.fence_upload
+    assert record.uploaded
+    rig.peer.drain()
+    rig.peer.received.clear()
+
+    handle = rig.vehicle.restore_fence()
+    rig.tick()
+    [count] = _sent(rig, "MISSION_COUNT")
+    assert (count.count, count.mission_type) == (1, FENCE), "the vehicle's own plan"
+    _request(rig, 0)
+    [item] = _sent(rig, "MISSION_ITEM_INT")
+    assert (item.frame, item.command, item.current, item.autocontinue, item.param1,
+            item.param2, item.param3, item.param4, item.x, item.y, item.z) == circle
+    rig.peer.send(rig.peer.mav.mission_ack_encode(255, 190, mavlink.MAV_MISSION_ACCEPTED,
+                                                  FENCE))
+    rig.tick()
+    for name, before, kind in [("FENCE_ALT_MAX", 100.0, REAL32), ("FENCE_TYPE", 7.0, INT8)]:
+        last = _sent(rig, "PARAM_SET")[-1]
+        assert (last.param_id, last.param_value) == (name, before)
+        _param(rig, name, before, kind)
+    [disable] = rig.peer.commands(mavlink.MAV_CMD_DO_FENCE_ENABLE)
+    assert disable.param1 == 0, "FENCE_ENABLE was 0: the fences go off again"
+    rig.peer.ack(mavlink.MAV_CMD_DO_FENCE_ENABLE)
+    rig.tick()
+    assert handle.status is CommandStatus.ACCEPTED, handle.reason
+    assert record.describe_restore() == (
+        "the vehicle's geofence restored on the autopilot: its fence plan (1 zone), "
+        "FENCE_ALT_MAX 100, FENCE_TYPE 7, fences disabled as FENCE_ENABLE")
+
+
+def test_nothing_is_restored_without_an_accepted_upload(rig):
+    _connect(rig)
+    handle = rig.vehicle.restore_fence()
+    assert (handle.status, handle.reason) == (CommandStatus.DENIED, "no geofence was uploaded")
