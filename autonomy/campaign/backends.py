@@ -253,8 +253,12 @@ class DaskCluster:
     ``"local"``, a ``LocalCluster`` of ``workers`` single-threaded processes on 127.0.0.1.
 
     Needs the optional ``distributed`` package (``pip install 'landing-autonomy[cluster]'``)
-    on this machine and, for a remote cluster, this package on every worker. A run whose
-    worker keeps dying is given up by Dask (``KilledWorker``) and recorded as ``error``.
+    on this machine and, for a remote cluster, this package on every worker. A worker that
+    dies under a run is restarted by its nanny and the run handed to another; a run whose
+    workers keep dying (``distributed.scheduler.allowed-failures`` + 1 times, 4 by default)
+    is given up by Dask (``KilledWorker``) and recorded as ``error`` with ``worker_died:
+    "KilledWorker"``, so that the campaign names it and running it again flies it again, as
+    with the local pool.
     """
 
     def __init__(
@@ -298,7 +302,7 @@ class DaskCluster:
         self.workers = max(1, sum(threads.values()))
 
     def run(self, tasks: Sequence[RunTask]) -> Iterator[dict[str, Any]]:
-        from distributed import as_completed
+        from distributed import KilledWorker, as_completed
 
         token = uuid.uuid4().hex[:8]
         futures = {
@@ -312,7 +316,12 @@ class DaskCluster:
                 task = futures[future]
                 try:
                     yield future.result()
-                except Exception as exc:  # KilledWorker, lost data, unpicklable result
+                except KilledWorker as exc:
+                    yield error_record(
+                        task, f"{WORKER_DIED} on every Dask worker that ran it (possibly out "
+                        f"of memory; the workers' logs say why): {exc}",
+                        worker_died="KilledWorker")
+                except Exception as exc:  # lost data, unpicklable result
                     yield error_record(task, _format(exc))
         finally:
             self._client.cancel(list(futures))

@@ -189,3 +189,26 @@ def test_a_run_whose_worker_is_killed_is_named_with_its_signal_and_flown_again(f
     again = campaign(fakes, tmp_path / "killed", mission=mission, workers=2)
     assert (again.flown, again.skipped) == (1, 3)
     assert [r["run_id"] for r in again.died()] == ["v000-r00002"]
+
+
+def test_a_run_whose_dask_workers_die_is_named_and_flown_again(fakes, tmp_path):
+    # Dask restarts a killed worker and hands its runs to another, up to allowed-failures
+    # times (0 here: the first death gives the run up), then raises KilledWorker for it.
+    # (Every run the dead worker held counts as suspect, so the campaign has one run.)
+    distributed = pytest.importorskip("distributed")
+    import dask
+
+    from autonomy.campaign import run_seed
+
+    mission = fakes.FakeMission(kill_on_seed=run_seed(5, 0))
+    with dask.config.set({"distributed.scheduler.allowed-failures": 0}), \
+            distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
+                                     host="127.0.0.1", dashboard_address=None) as cluster:
+        result = campaign(fakes, tmp_path, mission=mission, runs=1,
+                          scheduler=cluster.scheduler_address)
+        (died,) = result.died()
+        assert (died["outcome"], died["worker_died"]) == ("error", "KilledWorker")
+        assert "died while flying this run on every Dask worker" in died["error"]
+        again = campaign(fakes, tmp_path, mission=mission, runs=1,
+                         scheduler=cluster.scheduler_address)
+    assert (again.flown, again.skipped) == (1, 0), "flown again, not skipped as a result"
