@@ -419,19 +419,6 @@ class Mission(BaseModel):
 
     @model_validator(mode="after")
     def _rates(self) -> Mission:
-        if any(isinstance(wp, GeoWaypoint) for wp in self.waypoints):
-            for i, (x, y, _) in enumerate(self.waypoints_enu()):
-                distance = math.hypot(x, y)
-                if distance > MAX_RANGE:
-                    raise ValueError(
-                        f"waypoints.{i}: {distance:.0f} m from home, more than the "
-                        f"{MAX_RANGE:.0f} m a multicopter flies"
-                    )
-        if self.world.kind == "file":  # no ground off an elevation model: stay on it
-            from sitl.terrain.files import check_route
-
-            check_route(self.world, self.waypoints_enu(), self.landing.search_rectangle,
-                        self.landing.pattern_center_radius)
         for name in ("rate", "low_altitude_rate"):
             rate = getattr(self.perception, name)
             if rate is not None and rate > self.tick_rate:
@@ -442,12 +429,46 @@ class Mission(BaseModel):
         return self
 
     @model_validator(mode="after")
-    def _inside_geofence(self) -> Mission:
+    def _geometry(self) -> Mission:
+        self.check_geometry()
+        return self
+
+    def check_geometry(
+        self, home: tuple[float, float] | None = None, project: Projection | None = None
+    ) -> None:
+        """Check the mission's geometry about ``home`` (lat, lon; default: the file's),
+        converted with ``project`` (see :meth:`waypoints_enu`): lat/lon waypoints within
+        range, the route on an elevation model, the geofence a simple polygon with an area
+        and home, the waypoints and the legs between them inside it, every altitude under
+        its ceiling. The validators check the file about its own home; a flight converts
+        about the home it flies by, and :meth:`plan` checks again about that one (ENU
+        waypoints and vertices move with the home, lat/lon ones do not).
+
+        Raises:
+            ValueError: the first rule broken, naming the field and the coordinates.
+        """
+        waypoints = self.waypoints_enu(home, project)
+        if any(isinstance(wp, GeoWaypoint) for wp in self.waypoints):
+            for i, (x, y, _) in enumerate(waypoints):
+                distance = math.hypot(x, y)
+                if distance > MAX_RANGE:
+                    raise ValueError(
+                        f"waypoints.{i}: {distance:.0f} m from home, more than the "
+                        f"{MAX_RANGE:.0f} m a multicopter flies"
+                    )
+        if self.world.kind == "file":  # no ground off an elevation model: stay on it
+            from sitl.terrain.files import check_route
+
+            check_route(self.world, waypoints, self.landing.search_rectangle,
+                        self.landing.pattern_center_radius)
+        area = self.operating_area(home, project)
+        if area is not None:
+            self._check_geofence(area, waypoints)
+
+    def _check_geofence(self, area: OperatingArea,
+                        waypoints: list[tuple[float, float, float]]) -> None:
         fence = self.geofence
-        if fence is None:
-            return self
-        area = self.operating_area()
-        assert area is not None
+        assert fence is not None
         corners = area.vertices
         x, y = np.asarray(corners).T
         if abs(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y)) / 2 < 1.0 and (
@@ -463,7 +484,6 @@ class Mission(BaseModel):
                  else "inside the geofence")
         if not area.contains_point(0.0, 0.0):
             raise ValueError(f"geofence.polygon: home (0, 0) is not {where}")
-        waypoints = self.waypoints_enu()
         inside = area.contains(np.array([wp[:2] for wp in waypoints]))
         for i in np.flatnonzero(~inside).tolist():
             x, y, _ = waypoints[i]
@@ -478,7 +498,7 @@ class Mission(BaseModel):
                                  "waypoint at the corner")
         ceiling = fence.max_altitude
         if ceiling is None:
-            return self
+            return
         # The autopilot breaches at its ceiling (ArduPilot: altitude >= FENCE_ALT_MAX), so
         # a climb's overshoot to an altitude at the ceiling would meet its breach action:
         # with the fence uploaded, altitudes stay FENCE_MARGIN under it.
@@ -495,7 +515,6 @@ class Mission(BaseModel):
             if value is not None and value > ceiling - room:
                 what = " (the cap of the clear altitude)" if name.startswith("landing") else ""
                 raise ValueError(f"{name}: {value:g} m{what} is {under}")
-        return self
 
     def operating_area(
         self, home: tuple[float, float] | None = None, project: Projection | None = None
@@ -558,7 +577,17 @@ class Mission(BaseModel):
         self, home: tuple[float, float] | None = None, project: Projection | None = None
     ) -> MissionPlan:
         """The :class:`behaviors.settings.MissionPlan` the tree is built from; lat/lon
-        waypoints are converted about ``home`` (see :meth:`waypoints_enu`)."""
+        waypoints and geofence vertices are converted about ``home`` (see
+        :meth:`waypoints_enu`).
+
+        Raises:
+            ValueError: converted about another home or with another projection than the
+                file was checked with, the plan breaks a rule of :meth:`check_geometry`
+                (a lat/lon fence stays where it is on the Earth, ENU waypoints move with
+                the home, and the other way round).
+        """
+        if home is not None or project is not None:
+            self.check_geometry(home, project)
         return MissionPlan(
             waypoints=self.waypoints_enu(home, project),
             takeoff_altitude=self.takeoff_altitude,

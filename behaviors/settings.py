@@ -282,17 +282,6 @@ class MissionPlan(BaseModel):
             if math.hypot(x, y) > MAX_RANGE:
                 raise ValueError(f"waypoints[{i}]: {math.hypot(x, y):.0f} m from home, more "
                                  f"than the {MAX_RANGE:.0f} m a multicopter flies")
-        # A live flight converts a lat/lon geofence and lat/lon waypoints about the vehicle's
-        # home, so the mission file's check (about its own home) is made again here.
-        area = self.geofence
-        if area is not None:
-            route = [(0.0, 0.0), *(wp[:2] for wp in self.waypoints)]
-            if not area.contains_point(0.0, 0.0):
-                raise ValueError("home is not inside the geofence (with its margin)")
-            for i in range(len(self.waypoints)):
-                if not area.leg_inside(route[i], route[i + 1]):
-                    raise ValueError(f"waypoints[{i}] or the leg to it is not inside the "
-                                     "geofence (with its margin)")
         return self
 
     @property

@@ -51,6 +51,12 @@ class HomeChoice:
         home = self.file if self.used == "file" and self.file is not None else self.vehicle
         return home[0], home[1]
 
+    def whose_home(self) -> str:
+        """The home flown by, in words: "the vehicle's home" or "the file's home"."""
+        if self.used == "file" and self.file is not None:
+            return f"the {_whose(self.file_source)} home"
+        return "the vehicle's home"
+
     def as_dict(self) -> dict[str, Any]:
         return {
             "used": self.used, "vehicle": geodetic(self.vehicle),

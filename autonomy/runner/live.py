@@ -4,7 +4,9 @@ Before the tree is built the runner waits for the autopilot's first HEARTBEAT (a
 ``vehicle.link.connect_timeout``; outcome ``link_lost`` if none comes) and for its home
 position (at most ``landing.preflight_timeout``), then chooses the home the lat/lon
 waypoints are converted about (:mod:`autonomy.runner.home`; a disagreement refuses the
-flight). The tree then ticks at ``tick_rate`` Hz of the :class:`~autonomy.clock.VehicleClock`:
+flight) and checks the mission about it with the rules the file was checked with about its
+own home (a lat/lon geofence stays on the Earth while ENU waypoints move with the home). The
+tree then ticks at ``tick_rate`` Hz of the :class:`~autonomy.clock.VehicleClock`:
 the loop sleeps ``period / rate`` wall seconds, so against a SITL at 8x it ticks eight times
 as often in wall time and every hover, timeout and perception rate stays in vehicle seconds.
 Ctrl-C lands (or holds) the vehicle before returning.
@@ -44,7 +46,9 @@ def run_live(
 
     Raises:
         autonomy.runner.home.HomeMismatch: the file's home and the vehicle's disagree and
-            ``vehicle.home_from`` does not say which to fly by.
+            ``vehicle.home_from`` does not say which to fly by, or the mission about the
+            home flown by breaks a rule the file keeps about its own (a waypoint outside the
+            geofence, off the elevation model, ...: :meth:`Mission.check_geometry`).
     """
     period = 1.0 / mission.tick_rate
 
@@ -68,12 +72,11 @@ def run_live(
             def project(lat: float, lon: float, lat0: float, lon0: float) -> tuple[float, float]:
                 return geodetic_to_local(lat, lon, lat0, lon0, autopilot)
 
-            try:
+            try:  # checked with the file's rules again, about this home
                 plan = mission.plan(home=choice.lat_lon, project=project)
-            except ValidationError as exc:  # lat/lon waypoints too far from this home
-                reason = exc.errors()[0]["msg"].removeprefix("Value error, ")
-                raise HomeMismatch(f"about the vehicle's home {choice.lat_lon[0]:.6f}, "
-                                   f"{choice.lat_lon[1]:.6f}: {reason}") from None
+            except ValueError as exc:  # e.g. ENU waypoints moved out of a lat/lon fence
+                raise HomeMismatch(f"about {choice.whose_home()} {choice.lat_lon[0]:.6f}, "
+                                   f"{choice.lat_lon[1]:.6f}: {_reason(exc)}") from None
             flight.attach_tree(build_tree(plan))
             reason = _fly(flight, mission, clock, pause, interrupted, on_interrupt)
             if mission.geofence is not None and mission.geofence.restore:
@@ -138,3 +141,10 @@ def _await_vehicle(flight: Flight, mission: Mission, pause: Callable[[], None],
         if flight.follow() is Link.GAVE_UP:
             return f"link lost: {flight.link_gave_up}"
     return None
+
+
+def _reason(exc: ValueError) -> str:
+    """A plan's refusal as one line: a validator's message without pydantic's wrapping."""
+    if isinstance(exc, ValidationError):
+        return exc.errors()[0]["msg"].removeprefix("Value error, ")
+    return str(exc)

@@ -158,3 +158,93 @@ def test_a_live_flight_over_a_model_elsewhere_is_refused_before_takeoff(
     summary = json.loads((out / "summary.json").read_text())
     assert (summary["outcome"], summary["exit_code"]) == ("refused", 2)
     assert not served.sitl.truth.armed, "refused before takeoff"
+
+
+def box(east: tuple[float, float], north: tuple[float, float]) -> list[dict[str, float]]:
+    """A lat/lon geofence: the box of ``east`` x ``north`` metres about the file's home."""
+    lat = [FILE_HOME[0] + n / 111_320.0 for n in north]
+    lon = [FILE_HOME[1] + e / 75_460.0 for e in east]
+    return [{"lat": lat[0], "lon": lon[0]}, {"lat": lat[0], "lon": lon[1]},
+            {"lat": lat[1], "lon": lon[1]}, {"lat": lat[1], "lon": lon[0]}]
+
+
+def fenced_mission(tmp_path: Path, name: str, waypoints: list, polygon: list) -> Path:
+    """demo.yaml in a geofence, cut short: one waypoint, a site under it, a short hover."""
+    data = load_mission(DEMO).source_data()
+    data.update(waypoints=waypoints, geofence={"polygon": polygon, "max_altitude": 30.0},
+                cruise_altitude=10.0, sites=[{"x": 0.0, "y": 10.0, "size": 5.0}])
+    data["landing"].update(verification_duration=1.0, failsafe_altitude=20.0,
+                           search_rectangle=[10.0, 10.0])
+    path = tmp_path / f"{name}.yaml"
+    path.write_text(yaml.safe_dump(data), encoding="utf-8")
+    return path
+
+
+def fly_live(url: str, mission: Path, out: Path, capsys, *options: str) -> tuple[int, str, dict]:
+    code = main(["fly", str(mission), "--connect", url, "--out", str(out), *options])
+    captured = capsys.readouterr()
+    assert "Traceback" not in captured.out + captured.err
+    return code, captured.err.strip(), json.loads((out / "summary.json").read_text())
+
+
+def test_a_mission_outside_its_fence_about_the_vehicles_home_is_refused_before_takeoff(
+        served_sitl, tmp_path, capsys):
+    """ENU waypoints move with the home, a lat/lon fence stays on the Earth (and the other
+    way round): flown by a vehicle's home 111 m north of the file's, a mission the file's
+    check passed leaves its fence, and is refused as the file would be, naming the home."""
+    served = served_sitl(speedup=10.0, home=HomeSettings(
+        lat=VEHICLE_HOME[0], lon=VEHICLE_HOME[1], alt=VEHICLE_HOME[2]))
+    # Both homes inside; [0, 10] north of the file's home is, of the vehicle's is not.
+    enu_waypoints = fenced_mission(tmp_path, "enu", [[0.0, 10.0, 8.0]],
+                                   box((-30.0, 30.0), (-30.0, 115.0)))
+    code, err, summary = fly_live(served.url, enu_waypoints, tmp_path / "enu", capsys,
+                                  "--home-from", "vehicle")
+    assert (code, summary["outcome"], summary["exit_code"]) == (2, "refused", 2)
+    assert err == ("lander fly: error: about the vehicle's home 47.398742, 8.545594: "
+                   "waypoints.0: (0.0, 10.0) is not inside the geofence")
+    # A lat/lon waypoint 10 m north of the file's home is 101 m south of the vehicle's,
+    # out of an ENU fence drawn about home.
+    lat_lon_waypoints = fenced_mission(
+        tmp_path, "geo", [{"lat": FILE_HOME[0] + 10.0 / 111_320.0, "lon": FILE_HOME[1],
+                           "alt": 8.0}], [[-30.0, -30.0], [30.0, -30.0], [30.0, 30.0],
+                                          [-30.0, 30.0]])
+    code, err, summary = fly_live(served.url, lat_lon_waypoints, tmp_path / "geo", capsys,
+                                  "--home-from", "vehicle")
+    assert (code, summary["outcome"]) == (2, "refused")
+    assert err.startswith("lander fly: error: about the vehicle's home 47.398742, 8.545594: "
+                          "waypoints.0: (0.0, -101.") and err.endswith(
+        ") is not inside the geofence") and "\n" not in err
+    assert not served.sitl.truth.armed, "refused before takeoff"
+
+
+def test_the_same_mission_flies_where_the_homes_agree(served_sitl, tmp_path, capsys):
+    served = served_sitl(speedup=20.0, home=HomeSettings(
+        lat=FILE_HOME[0], lon=FILE_HOME[1], alt=FILE_HOME[2]))
+    mission = fenced_mission(tmp_path, "enu", [[0.0, 10.0, 8.0]],
+                             box((-30.0, 30.0), (-30.0, 115.0)))
+    code, err, summary = fly_live(served.url, mission, tmp_path / "flown", capsys)
+    assert (code, summary["outcome"]) == (3, "landed_unjudged"), err
+    assert summary["home"]["agree"] is True
+    assert summary["geofence_upload"]["text"].startswith("geofence uploaded")
+
+
+def test_lat_lon_waypoints_about_a_distant_vehicles_home_must_stay_on_the_elevation_model(
+        served_sitl, tmp_path, capsys):
+    """The simulated ground lies about the home flown by: a lat/lon waypoint on the model
+    about the file's home is off it about a vehicle's 1 km north."""
+    pytest.importorskip("rasterio")
+    from tests.sitl.test_model_home import mission_file, utm_plane
+
+    path = mission_file(tmp_path, f"path: {utm_plane(tmp_path)}")
+    home = load_mission(path).home
+    data = yaml.safe_load(path.read_text())
+    data["waypoints"] = [{"lat": home.lat, "lon": home.lon, "alt": 20.0}]
+    path.write_text(yaml.safe_dump(data), encoding="utf-8")
+    served = served_sitl(speedup=10.0, home=HomeSettings(
+        lat=home.lat + 1000.0 / 111_000.0, lon=home.lon, alt=home.alt))
+    code, err, summary = fly_live(served.url, path, tmp_path / "out", capsys,
+                                  "--home-from", "vehicle")
+    assert (code, summary["outcome"]) == (2, "refused")
+    assert "about the vehicle's home" in err and "\n" not in err
+    assert "waypoints.0: (-0.00413672, -1002.86) is off the elevation model" in err, err
+    assert not served.sitl.truth.armed
