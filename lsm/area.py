@@ -1,10 +1,11 @@
 """The mission's operating area (an inclusion geofence) in the local ENU frame.
 
-A simple polygon of ENU x, y metres about home, a margin kept inside its edge and an
-optional ceiling. Sites, pattern waypoints and straight legs are tested against it,
-vectorised: matplotlib's Path for point-in-polygon, numpy for distances to the edges.
-Used by the Landing Site Manager (sites outside are rejected) and by the behaviours
-(search patterns, pattern centres and the approach stay inside).
+A simple polygon of ENU x, y metres about home, a margin kept inside its edge, an optional
+ceiling and no-fly zones (exclusion polygons) inside it, from whose edges the same margin
+is kept. Sites, pattern waypoints and straight legs are tested against it, vectorised:
+matplotlib's Path for point-in-polygon, numpy for distances to the edges. Used by the
+Landing Site Manager (sites outside are rejected) and by the behaviours (search patterns,
+pattern centres and the approach stay inside).
 """
 
 from __future__ import annotations
@@ -22,11 +23,13 @@ import numpy as np
 @dataclass(frozen=True)
 class OperatingArea:
     """Inclusion geofence: ``vertices`` (ENU x, y m, not closed), ``margin`` m kept inside
-    the edge, ``max_altitude`` m above home (None: no ceiling)."""
+    the edge, ``max_altitude`` m above home (None: no ceiling), ``exclusions``: no-fly
+    polygons (ENU x, y m, not closed) kept out of, ``margin`` m from their edges too."""
 
     vertices: tuple[tuple[float, float], ...]
     margin: float = 0.0
     max_altitude: float | None = None
+    exclusions: tuple[tuple[tuple[float, float], ...], ...] = ()
 
     @functools.cached_property
     def _corners(self) -> np.ndarray:
@@ -34,25 +37,64 @@ class OperatingArea:
 
     @functools.cached_property
     def _path(self):  # matplotlib.path.Path
-        from matplotlib.path import Path
+        return _closed_path(self._corners)
 
-        return Path(np.vstack([self._corners, self._corners[:1]]), closed=True)
+    @functools.cached_property
+    def _zones(self) -> list[tuple[object, np.ndarray, np.ndarray]]:
+        """Per no-fly zone: its matplotlib Path and its edges (starts, ends)."""
+        zones = []
+        for zone in self.exclusions:
+            a = np.asarray(zone, dtype=np.float64).reshape(-1, 2)
+            zones.append((_closed_path(a), a, np.roll(a, -1, axis=0)))
+        return zones
 
-    def edge_distance(self, xy: np.ndarray | Sequence[float]) -> np.ndarray:
-        """Distance (m) of each point ``xy`` ((n, 2) or (2,)) to the nearest edge."""
-        p = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+    @functools.cached_property
+    def _edges(self) -> tuple[np.ndarray, np.ndarray]:
+        """Every edge a point keeps the margin from: the area's, then the zones' ones."""
         a = self._corners
         b = np.roll(a, -1, axis=0)
+        if not self._zones:
+            return a, b
+        return (np.vstack([a, *(z[1] for z in self._zones)]),
+                np.vstack([b, *(z[2] for z in self._zones)]))
+
+    def edge_distance(self, xy: np.ndarray | Sequence[float]) -> np.ndarray:
+        """Distance (m) of each point ``xy`` ((n, 2) or (2,)) to the nearest edge (of the
+        area or of a no-fly zone)."""
+        p = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+        a, b = self._edges
         return _point_segment_distance(p[:, None, :], a[None], b[None]).min(axis=1)
 
     def contains(self, xy: np.ndarray | Sequence[float]) -> np.ndarray:
-        """Per point ``xy`` ((n, 2) or (2,)): inside the polygon and at least ``margin`` m
-        from its edge."""
+        """Per point ``xy`` ((n, 2) or (2,)): inside the polygon, outside every no-fly zone
+        and at least ``margin`` m from every edge."""
         p = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
         inside = self._path.contains_points(p)
+        for path, _, _ in self._zones:
+            if inside.any():
+                inside &= ~path.contains_points(p)
         if self.margin > 0 and inside.any():
             inside &= self.edge_distance(p) >= self.margin
         return inside
+
+    def overlaps(self, polygon: Sequence[Sequence[float]]) -> bool:
+        """True when the polygon (ENU x, y m, not closed) and the area's share any ground
+        (one inside the other counts)."""
+        corners = np.asarray(polygon, dtype=np.float64).reshape(-1, 2)
+        return bool(self._path.intersects_path(_closed_path(corners), filled=True))
+
+    def zone_of(self, xy: np.ndarray | Sequence[float]) -> np.ndarray:
+        """Per point ``xy`` ((n, 2) or (2,)): the index of the first no-fly zone it is in
+        or within ``margin`` m of, -1 for none."""
+        p = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+        out = np.full(len(p), -1)
+        for i, (path, a, b) in reversed(list(enumerate(self._zones))):
+            hit = path.contains_points(p)
+            if self.margin > 0:
+                hit |= _point_segment_distance(p[:, None, :], a[None], b[None]).min(
+                    axis=1) < self.margin
+            out[hit] = i
+        return out
 
     def contains_point(self, x: float, y: float) -> bool:
         return bool(self.contains((x, y))[0])
@@ -68,25 +110,58 @@ class OperatingArea:
         e = np.asarray(end[:2], dtype=np.float64)
         if not (self._path.contains_point(s) and self.contains(e)[0]):
             return False
-        a = self._corners
-        b = np.roll(a, -1, axis=0)
-        if _segments_cross(s, e, a, b).any():
+        if any(path.contains_point(s) for path, _, _ in self._zones):
             return False
+        a, b = self._edges
+        return _leg_clear(s, e, a, b, self._start_clearance(s))
+
+    def leg_zone(self, start: Sequence[float], end: Sequence[float]) -> int | None:
+        """The index of the first no-fly zone the straight leg ``start`` -> ``end`` enters,
+        crosses or comes within the margin of (as :meth:`leg_inside` tests it), or None."""
+        s = np.asarray(start[:2], dtype=np.float64)
+        e = np.asarray(end[:2], dtype=np.float64)
+        need = self._start_clearance(s)
+        ends = self.zone_of(np.vstack([s, e]))
+        for i, (path, a, b) in enumerate(self._zones):
+            if path.contains_point(s) or ends[1] == i or not _leg_clear(s, e, a, b, need):
+                return i
+        return None
+
+    def _start_clearance(self, s: np.ndarray) -> float:
+        """The clearance a leg from ``s`` keeps from the edges: the margin, or less for a
+        start already closer (the vehicle drifted there); 0 without a margin."""
         if self.margin <= 0:
-            return True
-        need = min(self.margin, float(_point_segment_distance(s[None], a, b).min())) - 1e-9
-        # Not crossing: the closest approach of two segments is at one of the four ends.
-        near = min(
-            float(_point_segment_distance(e[None], a, b).min()),
-            float(_point_segment_distance(a, s[None], e[None]).min()),
-        )
-        return near >= need
+            return 0.0
+        a, b = self._edges
+        return min(self.margin, float(_point_segment_distance(s[None], a, b).min())) - 1e-9
 
     def route_inside(self, points: Sequence[Sequence[float]]) -> bool:
         """True when every leg of the polyline ``points`` stays inside (see leg_inside)."""
         if len(points) == 1:
             return self.contains_point(points[0][0], points[0][1])
         return all(self.leg_inside(p, q) for p, q in zip(points[:-1], points[1:], strict=True))
+
+
+def _closed_path(corners: np.ndarray):  # matplotlib.path.Path
+    from matplotlib.path import Path
+
+    return Path(np.vstack([corners, corners[:1]]), closed=True)
+
+
+def _leg_clear(s: np.ndarray, e: np.ndarray, a: np.ndarray, b: np.ndarray, need: float
+               ) -> bool:
+    """The leg ``s``-``e`` crosses none of the edges ``a``-``b`` and comes no closer to
+    them than ``need`` m (no distance checked for ``need`` <= 0)."""
+    if _segments_cross(s, e, a, b).any():
+        return False
+    if need <= 0:
+        return True
+    # Not crossing: the closest approach of two segments is at one of the four ends.
+    near = min(
+        float(_point_segment_distance(e[None], a, b).min()),
+        float(_point_segment_distance(a, s[None], e[None]).min()),
+    )
+    return near >= need
 
 
 def _point_segment_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:

@@ -46,3 +46,45 @@ def test_the_manager_rejects_sites_outside_and_counts_them():
     counters = lsm.counters()
     assert counters["rejected_outside_geofence"] == 2
     assert sorted((s.x, s.y) for s in lsm.ranked((0, 0, 30))) == [(10, 10), (90, 10)]
+
+
+# A no-fly zone (a building) in the L's east arm.
+ZONED = OperatingArea(L_AREA.vertices, margin=2, exclusions=(((40, 5), (60, 5), (60, 15),
+                                                               (40, 15)),))
+
+
+def test_no_fly_zones_are_kept_out_of_with_the_margin():
+    points = np.array([[50, 10], [39, 10], [37, 10], [10, 10], [50, 50]])
+    assert ZONED.contains(points).tolist() == [False, False, True, True, False]
+    assert ZONED.zone_of(points).tolist() == [0, 0, -1, -1, -1]
+    # Without zones nothing changes.
+    assert L_AREA.contains(points).tolist() == [True, True, True, True, False]
+
+
+def test_a_leg_across_a_no_fly_zone_is_not_inside():
+    assert not ZONED.leg_inside((30, 10), (90, 10))
+    assert ZONED.leg_zone((30, 10), (90, 10)) == 0
+    assert not ZONED.leg_inside((30, 3.5), (90, 3.5))  # within the margin of its edge
+    assert ZONED.leg_inside((30, 10), (10, 10)) and ZONED.leg_zone((30, 10), (10, 10)) is None
+    # Leaving the area elsewhere is not the zone's doing.
+    assert not ZONED.leg_inside((30, 10), (10, 90)) and ZONED.leg_zone((30, 10), (10, 90)) is None
+    # The leg into the zone, and out of it (the vehicle is in it: no way out counts clear).
+    assert not ZONED.leg_inside((10, 10), (50, 10))
+    assert not ZONED.leg_inside((50, 10), (10, 10))
+    # A start the vehicle drifted into the zone's margin from keeps its own clearance.
+    assert ZONED.leg_inside((38.5, 10), (10, 10))
+
+
+def test_the_manager_rejects_sites_in_a_no_fly_zone():
+    lsm = LandingSiteManager(LsmSettings(max_distance=1000))
+    lsm.set_area(ZONED)
+    lsm.submit_many([_obs(50, 10), _obs(61, 10), _obs(80, 10), _obs(10, 10)])
+    lsm.process_pending()
+    assert lsm.counters()["rejected_outside_geofence"] == 2
+    assert sorted((s.x, s.y) for s in lsm.ranked((0, 0, 30))) == [(10, 10), (80, 10)]
+
+
+def test_a_polygon_overlaps_the_area_in_part_or_whole():
+    assert L_AREA.overlaps([(90, 10), (150, 10), (150, 50)])
+    assert L_AREA.overlaps([(5, 5), (8, 5), (8, 8)])
+    assert not L_AREA.overlaps([(50, 50), (90, 50), (90, 90)])  # the L's missing corner
