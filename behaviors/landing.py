@@ -102,8 +102,9 @@ class GetLandingSite(MissionBehaviour):
     With an operating ``area`` (the LSM keeps only sites inside it), the chosen site is the
     best one the approach reaches inside the area: the climb and descent are vertical, so
     the traverse, a straight leg from the vehicle to the site, must stay inside (a
-    non-convex area can have both ends inside and the leg out). Sites it would leave by are
-    passed over (not banned: from elsewhere the leg may be inside).
+    non-convex area can have both ends inside and the leg out; a leg across one of its
+    no-fly zones counts as out). Sites it would leave by are passed over (not banned: from
+    elsewhere the leg may be inside).
 
     * SUCCESS: a site was chosen
     * FAILURE: the LSM holds no (verified) site, none with a straight leg inside the area,
