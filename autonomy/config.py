@@ -259,6 +259,14 @@ FENCE_TOTAL tops out at some 80 on small boards), and the simple-polygon check i
 quadratic."""
 
 
+MAX_FENCE_ZONES = 100
+"""No-fly zones of a mission: each is a run of fence items on the autopilot, which stores a
+few hundred items at most."""
+
+NoFlyZone = Annotated[list[Vertex], Field(min_length=3, max_length=MAX_FENCE_VERTICES)]
+"""A no-fly polygon: 3 to 1000 vertices, as the operating area's."""
+
+
 CEILING_MARGIN = 2.0
 """m every flying altitude keeps under an uploaded geofence ceiling: ArduPilot's default
 FENCE_MARGIN, the distance it keeps from a fence to avoid a breach."""
@@ -266,7 +274,8 @@ FENCE_MARGIN, the distance it keeps from a fence to avoid a breach."""
 
 class GeofenceConfig(BaseModel):
     """The mission's operating area, an inclusion geofence: the vehicle flies and lands only
-    inside ``polygon`` (and below ``max_altitude``), keeping ``margin`` from its edge.
+    inside ``polygon`` (and below ``max_altitude``), keeping ``margin`` from its edge, and
+    never in a no-fly zone of ``exclude``, keeping the same margin from their edges.
 
     Vertices are ENU ``[x, y]`` metres about home or ``{lat, lon}``, converted like lat/lon
     waypoints (about the vehicle's home on a live link). Sites outside are rejected by the
@@ -281,18 +290,25 @@ class GeofenceConfig(BaseModel):
         "simple polygon (no edge crossing another), ENU [x, y] m or {lat, lon}, in order "
         "around the area, not closed (the last joins the first)"
     )
+    exclude: list[NoFlyZone] = Field(
+        default_factory=list, max_length=MAX_FENCE_ZONES, description="up to 100 no-fly "
+        "zones (a building, a crowd, a road) inside the area, each a simple polygon of 3 to "
+        "1000 vertices given as polygon's; no site, waypoint, leg or search pattern comes "
+        "within margin of one, and upload sends them as exclusion zones"
+    )
     margin: float = Field(
-        0.0, ge=0, le=MAX_RANGE, description="m kept inside the edge by sites, waypoints "
-        "and search patterns, up to 50 km"
+        0.0, ge=0, le=MAX_RANGE, description="m kept inside the edge (and out of the no-fly "
+        "zones) by sites, waypoints and search patterns, up to 50 km"
     )
     max_altitude: float | None = Field(
         None, gt=0, le=MAX_ALTITUDE, description="m above home no waypoint, cruise, takeoff "
         "or failsafe (clear) altitude may exceed, up to 10 km; unset: no ceiling"
     )
     upload: bool = Field(
-        True, description="before takeoff, upload the polygon (and max_altitude) to the "
-        "autopilot as its own geofence and enable it, so the autopilot enforces the area "
-        "too; a refusal fails preflight. false: only this software keeps to the area"
+        True, description="before takeoff, upload the polygon, the no-fly zones (and "
+        "max_altitude) to the autopilot as its own geofence and enable it, so the "
+        "autopilot enforces the area too; a refusal fails preflight. false: only this "
+        "software keeps to the area"
     )
     restore: bool = Field(
         True, description="after the flight, once the vehicle is down and disarmed, put "
@@ -439,10 +455,11 @@ class Mission(BaseModel):
         """Check the mission's geometry about ``home`` (lat, lon; default: the file's),
         converted with ``project`` (see :meth:`waypoints_enu`): lat/lon waypoints within
         range, the route on an elevation model, the geofence a simple polygon with an area
-        and home, the waypoints and the legs between them inside it, every altitude under
-        its ceiling. The validators check the file about its own home; a flight converts
-        about the home it flies by, and :meth:`plan` checks again about that one (ENU
-        waypoints and vertices move with the home, lat/lon ones do not).
+        and home, the waypoints and the legs between them inside it and out of its no-fly
+        zones (each a simple polygon reaching into it), every altitude under its ceiling.
+        The validators check the file about its own home; a flight converts about the home
+        it flies by, and :meth:`plan` checks again about that one (ENU waypoints and
+        vertices move with the home, lat/lon ones do not).
 
         Raises:
             ValueError: the first rule broken, naming the field and the coordinates.
@@ -469,30 +486,42 @@ class Mission(BaseModel):
                         waypoints: list[tuple[float, float, float]]) -> None:
         fence = self.geofence
         assert fence is not None
-        corners = area.vertices
-        x, y = np.asarray(corners).T
-        if abs(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y)) / 2 < 1.0 and (
-                len(corners) == 3 or self_intersection(corners) is None):
-            raise ValueError("geofence.polygon: encloses no area (under 1 m^2)")
-        crossing = self_intersection(corners)
-        if crossing is not None:
-            i, j = crossing
-            raise ValueError(f"geofence.polygon: not a simple polygon: edge {i} "
-                             f"(vertices {i}-{(i + 1) % len(corners)}) meets edge {j} "
-                             f"(vertices {j}-{(j + 1) % len(corners)})")
+        _check_polygon("geofence.polygon", area.vertices)
+        for k, zone in enumerate(area.exclusions):
+            _check_polygon(f"geofence.exclude.{k}", zone)
+            if not area.overlaps(zone):
+                raise ValueError(f"geofence.exclude.{k}: the no-fly zone lies outside "
+                                 "geofence.polygon (no part of it is in the area)")
         where = (f"at least {fence.margin:g} m inside the geofence" if fence.margin
                  else "inside the geofence")
+        in_zone = f" (or within its {fence.margin:g} m margin)" if fence.margin else ""
         if not area.contains_point(0.0, 0.0):
+            k = int(area.zone_of((0.0, 0.0))[0])
+            if k >= 0:
+                raise ValueError(f"geofence.exclude.{k}: home (0, 0) is in this no-fly "
+                                 f"zone{in_zone}")
             raise ValueError(f"geofence.polygon: home (0, 0) is not {where}")
-        inside = area.contains(np.array([wp[:2] for wp in waypoints]))
+        xy = np.array([wp[:2] for wp in waypoints])
+        inside = area.contains(xy)
         for i in np.flatnonzero(~inside).tolist():
             x, y, _ = waypoints[i]
+            k = int(area.zone_of(xy[i])[0])
+            if k >= 0:
+                raise ValueError(f"waypoints.{i}: ({x:.1f}, {y:.1f}) is in the no-fly zone "
+                                 f"geofence.exclude.{k}{in_zone}")
             raise ValueError(f"waypoints.{i}: ({x:.1f}, {y:.1f}) is not {where}")
         # The legs too: in a non-convex area two waypoints inside may have the edge between.
         route = [(0.0, 0.0), *(wp[:2] for wp in waypoints)]
         for i in range(len(waypoints)):
             if not area.leg_inside(route[i], route[i + 1]):
                 came = "home" if i == 0 else f"waypoint {i - 1}"
+                k = area.leg_zone(route[i], route[i + 1])
+                if k is not None:
+                    near = (f" (or comes within its {fence.margin:g} m margin)"
+                            if fence.margin else "")
+                    raise ValueError(f"waypoints.{i}: the straight leg from {came} crosses "
+                                     f"the no-fly zone geofence.exclude.{k}{near}; add a "
+                                     "waypoint to go round it")
                 raise ValueError(f"waypoints.{i}: the straight leg from {came} leaves the "
                                  f"geofence (or comes within its margin of the edge); add a "
                                  "waypoint at the corner")
@@ -526,12 +555,16 @@ class Mission(BaseModel):
             return None
         lat0, lon0 = (self.home.lat, self.home.lon) if home is None else home
         project = project or geodetic_to_enu
-        vertices = tuple(
-            tuple(float(c) for c in project(v.lat, v.lon, lat0, lon0))
-            if isinstance(v, GeoVertex) else (float(v[0]), float(v[1]))
-            for v in fence.polygon
-        )
-        return OperatingArea(vertices, fence.margin, fence.max_altitude)
+
+        def enu(polygon: list[Any]) -> tuple[tuple[float, float], ...]:
+            return tuple(
+                tuple(float(c) for c in project(v.lat, v.lon, lat0, lon0))
+                if isinstance(v, GeoVertex) else (float(v[0]), float(v[1]))
+                for v in polygon
+            )
+
+        return OperatingArea(enu(fence.polygon), fence.margin, fence.max_altitude,
+                             tuple(enu(zone) for zone in fence.exclude))
 
     @property
     def has_home(self) -> bool:
@@ -602,6 +635,21 @@ class Mission(BaseModel):
         if self._source:
             return copy.deepcopy(self._source)
         return self.model_dump(exclude_unset=True)
+
+
+def _check_polygon(name: str, corners: Sequence[tuple[float, float]]) -> None:
+    """Raise ``name: ...`` when the polygon ``corners`` (ENU m) encloses no area or is not
+    simple (the autopilots reject such fences, and inside/outside means nothing for them)."""
+    x, y = np.asarray(corners).T
+    if abs(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y)) / 2 < 1.0 and (
+            len(corners) == 3 or self_intersection(corners) is None):
+        raise ValueError(f"{name}: encloses no area (under 1 m^2)")
+    crossing = self_intersection(corners)
+    if crossing is not None:
+        i, j = crossing
+        raise ValueError(f"{name}: not a simple polygon: edge {i} "
+                         f"(vertices {i}-{(i + 1) % len(corners)}) meets edge {j} "
+                         f"(vertices {j}-{(j + 1) % len(corners)})")
 
 
 def _positive(value: Any, model: type[BaseModel] | None = None, name: str = ""

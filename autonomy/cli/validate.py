@@ -51,8 +51,10 @@ def describe_geofence(mission: Mission) -> str:
              "; left on the vehicle after landing (geofence.restore: false)")
     who = ("uploaded to the autopilot before takeoff, which enforces it too" + after
            if fence.upload else "kept by this software only (geofence.upload: false)")
-    return (f"geofence: {len(fence.polygon)} vertices, margin {fence.margin:g} m{ceiling}; "
-            f"{who}")
+    zones = len(fence.exclude)
+    no_fly = f", {zones} no-fly zone{'' if zones == 1 else 's'}" if zones else ""
+    return (f"geofence: {len(fence.polygon)} vertices{no_fly}, margin {fence.margin:g} m"
+            f"{ceiling}; {who}")
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
