@@ -75,7 +75,8 @@ class Preflight(MissionBehaviour):
             handle = self._fence_handle
             if handle is None:
                 handle = self._fence_handle = self.vehicle.upload_fence(
-                    list(self.fence.vertices), self.fence.max_altitude)
+                    list(self.fence.vertices), self.fence.max_altitude,
+                    exclusions=[list(zone) for zone in self.fence.exclusions])
             if not handle.status.done:
                 self.feedback_message = "uploading the geofence to the autopilot"
                 return Status.RUNNING

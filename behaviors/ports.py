@@ -8,6 +8,7 @@ All positions are local ENU metres (origin at home, z up), velocities ENU m/s, y
 from __future__ import annotations
 
 import enum
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Protocol, runtime_checkable
 
@@ -119,10 +120,12 @@ class VehiclePort(Protocol):
     def land(self) -> CommandHandle: ...
 
     def upload_fence(
-        self, polygon: list[tuple[float, float]], max_altitude: float | None = None
+        self, polygon: list[tuple[float, float]], max_altitude: float | None = None,
+        exclusions: Sequence[Sequence[tuple[float, float]]] = (),
     ) -> CommandHandle:
         """Make the autopilot itself enforce the operating area: ``polygon`` (ENU x, y m)
-        as its inclusion geofence, ``max_altitude`` (m above home) as its ceiling, enabled.
+        as its inclusion geofence, each of ``exclusions`` (ENU x, y m polygons) as a no-fly
+        zone, ``max_altitude`` (m above home) as its ceiling, enabled.
         Only called when the mission asks for it (``geofence.upload``)."""
         ...
 

@@ -18,7 +18,7 @@ from __future__ import annotations
 import math
 import time
 from collections import Counter
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Protocol
@@ -490,11 +490,13 @@ class MavlinkVehicle:
         return self._mode_step("LAND")
 
     def upload_fence(
-        self, polygon: list[tuple[float, float]], max_altitude: float | None = None
+        self, polygon: list[tuple[float, float]], max_altitude: float | None = None,
+        exclusions: Sequence[Sequence[tuple[float, float]]] = (),
     ) -> Handle:
         """Make the autopilot enforce the operating area: ``polygon`` (ENU x, y m of the
-        flight's frame) uploaded as its inclusion geofence about its home, ``max_altitude``
-        (m above home) as its ceiling, and the fence enabled (:mod:`autonomy.vehicle.fence`
+        flight's frame) uploaded as its inclusion geofence about its home, ``exclusions``
+        (polygons, ENU x, y m) as its no-fly zones, ``max_altitude`` (m above home) as its
+        ceiling, and the fence enabled (:mod:`autonomy.vehicle.fence`
         says what is set on each autopilot). ACCEPTED once the autopilot has taken all of it;
         the record is :attr:`fence_upload`."""
         name = f"upload geofence ({len(polygon)} vertices)"
@@ -502,10 +504,12 @@ class MavlinkVehicle:
         if refused:
             self.fence_upload = FenceUpload(len(polygon), max_altitude, refused)
             return refused
-        record = FenceUpload(len(polygon), max_altitude, Handle(name, self.clock.now()))
+        record = FenceUpload(len(polygon), max_altitude, Handle(name, self.clock.now()),
+                             zones=len(exclusions))
+        zones = [[tuple(map(float, v)) for v in zone] for zone in exclusions]
         record.handle = self._procedure(
             name, self._fence_steps(record, [tuple(map(float, v)) for v in polygon],
-                                    max_altitude))
+                                    max_altitude, zones))
         self.fence_upload = record
         return record.handle
 
@@ -1045,7 +1049,9 @@ class MavlinkVehicle:
                                           param.encode("ascii"), -1)
 
     def _fence_steps(self, record: FenceUpload, polygon: list[tuple[float, float]],
-                     max_altitude: float | None) -> StepGenerator:
+                     max_altitude: float | None,
+                     exclusions: Sequence[Sequence[tuple[float, float]]] = ()
+                     ) -> StepGenerator:
         yield Wait(
             "home position",
             self.clock.now(),
@@ -1055,7 +1061,8 @@ class MavlinkVehicle:
         )
         home = self._frame.origin
         assert home is not None
-        record.polygon, items = fence_items(polygon, (home[0], home[1]), self._autopilot)
+        record.polygon, items = fence_items(polygon, (home[0], home[1]), self._autopilot,
+                                            exclusions)
         # The upload replaces the vehicle's whole fence plan: read it to keep its no-fly zones.
         now = self.clock.now()
         download = MissionDownload("the vehicle's fence plan", now,

@@ -12,18 +12,25 @@ What is uploaded (docs/reference/mission-file.md#geofence):
   MISSION_ITEM_INT as 1e7 degrees. The vertices are placed with the autopilot's own
   projection about its home (:func:`autonomy.vehicle.frames.local_to_geodetic`), so the
   fence lies where the flight's ENU polygon is;
+* the mission's no-fly zones (``geofence.exclude``) after it, each a run of
+  MAV_CMD_NAV_FENCE_POLYGON_VERTEX_EXCLUSION items (param1 = its vertex count), sent and
+  projected as the inclusion vertices are;
 * the ceiling, when the mission gives one: ArduPilot FENCE_ALT_MAX, PX4 GF_MAX_VER_DIST
   (both metres above home);
 * ArduPilot only: FENCE_TYPE = polygon (+ max altitude with a ceiling; AC_Fence.h bits 4 and
-  1), which also turns off its circle (AC_FENCE_TYPE_DEFAULT for Copter is 7: max altitude,
-  circle of FENCE_RADIUS, 300 m by default, which would end missions the area allows, and
+  1; the polygon bit, AC_FENCE_TYPE_POLYGON, covers every zone of the fence plan, inclusion
+  and exclusion polygons and circles alike: AC_PolyFence_loader checks them all; its
+  circle bit 2 is only the FENCE_RADIUS circle about home), which also turns off that
+  circle (AC_FENCE_TYPE_DEFAULT for Copter is 7: max altitude, circle of FENCE_RADIUS,
+  300 m by default, which would end missions the area allows, and
   polygon) and floor, then MAV_CMD_DO_FENCE_ENABLE 1 (what MAVProxy's ``fence enable`` and
   the autotest's ``do_fence_enable`` send; GCS_Fence.cpp). PX4 checks an uploaded fence plan
   whenever GF_ACTION is not 0 (navigator's Geofence, GeofenceResult.msg), so nothing needs
   enabling there.
 
 The vehicle's own fence plan is downloaded first. Its exclusion zones (no-fly polygons and
-circles) and its return point are uploaded again after the operating area, so that a flight
+circles) and its return point are uploaded again after the operating area and the
+mission's no-fly zones, so that a flight
 never lifts a no-fly zone the operator put on the vehicle; its inclusion zones are replaced
 by the operating area (both autopilots would otherwise hold the vehicle inside all or any of
 them, which the mission's area does not intend). Without that download the fence is not
@@ -50,20 +57,26 @@ from behaviors.ports import CommandStatus
 
 # AC_Fence.h: FENCE_TYPE bits.
 ARDUPILOT_ALT_MAX = 1
-ARDUPILOT_POLYGON = 4
+ARDUPILOT_POLYGON = 4  # every fence-plan zone: inclusion and exclusion (no-fly) polygons too
 
 
 def fence_items(polygon: Sequence[tuple[float, float]], home: tuple[float, float],
-                autopilot: str) -> tuple[list[tuple[float, float]], list[ItemFields]]:
-    """The lat/lon of each ENU vertex (m about ``home``, lat/lon degrees) as ``autopilot``
-    projects its local frame, and the fence plan's MISSION_ITEM_INT fields."""
-    geo = [frames.local_to_geodetic(x, y, home[0], home[1], autopilot) for x, y in polygon]
-    n = float(len(geo))
-    items: list[ItemFields] = [
-        (mavlink.MAV_FRAME_GLOBAL, mavlink.MAV_CMD_NAV_FENCE_POLYGON_VERTEX_INCLUSION, 0, 1,
-         n, 0.0, 0.0, 0.0, round(lat * 1e7), round(lon * 1e7), 0.0)
-        for lat, lon in geo
-    ]
+                autopilot: str, exclusions: Sequence[Sequence[tuple[float, float]]] = ()
+                ) -> tuple[list[tuple[float, float]], list[ItemFields]]:
+    """The lat/lon of each ENU vertex of ``polygon`` (m about ``home``, lat/lon degrees) as
+    ``autopilot`` projects its local frame, and the fence plan's MISSION_ITEM_INT fields:
+    the polygon as the inclusion zone, then each polygon of ``exclusions`` as a no-fly
+    zone."""
+    def run(corners: Sequence[tuple[float, float]], command: int
+            ) -> tuple[list[tuple[float, float]], list[ItemFields]]:
+        geo = [frames.local_to_geodetic(x, y, home[0], home[1], autopilot) for x, y in corners]
+        n = float(len(geo))
+        return geo, [(mavlink.MAV_FRAME_GLOBAL, command, 0, 1, n, 0.0, 0.0, 0.0,
+                      round(lat * 1e7), round(lon * 1e7), 0.0) for lat, lon in geo]
+
+    geo, items = run(polygon, mavlink.MAV_CMD_NAV_FENCE_POLYGON_VERTEX_INCLUSION)
+    for zone in exclusions:
+        items += run(zone, mavlink.MAV_CMD_NAV_FENCE_POLYGON_VERTEX_EXCLUSION)[1]
     return geo, items
 
 
@@ -145,6 +158,7 @@ class FenceUpload:
     vertices: int
     max_altitude: float | None
     handle: Handle
+    zones: int = 0  # the mission's no-fly zones sent as exclusion polygons
     polygon: list[tuple[float, float]] = field(default_factory=list)  # lat, lon degrees
     enabled: str = ""  # how it was enabled, e.g. "FENCE_TYPE 5, MAV_CMD_DO_FENCE_ENABLE"
     action: tuple[str, int] | None = None  # the breach action parameter and its value
@@ -165,8 +179,10 @@ class FenceUpload:
         ceiling = (f", ceiling {self.max_altitude:g} m above home"
                    if self.max_altitude is not None else ", no ceiling")
         if self.uploaded:
+            zones = (f", {_count(self.zones, 'no-fly zone')} (exclusion polygons)"
+                     if self.zones else "")
             return (f"geofence uploaded to the autopilot: inclusion polygon of "
-                    f"{self.vertices} vertices{ceiling}; {self.vehicle_fence}; "
+                    f"{self.vertices} vertices{zones}{ceiling}; {self.vehicle_fence}; "
                     f"{self.enabled}")
         return f"geofence upload failed ({self.handle.status.value}): {self.handle.reason}"
 
@@ -188,6 +204,7 @@ class FenceUpload:
     def as_dict(self) -> dict[str, Any]:
         return {"status": self.handle.status.value, "reason": self.handle.reason,
                 "vertices": self.vertices, "max_altitude": self.max_altitude,
+                **({"no_fly_zones": self.zones} if self.zones else {}),
                 "polygon": [[frames.Degrees(lat), frames.Degrees(lon)]
                             for lat, lon in self.polygon],
                 "enabled": self.enabled, "vehicle_fence": self.vehicle_fence,

@@ -163,8 +163,9 @@ class FakeVehicle:
         self.target = self.position
         return FakeHandle("hold")
 
-    def upload_fence(self, polygon, max_altitude=None) -> FakeHandle:
-        return self._answer("upload_fence", tuple(polygon), max_altitude) or FakeHandle(
+    def upload_fence(self, polygon, max_altitude=None, exclusions=()) -> FakeHandle:
+        zones = (tuple(tuple(zone) for zone in exclusions),) if exclusions else ()
+        return self._answer("upload_fence", tuple(polygon), max_altitude, *zones) or FakeHandle(
             "upload_fence")
 
     def land(self) -> FakeHandle:

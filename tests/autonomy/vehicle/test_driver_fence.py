@@ -245,6 +245,36 @@ def test_the_vehicles_no_fly_zones_and_return_point_are_uploaded_again(rig):
     assert handle.status is CommandStatus.IN_PROGRESS  # on to FENCE_TYPE and the enable
 
 
+def test_the_missions_no_fly_zones_go_after_the_area_and_before_the_vehicles(rig):
+    exclusion = mavlink.MAV_CMD_NAV_FENCE_POLYGON_VERTEX_EXCLUSION
+    vehicle_zone = [_global(exclusion, HOME[0] + 0.002 + d, HOME[1] + e, 3.0)
+                    for d, e in [(0.0, 0.0), (0.001, 0.0), (0.0, 0.001)]]
+    building = [(10.0, 10.0), (20.0, 10.0), (20.0, 20.0)]
+    road = [(-40.0, -5.0), (40.0, -5.0), (40.0, 5.0), (-40.0, 5.0)]
+    _connect(rig)
+    handle = rig.vehicle.upload_fence(SQUARE, None, [building, road])
+    rig.tick()
+    _vehicle_fence(rig, vehicle_zone)
+    [count] = _sent(rig, "MISSION_COUNT")
+    assert count.count == 4 + 3 + 4 + 3
+    for seq in range(count.count):
+        _request(rig, seq)
+    items = _sent(rig, "MISSION_ITEM_INT")
+    assert [(i.command, i.param1) for i in items[:11]] == (
+        [(mavlink.MAV_CMD_NAV_FENCE_POLYGON_VERTEX_INCLUSION, 4)] * 4
+        + [(exclusion, 3)] * 3 + [(exclusion, 4)] * 4)
+    for item, (x, y) in zip(items[4:11], building + road, strict=True):
+        assert item.frame == mavlink.MAV_FRAME_GLOBAL
+        east, north = frames.geodetic_to_local(item.x * 1e-7, item.y * 1e-7, *HOME[:2])
+        assert (east, north) == pytest.approx((x, y), abs=0.02)
+    assert [(i.x, i.y) for i in items[11:]] == [(v[8], v[9]) for v in vehicle_zone]
+    rig.peer.send(rig.peer.mav.mission_ack_encode(255, 190, mavlink.MAV_MISSION_ACCEPTED,
+                                                  FENCE))
+    rig.tick()
+    assert handle.status is CommandStatus.IN_PROGRESS  # on to FENCE_TYPE and the enable
+    assert rig.vehicle.fence_upload.zones == 2
+
+
 @pytest.mark.parametrize("answer", ["refused", "silent"])
 def test_without_the_vehicles_fence_plan_nothing_is_uploaded(rig, answer):
     # Uploading without having read the vehicle's plan could lift its no-fly zones.
