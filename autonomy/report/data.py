@@ -111,5 +111,6 @@ class FlightData:
     collisions: int | None = None  # contacts with raised ground or moving obstacles (lockstep)
     first_collision: dict[str, Any] | None = None  # sitl.terrain.contact.Contact.as_dict()
     geofence: list[tuple[float, float]] | None = None  # the operating area's ENU vertices
+    geofence_exclude: list[list[tuple[float, float]]] = field(default_factory=list)  # no-fly
     # autonomy.vehicle.fence.FenceUpload.as_dict(): the area sent to the autopilot, if it was
     geofence_upload: dict[str, Any] | None = None

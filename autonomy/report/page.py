@@ -193,4 +193,6 @@ def build_page(data: FlightData, summary: dict[str, Any], events: Sequence[dict[
         "events": _events_lane(events),
         "moving": _moving(data, end),
     }
+    if data.geofence_exclude:  # only then: pages of flights without no-fly zones unchanged
+        page["geofence_exclude"] = [[list(v) for v in zone] for zone in data.geofence_exclude]
     return _clean(page)

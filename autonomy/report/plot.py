@@ -43,6 +43,7 @@ def map_window(data: FlightData, xyz: np.ndarray) -> tuple[float, float, float, 
     pts.append(np.array([[x, y] for x, y, _ in data.ban_zones]).reshape(-1, 2))
     if data.geofence is not None:
         pts.append(np.asarray(data.geofence, dtype=np.float64).reshape(-1, 2))
+    pts.extend(np.asarray(zone, dtype=np.float64).reshape(-1, 2) for zone in data.geofence_exclude)
     allp = np.concatenate(pts)
     lo, hi = allp.min(axis=0) - 20.0, allp.max(axis=0) + 20.0
     side = max(hi - lo)  # square window keeps the map readable
@@ -134,6 +135,11 @@ def write_report_png(data: FlightData, path: Path, *, outcome: str = "") -> None
 
         ax_map.add_patch(Polygon(data.geofence, closed=True, fill=False, ec="tab:green",
                                  lw=1.8, ls="-.", zorder=3, label="geofence"))
+    for i, zone in enumerate(data.geofence_exclude):
+        from matplotlib.patches import Polygon
+
+        ax_map.add_patch(Polygon(zone, closed=True, fill=False, ec="tab:red", hatch="///",
+                                 lw=1.5, zorder=3, label="no-fly zone" if i == 0 else None))
     if data.sites:
         sites = np.array([(s.x, s.y, s.loss) for s in data.sites])
         sc = ax_map.scatter(

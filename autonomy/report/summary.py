@@ -155,6 +155,8 @@ def build_summary(data: FlightData) -> dict[str, Any]:
     }
     if data.geofence is not None:  # only then: summaries of flights without one unchanged
         summary["geofence"] = [list(v) for v in data.geofence]
+    if data.geofence_exclude:  # the no-fly zones, ENU m, when the mission has any
+        summary["geofence_exclude"] = [[list(v) for v in zone] for zone in data.geofence_exclude]
     if data.geofence_upload is not None:
         summary["geofence_upload"] = data.geofence_upload
     return _clean(summary)

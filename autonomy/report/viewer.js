@@ -136,6 +136,11 @@
                           fill: "none", stroke: "#2e7d32", "stroke-width": 2,
                           "stroke-dasharray": "8 4 2 4" }, map), "geofence (operating area)");
   }
+  (D.geofence_exclude || []).forEach(function (zone, i) {
+    title(el("polygon", { points: zone.map(function (v) { return mx(v[0]) + "," + my(v[1]); }).join(" "),
+                          fill: "#d50000", "fill-opacity": 0.18, stroke: "#d50000",
+                          "stroke-width": 2 }, map), "no-fly zone geofence.exclude." + i);
+  });
   // Banned sites: the ban zone and a cross.
   var banEls = D.bans.map(function (b) {
     var g = el("g", {}, map);
