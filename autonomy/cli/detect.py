@@ -286,7 +286,8 @@ def run_lidar(args: argparse.Namespace, out_dir: Path) -> int:
     )  # fmt: skip
     if args.paper:  # the paper's Algorithm 1 only: no off-plane, off-data or obstacle cuts
         settings = settings.model_copy(update={
-            "max_step": None, "max_offset": None, "min_spread": None, "residual_max": None,
+            "max_step": None, "max_offset": None, "min_spread": None, "max_gap": None,
+            "residual_max": None,
             "obstacle_height": None, "classes": settings.classes.model_copy(
                 update={"enabled": False})})
     path = Path(args.lidar)

@@ -138,6 +138,16 @@ class LidarPcaSettings(BaseModel):
         "disc's (variance r^2/4; a strip narrower than 0.87 r at 0.25): a line or strip of "
         "returns says nothing of the ground beside it; None disables",
     )
+    max_gap: float | None = Field(
+        2.5,
+        ge=1,
+        le=10,
+        description="beyond the paper: a site's disc and clearance ring must be covered by "
+        "returns (any class): no point of them farther than this many mean point spacings "
+        "(of the disc's own returns) from a return, and the edge of the data no nearer "
+        "than one spacing inside the ring; no return is unknown ground (a tile edge, water, "
+        "a gap under canopy), not clear ground; None disables",
+    )
     weights: SpotWeights = SpotWeights()
     distance_scale: float = Field(
         100.0, gt=0, le=50_000, description="horizontal distance (m) at which the distance "

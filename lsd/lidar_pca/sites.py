@@ -11,6 +11,8 @@ plane:
   ``residual_max``, at least ``n_min`` points;
 - clearance ring (radius < distance <= radius + obstacle_margin): no point higher than
   ``obstacle_height`` above the plane (the obstacle altitude the site reports);
+- coverage (``max_gap``, :mod:`lsd.lidar_pca.coverage`): disc and ring are covered by
+  returns of any class; no return is unknown ground, not clear ground;
 - classified clouds (:class:`~lsd.lidar_pca.settings.ClassRules`): disc and ring hold
   only ground points (2), or, with ``roofs``, only building points (6) for a site on a roof;
   vegetation (3-5), water (9), noise (7, 18), unclassified (1) and every other class
@@ -26,7 +28,9 @@ from collections import Counter
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.spatial import cKDTree
 
+from lsd.lidar_pca.coverage import coverage_scale, unseen_distance
 from lsd.lidar_pca.detector import PlaneSearch, SpotTable, detect_planes, spot_grades
 from lsd.lidar_pca.settings import LidarPcaSettings
 from lsd.pointcloud import ColumnIndex, thin_by_distance, voxel_grid
@@ -34,7 +38,7 @@ from lsd.pointcloud import ColumnIndex, thin_by_distance, voxel_grid
 # Pairs (spot, point) handled at once: bounds the temporaries of the rule checks.
 _PAIRS_PER_BATCH = 4_000_000
 
-DROP_REASONS = ("class", "obstacle", "step", "residual", "sparse")
+DROP_REASONS = ("class", "obstacle", "unseen", "step", "residual", "sparse")
 
 
 @dataclass
@@ -169,13 +173,31 @@ def apply_site_rules(
     ]
     limit = {k: np.concatenate([lim[k] for lim in limits]) for k in limits[0]}
     radii = np.asarray(settings.radii)
+    # Coverage (beyond the paper, lsd.lidar_pca.coverage): the nearest unseen node bounds
+    # the extent (radius + ring + band).
+    if settings.max_gap is not None:
+        tree = cKDTree(np.column_stack((x, y)))
+        gap, band = coverage_scale(spots.radius, limit["n_disc"], settings)
+        unseen = unseen_distance(tree, spots.centre[:, :2], spots.radius + ring + band, gap,
+                                 settings.r_min / 4) - band
+    else:
+        unseen, band = np.full(len(spots), np.inf), np.zeros(len(spots))
     allowed = np.minimum.reduce([spots.radius, limit["step"] - 1e-9,
                                  limit["obstacle"] - ring - 1e-9,
-                                 limit["class"] - ring - 1e-9])
+                                 limit["class"] - ring - 1e-9,
+                                 unseen - ring - 1e-9])
     # The largest detector radius within what the rules allow (the spot's own if it passed).
     snapped = radii[np.maximum(np.searchsorted(radii, allowed + 1e-9, side="right") - 1, 0)]
     new_r = np.where(allowed >= spots.radius, spots.radius, snapped)
     ok = allowed >= settings.r_min - 1e-9
+    if settings.max_gap is not None:
+        # A shrunk site's lattice nodes were all seen; its own outer circle is checked now.
+        again = np.flatnonzero(ok & (new_r < spots.radius - 1e-9))
+        still = unseen_distance(tree, spots.centre[again, :2],
+                                new_r[again] + ring + band[again], gap[again],
+                                settings.r_min / 4)
+        ok[again[np.isfinite(still)]] = False
+        unseen[again[np.isfinite(still)]] = -np.inf
     # Flatness and point count of the final disc (a smaller disc has its own).
     final = spots.take(ok)
     final.radius = new_r[ok]
@@ -193,8 +215,9 @@ def apply_site_rules(
     too_few = count < settings.n_min
     # Reasons of the dropped: the rule binding at r_min.
     why = np.select(
-        [limit["class"] - ring <= settings.r_min, limit["obstacle"] - ring <= settings.r_min],
-        ["class", "obstacle"], "step",
+        [limit["class"] - ring <= settings.r_min, limit["obstacle"] - ring <= settings.r_min,
+         unseen - ring <= settings.r_min],
+        ["class", "obstacle", "unseen"], "step",
     )
     dropped.update(why[~ok].tolist())
     dropped["residual"] += int((too_rough & ~too_few).sum())
@@ -227,6 +250,8 @@ def _limits(spots, x, y, z, codes, index, reach, settings) -> dict[str, np.ndarr
         lim = np.full(k, np.inf)
         np.minimum.at(lim, owner[bad], d[bad])
         out[name] = lim
+    # Returns in each disc: its point spacing, for the coverage rule.
+    out["n_disc"] = np.bincount(owner[d <= spots.radius[owner]], minlength=k)
     lim = np.full(k, np.inf)
     if codes is not None:
         rules = settings.classes

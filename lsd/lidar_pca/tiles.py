@@ -23,6 +23,7 @@ import numpy as np
 
 from lsd.georef import Georeference
 from lsd.io import iter_las_chunks, open_las
+from lsd.lidar_pca.coverage import max_reach
 from lsd.lidar_pca.detector import SpotTable
 from lsd.lidar_pca.settings import LidarPcaSettings
 from lsd.lidar_pca.sites import SiteCounts, find_sites, finish_sites
@@ -45,8 +46,10 @@ class TiledResult:
 
 def tile_margin(settings: LidarPcaSettings) -> float:
     """Metres around a tile's core that its search points can reach: the largest radius,
-    its step and the clearance ring, plus two voxels."""
-    return settings.r_max + settings.r_step + settings.obstacle_margin + 2 * settings.voxel_size
+    its step and the clearance ring (or the coverage check's reach beyond the disc, if
+    larger), plus two voxels."""
+    beyond = max(settings.obstacle_margin, max_reach(settings))
+    return settings.r_max + settings.r_step + beyond + 2 * settings.voxel_size
 
 
 def tile_edge(settings: LidarPcaSettings, tile_size: float) -> float:

@@ -47,6 +47,13 @@ def box_distance(rows):
     return np.hypot(dx, dy)
 
 
+def edge_overhang(rows, clearance=1.0):
+    """How far (m) each site's clearance ring reaches beyond box_cloud's 20 m square."""
+    xy = np.array([[float(r["x"]), float(r["y"])] for r in rows])
+    size = np.array([float(r["size"]) for r in rows])
+    return np.abs(xy).max(axis=1) + size + clearance - 10.0
+
+
 def test_npy_cloud_prints_sites_and_writes_csv_and_overlay(tmp_path, capsys):
     cloud, _ = box_cloud()
     np.save(tmp_path / "cloud.npy", cloud)
@@ -388,5 +395,6 @@ def test_paper_flag_drops_the_checks_beyond_the_paper(tmp_path):
     assert lander(*args, "--out", tmp_path / "ours") == 0
     assert lander(*args, "--paper", "--out", tmp_path / "paper") == 0
     ours, paper = read_sites(tmp_path / "ours"), read_sites(tmp_path / "paper")
-    assert len(paper) > len(ours)
     assert box_distance(paper).min() < box_distance(ours).min()
+    # Without the coverage rule, rings run off the 20 m square (no returns taken as clear).
+    assert edge_overhang(paper).max() > 1.0 and edge_overhang(ours).max() <= 0.3
