@@ -8,6 +8,12 @@ within the clearance ring r < d <= r + clearance:
 - D holds at least ``n_min`` points, and covers the disc: every node of a square lattice of
   spacing r/4 over the disc lies within r/2 of a point (a strip or a line of returns, as at
   a tile's or a flight strip's edge, says nothing of the ground beside it);
+- the cloud's footprint covers the ring: every node of that lattice over the ring lies in
+  it (no return is unknown ground, not clear ground: the edge of the data, water). The
+  footprint is a raster of the cloud's typical point spacing s (from the median count of
+  returns per occupied 2 m cell): the cells holding a return, closed by a disc of 3 cells
+  (gaps of a sparse scan are sampling, not holes) and grown by one cell (what the returns
+  at an edge speak for);
 - the least-squares plane z = a x + b y + c of D has a slope of at most ``slope_max_deg``,
   an RMS distance of D from it of at most ``residual_max`` and no point of D farther than
   ``step_max`` from it;
@@ -23,9 +29,16 @@ from collections import Counter
 from dataclasses import dataclass
 
 import numpy as np
+from scipy import ndimage
 from scipy.spatial import cKDTree
 
 from lsd.lidar_pca.settings import LidarPcaSettings
+
+# Footprint raster: cells counted for the typical spacing (m), largest raster, and the disc
+# of radius 3 cells that closes it.
+_CELL = 2.0
+_MAX_CELLS = 50_000_000
+_DISC3 = np.hypot(*np.mgrid[-3:4, -3:4]) <= 3
 
 
 @dataclass(frozen=True)
@@ -65,6 +78,24 @@ class Judge:
         self.codes = codes if codes is not None and np.any(codes == 2) else None
         self.rules = rules
         self.tree = cKDTree(self.points[:, :2])
+        self._footprint()
+
+    def _footprint(self) -> None:
+        """The raster of ground the returns speak for (module docstring)."""
+        xy = self.points[:, :2]
+        lo = xy.min(axis=0) - 4 * _CELL  # room for the closing at the raster's border
+        per_cell = np.unique(np.floor((xy - lo) / _CELL).astype(np.int64), axis=0,
+                             return_counts=True)[1]
+        cell = _CELL / math.sqrt(float(np.median(per_cell)))
+        extent = xy.max(axis=0) - lo + 4 * _CELL
+        cell = max(cell, math.sqrt(float(np.prod(extent)) / _MAX_CELLS))
+        shape = tuple(np.ceil(extent / cell).astype(int) + 1)
+        occupied = np.zeros(shape, dtype=bool)
+        ij = np.floor((xy - lo) / cell).astype(np.int64)
+        occupied[ij[:, 0], ij[:, 1]] = True
+        closed = ndimage.binary_closing(occupied, structure=_DISC3)
+        self.footprint = ndimage.binary_dilation(closed, structure=np.ones((3, 3), bool))
+        self.footprint_origin, self.footprint_cell = lo, cell
 
     def judge(self, centres: np.ndarray, radii: np.ndarray) -> tuple[np.ndarray, list[str]]:
         """(K,) bool safe, and per disc "" or the first rule it breaks."""
@@ -85,6 +116,8 @@ class Judge:
             return "too few points"
         if not self._covered(centre, radius):
             return "disc not covered"
+        if not self._ring_in_footprint(centre, radius):
+            return "ring not covered"
         if self.codes is not None:
             c = self.codes[near]
             if not (np.isin(c, ru.ground).all() or (ru.roofs and np.isin(c, ru.roof).all())):
@@ -112,6 +145,18 @@ class Judge:
         nodes = nodes[np.hypot(nodes[:, 0], nodes[:, 1]) <= radius * (1 + 1e-9)] + centre
         gap, _ = self.tree.query(nodes, distance_upper_bound=radius / 2)
         return bool(np.isfinite(gap).all())
+
+
+    def _ring_in_footprint(self, centre: np.ndarray, radius: float) -> bool:
+        outer = radius + self.rules.clearance
+        step = np.arange(-math.ceil(outer / (radius / 4)), math.ceil(outer / (radius / 4)) + 1)
+        nodes = np.stack(np.meshgrid(step, step), axis=-1).reshape(-1, 2) * (radius / 4)
+        d = np.hypot(nodes[:, 0], nodes[:, 1])
+        nodes = nodes[(d > radius) & (d <= outer * (1 + 1e-9))] + centre
+        ij = np.floor((nodes - self.footprint_origin) / self.footprint_cell).astype(np.int64)
+        shape = np.array(self.footprint.shape)
+        inside = ((ij >= 0) & (ij < shape)).all(axis=1)
+        return bool(inside.all() and self.footprint[ij[:, 0], ij[:, 1]].all())
 
 
 def random_discs(points: np.ndarray, n: int, radius: float,
