@@ -8,6 +8,8 @@ classified scenes (urban, farmland, forest: lsd.lidar_pca.scenes). Rows:
 
 - ``detector``: the defaults of ``lander detect`` (grid seeding, class rules, site rules);
 - ``no classes``: the same without the file's classification (geometry alone);
+- ``no max_gap``, ``no classes, no max_gap``: those two without the coverage rule (a disc or
+  clearance ring partly without returns, as at the edge of the data, was taken as clear);
 - ``before``: the settings before issue 16 (no class rules, no residual or ring checks,
   max_step 0.3 m, overlapping sites), for comparison;
 - ``random``: 500 random discs of r_min (1.5 m).
@@ -18,6 +20,7 @@ classified scenes (urban, farmland, forest: lsd.lidar_pca.scenes). Rows:
 from __future__ import annotations
 
 import time
+from collections import Counter
 from pathlib import Path
 
 import _checkout  # noqa: F401  (this checkout's packages first)
@@ -33,6 +36,7 @@ from lsd.pointcloud import thin_by_distance, voxel_grid
 
 REAL = Path(__file__).resolve().parents[1] / "tests" / "data" / "real"
 DEFAULTS = LidarPcaSettings(seeding="grid")
+NO_GAP_RULE = DEFAULTS.model_copy(update={"max_gap": None})
 BEFORE = DEFAULTS.model_copy(update={
     "residual_max": None, "max_step": 0.3, "obstacle_height": None, "merge_distance": 1.0,
     "classes": DEFAULTS.classes.model_copy(update={"enabled": False}),
@@ -63,10 +67,12 @@ def sites_before(points, settings):
     return ranked.take(thin_by_distance(ranked.centre, settings.merge_distance))
 
 
-def line(name, safe):
+def line(name, safe, why=()):
     if len(safe) == 0:
-        return f"  {name:12s}     0 sites"
-    return f"  {name:12s} {len(safe):5d} sites  {100 * safe.mean():5.1f}% safe"
+        return f"  {name:24s}     0 sites"
+    gaps = Counter(w for w in why if w.endswith("not covered"))
+    said = "; " + ", ".join(f"{k} {v}" for k, v in sorted(gaps.items())) if gaps else ""
+    return f"  {name:24s} {len(safe):5d} sites  {100 * safe.mean():5.1f}% safe{said}"
 
 
 def main() -> None:
@@ -78,11 +84,12 @@ def main() -> None:
         labelled = "classified" if judge.codes is not None else "no ground class"
         print(f"{name}: {len(points):,} points ({labelled})")
         runs = (("detector", sites(points, codes, DEFAULTS)),
+                ("no max_gap", sites(points, codes, NO_GAP_RULE)),
                 ("no classes", sites(points, None, DEFAULTS)),
+                ("no classes, no max_gap", sites(points, None, NO_GAP_RULE)),
                 ("before", sites_before(points, BEFORE)))
         for label, spots in runs:
-            safe, _ = judge.judge(spots.centre[:, :2], spots.radius)
-            print(line(label, safe))
+            print(line(label, *judge.judge(spots.centre[:, :2], spots.radius)))
         centres = random_discs(points, 500, DEFAULTS.r_min, np.random.default_rng(1))
         safe, _ = judge.judge(centres, DEFAULTS.r_min)
         print(line("random", safe) + f"   ({time.perf_counter() - start:.1f} s)")
