@@ -83,6 +83,10 @@ class Judge:
     def _footprint(self) -> None:
         """The raster of ground the returns speak for (module docstring)."""
         xy = self.points[:, :2]
+        if len(xy) == 0:  # nothing seen (every disc is judged "no points" first)
+            self.footprint = np.zeros((1, 1), dtype=bool)
+            self.footprint_origin, self.footprint_cell = np.zeros(2), 1.0
+            return
         lo = xy.min(axis=0) - 4 * _CELL  # room for the closing at the raster's border
         per_cell = np.unique(np.floor((xy - lo) / _CELL).astype(np.int64), axis=0,
                              return_counts=True)[1]
