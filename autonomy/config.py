@@ -353,9 +353,21 @@ class PerceptionConfig(BaseModel):
     detection: DetectorSettings = DetectorSettings()
     depth_costmap: DepthCostmapSettings = DepthCostmapSettings()
     lidar: LidarSettings = LidarSettings()
-    lidar_pca: LidarPcaSettings = LidarPcaSettings()
+    lidar_pca: LidarPcaSettings = Field(
+        LidarPcaSettings(max_gap=None), description="the LiDAR PCA detector's settings. In "
+        "flight max_gap is off unless the mission sets it: a verification hover's cloud "
+        "shows the site's disc but seldom its whole clearance ring, so the coverage rule "
+        "would ban sites that are clear (lander detect has it on)"
+    )
     scripted: ScriptedSettings = ScriptedSettings()
     descent_flow: DescentFlowSettings = DescentFlowSettings()
+
+    @field_validator("lidar_pca", mode="before")
+    @classmethod
+    def _coverage_off_in_flight(cls, value: Any) -> Any:
+        if isinstance(value, Mapping) and "max_gap" not in value:
+            return {**value, "max_gap": None}
+        return value
 
 
 class Mission(BaseModel):

@@ -250,3 +250,16 @@ def test_every_number_in_the_schema_is_bounded_and_described():
     ]
     undescribed = [path for path, _, description in numbers if not description]
     assert unbounded == [] and undescribed == []
+
+
+def test_lidar_coverage_rule_is_off_in_flight_unless_the_mission_sets_it(tmp_path):
+    # A verification hover's cloud seldom shows a site's whole clearance ring: with the rule
+    # on, clear sites would be banned (docs/lidar-and-elevation-models.md); lander detect
+    # keeps the settings' default.
+    from lsd.lidar_pca.settings import LidarPcaSettings
+
+    assert LidarPcaSettings().max_gap == 2.5
+    for given, expected in [("", None), ("perception: {lidar_pca: {min_spread: 0.3}}\n", None),
+                            ("perception: {lidar_pca: {max_gap: 3}}\n", 3.0)]:
+        mission = load_mission(write(tmp_path, GOOD + given))
+        assert mission.perception.lidar_pca.max_gap == expected
