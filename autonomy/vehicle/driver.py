@@ -25,7 +25,7 @@ from typing import Any, Protocol
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
-from autonomy.vehicle import frames, modes
+from autonomy.vehicle import fence_steps, frames, modes
 from autonomy.vehicle.commands import (
     CommandStep,
     CommandTracker,
@@ -36,18 +36,12 @@ from autonomy.vehicle.commands import (
     Wait,
     finished_handle,
 )
-from autonomy.vehicle.fence import (
-    BREACH_ACTION,
-    FenceUpload,
-    ardupilot_fence_type,
-    describe_action,
-    fence_items,
-    kept_from_vehicle,
-)
+from autonomy.vehicle.fence import FenceUpload
 from autonomy.vehicle.home import FlightFrame, HomeMove
 from autonomy.vehicle.settings import LOG_STREAMS, VehicleLinkSettings
 from autonomy.vehicle.tlog import TlogWriter
 from autonomy.vehicle.transfers import (
+    ItemFields,
     MissionDownload,
     MissionUpload,
     ParamRead,
@@ -232,6 +226,8 @@ class MavlinkVehicle:
         # Mission-protocol and parameter exchanges, until done.
         self._transfers: list[MissionUpload | MissionDownload | ParamSet | ParamRead] = []
         self.fence_upload: FenceUpload | None = None  # the last upload_fence(), if any
+        self._exchanges = fence_steps.Exchanges(self._upload, self._download, self._read_param,
+                                                self._set_param, self._command)
 
         # What the autopilot last reported (raw, NED where it says so).
         self._wanted_system = target_system
@@ -507,9 +503,18 @@ class MavlinkVehicle:
         record = FenceUpload(len(polygon), max_altitude, Handle(name, self.clock.now()),
                              zones=len(exclusions))
         zones = [[tuple(map(float, v)) for v in zone] for zone in exclusions]
-        record.handle = self._procedure(
-            name, self._fence_steps(record, [tuple(map(float, v)) for v in polygon],
-                                    max_altitude, zones))
+
+        def steps() -> StepGenerator:
+            yield Wait("home position", self.clock.now(), lambda: self._frame.origin is not None,
+                       self.settings.link_timeout,
+                       "no HOME_POSITION from the autopilot (the fence is placed about home)")
+            home = self._frame.origin
+            assert home is not None
+            yield from fence_steps.upload(
+                self._exchanges, record, self._autopilot, (home[0], home[1]),
+                [tuple(map(float, v)) for v in polygon], zones, max_altitude)
+
+        record.handle = self._procedure(name, steps())
         self.fence_upload = record
         return record.handle
 
@@ -527,7 +532,7 @@ class MavlinkVehicle:
         if refused:
             record.restore = refused
             return refused
-        record.restore = self._procedure(name, self._restore_steps(record))
+        record.restore = self._procedure(name, fence_steps.restore(self._exchanges, record))
         return record.restore
 
     def close(self) -> None:
@@ -1048,87 +1053,20 @@ class MavlinkVehicle:
         self._mav.param_request_read_send(self._target_system, self._target_component,
                                           param.encode("ascii"), -1)
 
-    def _fence_steps(self, record: FenceUpload, polygon: list[tuple[float, float]],
-                     max_altitude: float | None,
-                     exclusions: Sequence[Sequence[tuple[float, float]]] = ()
-                     ) -> StepGenerator:
-        yield Wait(
-            "home position",
-            self.clock.now(),
-            lambda: self._frame.origin is not None,
-            self.settings.link_timeout,
-            "no HOME_POSITION from the autopilot (the fence is placed about home)",
-        )
-        home = self._frame.origin
-        assert home is not None
-        record.polygon, items = fence_items(polygon, (home[0], home[1]), self._autopilot,
-                                            exclusions)
-        # The upload replaces the vehicle's whole fence plan: read it to keep its no-fly zones.
+    def _upload(self, name: str, items: list[ItemFields], mission_type: int) -> MissionUpload:
         now = self.clock.now()
-        download = MissionDownload("the vehicle's fence plan", now,
-                                   mavlink.MAV_MISSION_TYPE_FENCE, self._send_transfer).start(now)
+        upload = MissionUpload(name, now, items, mission_type, self._send_transfer).start(now)
+        self._transfers.append(upload)
+        return upload
+
+    def _download(self, name: str, mission_type: int) -> MissionDownload:
+        now = self.clock.now()
+        download = MissionDownload(name, now, mission_type, self._send_transfer).start(now)
         self._transfers.append(download)
-        yield download
-        record.vehicle_items = download.items
-        kept, record.vehicle_fence = kept_from_vehicle(download.items)
-        now = self.clock.now()
-        upload = MissionUpload("fence plan", now, items + kept, mavlink.MAV_MISSION_TYPE_FENCE,
-                               self._send_transfer).start(now)
-        self._transfers.append(upload)
-        yield upload
-        real32 = mavlink.MAV_PARAM_TYPE_REAL32
-        int8 = mavlink.MAV_PARAM_TYPE_INT8
-        if self._autopilot == modes.PX4:
-            # Only a REAL32 is set on PX4 (its integers travel byte-wise, param_value).
-            if max_altitude is not None:
-                yield from self._change_param(record, "GF_MAX_VER_DIST", max_altitude, real32)
-            done = ["fence plan in force" + (
-                f", GF_MAX_VER_DIST {max_altitude:g}" if max_altitude is not None else "")]
-        else:
-            if max_altitude is not None:
-                yield from self._change_param(record, "FENCE_ALT_MAX", max_altitude, real32)
-            # ArduPilot reads integer parameters from PARAM_SET's float (C cast), unlike PX4.
-            fence_type = ardupilot_fence_type(max_altitude)
-            yield from self._change_param(record, "FENCE_TYPE", fence_type, int8)
-            # Whether its fences are on when not enabled by command (restored after the flight).
-            enabled = self._read_param("FENCE_ENABLE")
-            yield enabled
-            assert enabled.value is not None
-            record.enable_before = int(enabled.value)
-            yield self._submit(CommandStep("fence enable", self.clock.now(),
-                                           mavlink.MAV_CMD_DO_FENCE_ENABLE, (1.0,)))
-            done = [f"FENCE_TYPE {fence_type}" + (
-                f", FENCE_ALT_MAX {max_altitude:g}" if max_altitude is not None else "")
-                + ", enabled (MAV_CMD_DO_FENCE_ENABLE)"]
-        # The breach action stays the autopilot's own; say which it is (0: report only).
-        action = self._read_param(BREACH_ACTION[self._autopilot])
-        yield action
-        assert action.value is not None
-        record.action = (action.param, int(action.value))
-        done.append(describe_action(self._autopilot, int(action.value)))
-        record.enabled = "; ".join(done)
+        return download
 
-    def _change_param(self, record: FenceUpload, param: str, value: float,
-                      param_type: int) -> StepGenerator:
-        """Set ``param``, having read the value it had (kept in ``record.before``)."""
-        read = self._read_param(param)
-        yield read
-        assert read.value is not None
-        record.before[param] = (read.value, param_type)
-        yield self._set_param(param, value, param_type)
-
-    def _restore_steps(self, record: FenceUpload) -> StepGenerator:
-        now = self.clock.now()
-        upload = MissionUpload("fence plan", now, record.vehicle_items,
-                               mavlink.MAV_MISSION_TYPE_FENCE, self._send_transfer).start(now)
-        self._transfers.append(upload)
-        yield upload
-        for param, (value, param_type) in record.before.items():
-            yield self._set_param(param, value, param_type)
-        if record.enable_before is not None:  # ArduPilot: its fences on or off, as before
-            yield self._submit(CommandStep("fence enable", self.clock.now(),
-                                           mavlink.MAV_CMD_DO_FENCE_ENABLE,
-                                           (float(record.enable_before),)))
+    def _command(self, name: str, command: int, params: tuple[float, ...]) -> CommandStep:
+        return self._submit(CommandStep(name, self.clock.now(), command, params))
 
     # ------------------------------------------------------------------ command building
     def _start(self, name: str) -> Handle | None:
