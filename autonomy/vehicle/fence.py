@@ -195,8 +195,9 @@ class FenceUpload:
                     f"{self.restore.reason}; the mission's may still be in force")
         params = ", ".join(f"{name} {value:g}" for name, (value, _) in self.before.items())
         zones = _zones(self.vehicle_items)
-        text = (f"the vehicle's geofence restored on the autopilot: its fence plan "
-                f"({_count(zones, 'zone')})" + (f", {params}" if params else ""))
+        plan = f"its fence plan ({_count(zones, 'zone')})" if zones else "its empty fence plan"
+        text = (f"the vehicle's geofence restored on the autopilot: {plan}"
+                + (f", {params}" if params else ""))
         if self.enable_before is not None:
             text += f", fences {'enabled' if self.enable_before else 'disabled'} as FENCE_ENABLE"
         return text
