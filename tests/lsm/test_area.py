@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from lsm import LandingSiteManager, LsmSettings, OperatingArea, SiteObservation
-from lsm.area import self_intersection
+from lsm.area import NoFlyCircle, self_intersection
 
 # An L: the leg from the east arm to the north arm cuts the missing corner.
 L_AREA = OperatingArea(((0, 0), (100, 0), (100, 20), (20, 20), (20, 100), (0, 100)), margin=2)
@@ -88,3 +88,49 @@ def test_a_polygon_overlaps_the_area_in_part_or_whole():
     assert L_AREA.overlaps([(90, 10), (150, 10), (150, 50)])
     assert L_AREA.overlaps([(5, 5), (8, 5), (8, 8)])
     assert not L_AREA.overlaps([(50, 50), (90, 50), (90, 90)])  # the L's missing corner
+
+
+# A polygon (zone 0) and a circle of radius 5 about (70, 10) (zone 1) in the L's east arm.
+CIRCLED = OperatingArea(L_AREA.vertices, margin=2, exclusions=(
+    ((40, 2), (60, 2), (60, 18), (40, 18)), NoFlyCircle(70, 10, 5)))
+
+
+def test_a_no_fly_circle_is_kept_out_of_with_the_margin():
+    points = np.array([[70, 10], [74, 10], [76.5, 10], [77.5, 10], [50, 10], [10, 10]])
+    assert CIRCLED.contains(points).tolist() == [False, False, False, True, False, True]
+    assert CIRCLED.zone_of(points).tolist() == [1, 1, 1, -1, 0, -1]
+    assert CIRCLED.edge_distance((78, 10))[0] == np.float64(3.0)
+    # Zones are numbered in their order: the circle first here.
+    swapped = OperatingArea(L_AREA.vertices, 2, None, CIRCLED.exclusions[::-1])
+    assert swapped.zone_of(points).tolist() == [0, 0, 0, -1, 1, -1]
+
+
+def test_a_leg_passing_a_no_fly_circle_within_its_margin_is_not_inside():
+    # Closest approach to (70, 10): 6 m, under radius 5 + margin 2; 8 m is clear.
+    assert not CIRCLED.leg_inside((62, 4), (90, 4))
+    assert CIRCLED.leg_zone((62, 4), (90, 4)) == 1
+    clear = OperatingArea(L_AREA.vertices, 2, None, (NoFlyCircle(70, 12, 5),))
+    assert clear.leg_inside((62, 4), (90, 4)) and clear.leg_zone((62, 4), (90, 4)) is None
+    # Both ends clear, the middle through the circle: the leg is not.
+    assert not clear.leg_inside((62, 12), (90, 12)) and clear.leg_zone((62, 12), (90, 12)) == 0
+    # Out of the circle, a start drifted into its margin keeps its own clearance.
+    assert clear.leg_inside((70, 5.5), (70, 3))
+    assert not clear.leg_inside((70, 14), (90, 14))  # from inside the circle
+    # A leg through both zones names the first of them.
+    assert CIRCLED.leg_zone((30, 10), (90, 10)) == 0
+
+
+def test_the_manager_rejects_sites_in_a_no_fly_circle():
+    lsm = LandingSiteManager(LsmSettings(max_distance=1000))
+    lsm.set_area(OperatingArea(L_AREA.vertices, 2, None, (NoFlyCircle(70, 10, 5),)))
+    lsm.submit_many([_obs(70, 10), _obs(75, 12), _obs(80, 10), _obs(10, 10)])
+    lsm.process_pending()
+    assert lsm.counters()["rejected_outside_geofence"] == 2
+    assert sorted((s.x, s.y) for s in lsm.ranked((0, 0, 30))) == [(10, 10), (80, 10)]
+
+
+def test_a_no_fly_circle_overlaps_the_area_when_it_reaches_in():
+    assert L_AREA.overlaps(NoFlyCircle(50, 10, 1))  # inside
+    assert L_AREA.overlaps(NoFlyCircle(50, 25, 6))  # centre out, reaching in
+    assert not L_AREA.overlaps(NoFlyCircle(50, 50, 20))  # the L's missing corner
+    assert L_AREA.overlaps(NoFlyCircle(50, 50, 1000))  # the whole area within
