@@ -7,7 +7,7 @@ from py_trees.common import Access, Status
 from behaviors import blackboard as keys
 from behaviors.base import MissionBehaviour, Point, RouteAction, VehicleAction
 from behaviors.ports import Clock, CommandHandle, CommandStatus, LandedState, VehiclePort
-from lsm.area import OperatingArea
+from lsm.area import NoFlyCircle, OperatingArea
 
 GPS_FIX_3D = 3
 
@@ -76,7 +76,8 @@ class Preflight(MissionBehaviour):
             if handle is None:
                 handle = self._fence_handle = self.vehicle.upload_fence(
                     list(self.fence.vertices), self.fence.max_altitude,
-                    exclusions=[list(zone) for zone in self.fence.exclusions])
+                    exclusions=[zone if isinstance(zone, NoFlyCircle) else list(zone)
+                                for zone in self.fence.exclusions])
             if not handle.status.done:
                 self.feedback_message = "uploading the geofence to the autopilot"
                 return Status.RUNNING

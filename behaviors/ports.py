@@ -12,6 +12,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Protocol, runtime_checkable
 
+from lsm.area import NoFlyZone
+
 
 class Clock(Protocol):
     """Injected time source: simulated time in lockstep runs, the vehicle's own time live."""
@@ -121,11 +123,11 @@ class VehiclePort(Protocol):
 
     def upload_fence(
         self, polygon: list[tuple[float, float]], max_altitude: float | None = None,
-        exclusions: Sequence[Sequence[tuple[float, float]]] = (),
+        exclusions: Sequence[NoFlyZone] = (),
     ) -> CommandHandle:
         """Make the autopilot itself enforce the operating area: ``polygon`` (ENU x, y m)
-        as its inclusion geofence, each of ``exclusions`` (ENU x, y m polygons) as a no-fly
-        zone, ``max_altitude`` (m above home) as its ceiling, enabled.
+        as its inclusion geofence, each of ``exclusions`` (ENU x, y m polygons, or circles) as
+        a no-fly zone, ``max_altitude`` (m above home) as its ceiling, enabled.
         Only called when the mission asks for it (``geofence.upload``)."""
         ...
 

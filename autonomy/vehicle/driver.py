@@ -49,6 +49,7 @@ from autonomy.vehicle.transfers import (
     param_value,
 )
 from behaviors.ports import Clock, CommandStatus, LandedState, VehicleState
+from lsm.area import NoFlyCircle, NoFlyZone
 from sitl.copter.codec import (  # pymavlink's codec, byte for byte, in fewer steps
     FastMAVLink,
     MessageRecord,
@@ -487,13 +488,13 @@ class MavlinkVehicle:
 
     def upload_fence(
         self, polygon: list[tuple[float, float]], max_altitude: float | None = None,
-        exclusions: Sequence[Sequence[tuple[float, float]]] = (),
+        exclusions: Sequence[NoFlyZone] = (),
     ) -> Handle:
         """Make the autopilot enforce the operating area: ``polygon`` (ENU x, y m of the
         flight's frame) uploaded as its inclusion geofence about its home, ``exclusions``
-        (polygons, ENU x, y m) as its no-fly zones, ``max_altitude`` (m above home) as its
-        ceiling, and the fence enabled (:mod:`autonomy.vehicle.fence`
-        says what is set on each autopilot). ACCEPTED once the autopilot has taken all of it;
+        (polygons, ENU x, y m, and circles) as its no-fly zones, ``max_altitude`` (m above
+        home) as its ceiling, and the fence enabled (:mod:`autonomy.vehicle.fence` says what
+        is set on each autopilot). ACCEPTED once the autopilot has taken all of it;
         the record is :attr:`fence_upload`."""
         name = f"upload geofence ({len(polygon)} vertices)"
         refused = self._start(name)
@@ -501,8 +502,10 @@ class MavlinkVehicle:
             self.fence_upload = FenceUpload(len(polygon), max_altitude, refused)
             return refused
         record = FenceUpload(len(polygon), max_altitude, Handle(name, self.clock.now()),
-                             zones=len(exclusions))
-        zones = [[tuple(map(float, v)) for v in zone] for zone in exclusions]
+                             zones=len(exclusions),
+                             circles=sum(isinstance(z, NoFlyCircle) for z in exclusions))
+        zones = [NoFlyCircle(*map(float, zone)) if isinstance(zone, NoFlyCircle)
+                 else [tuple(map(float, v)) for v in zone] for zone in exclusions]
 
         def steps() -> StepGenerator:
             yield Wait("home position", self.clock.now(), lambda: self._frame.origin is not None,

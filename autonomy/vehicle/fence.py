@@ -12,9 +12,11 @@ What is uploaded (docs/reference/mission-file.md#geofence):
   MISSION_ITEM_INT as 1e7 degrees. The vertices are placed with the autopilot's own
   projection about its home (:func:`autonomy.vehicle.frames.local_to_geodetic`), so the
   fence lies where the flight's ENU polygon is;
-* the mission's no-fly zones (``geofence.exclude``) after it, each a run of
+* the mission's no-fly zones (``geofence.exclude``) after it: each polygon a run of
   MAV_CMD_NAV_FENCE_POLYGON_VERTEX_EXCLUSION items (param1 = its vertex count), sent and
-  projected as the inclusion vertices are;
+  projected as the inclusion vertices are, then each circle one
+  MAV_CMD_NAV_FENCE_CIRCLE_EXCLUSION item (param1 = the radius in m, its centre's lat/lon
+  as a vertex's), as MAVProxy's fence module and ArduPilot's autotest send them;
 * the ceiling, when the mission gives one: ArduPilot FENCE_ALT_MAX, PX4 GF_MAX_VER_DIST
   (both metres above home);
 * ArduPilot only: FENCE_TYPE = polygon (+ max altitude with a ceiling; AC_Fence.h bits 4 and
@@ -54,6 +56,7 @@ from autonomy.vehicle import frames
 from autonomy.vehicle.commands import Handle
 from autonomy.vehicle.transfers import ItemFields
 from behaviors.ports import CommandStatus
+from lsm.area import NoFlyCircle, NoFlyZone
 
 # AC_Fence.h: FENCE_TYPE bits.
 ARDUPILOT_ALT_MAX = 1
@@ -61,12 +64,12 @@ ARDUPILOT_POLYGON = 4  # every fence-plan zone: inclusion and exclusion (no-fly)
 
 
 def fence_items(polygon: Sequence[tuple[float, float]], home: tuple[float, float],
-                autopilot: str, exclusions: Sequence[Sequence[tuple[float, float]]] = ()
+                autopilot: str, exclusions: Sequence[NoFlyZone] = ()
                 ) -> tuple[list[tuple[float, float]], list[ItemFields]]:
     """The lat/lon of each ENU vertex of ``polygon`` (m about ``home``, lat/lon degrees) as
     ``autopilot`` projects its local frame, and the fence plan's MISSION_ITEM_INT fields:
     the polygon as the inclusion zone, then each polygon of ``exclusions`` as a no-fly
-    zone."""
+    zone, then each circle of them."""
     def run(corners: Sequence[tuple[float, float]], command: int
             ) -> tuple[list[tuple[float, float]], list[ItemFields]]:
         geo = [frames.local_to_geodetic(x, y, home[0], home[1], autopilot) for x, y in corners]
@@ -75,8 +78,15 @@ def fence_items(polygon: Sequence[tuple[float, float]], home: tuple[float, float
                       round(lat * 1e7), round(lon * 1e7), 0.0) for lat, lon in geo]
 
     geo, items = run(polygon, mavlink.MAV_CMD_NAV_FENCE_POLYGON_VERTEX_INCLUSION)
+    circles = [zone for zone in exclusions if isinstance(zone, NoFlyCircle)]
     for zone in exclusions:
-        items += run(zone, mavlink.MAV_CMD_NAV_FENCE_POLYGON_VERTEX_EXCLUSION)[1]
+        if not isinstance(zone, NoFlyCircle):
+            items += run(zone, mavlink.MAV_CMD_NAV_FENCE_POLYGON_VERTEX_EXCLUSION)[1]
+    for circle in circles:
+        lat, lon = frames.local_to_geodetic(circle.x, circle.y, home[0], home[1], autopilot)
+        items.append((mavlink.MAV_FRAME_GLOBAL, mavlink.MAV_CMD_NAV_FENCE_CIRCLE_EXCLUSION,
+                      0, 1, float(circle.radius), 0.0, 0.0, 0.0,
+                      round(lat * 1e7), round(lon * 1e7), 0.0))
     return geo, items
 
 
@@ -158,7 +168,8 @@ class FenceUpload:
     vertices: int
     max_altitude: float | None
     handle: Handle
-    zones: int = 0  # the mission's no-fly zones sent as exclusion polygons
+    zones: int = 0  # the mission's no-fly zones sent as exclusion polygons and circles
+    circles: int = 0  # the ones of them sent as exclusion circles
     polygon: list[tuple[float, float]] = field(default_factory=list)  # lat, lon degrees
     enabled: str = ""  # how it was enabled, e.g. "FENCE_TYPE 5, MAV_CMD_DO_FENCE_ENABLE"
     action: tuple[str, int] | None = None  # the breach action parameter and its value
@@ -179,12 +190,21 @@ class FenceUpload:
         ceiling = (f", ceiling {self.max_altitude:g} m above home"
                    if self.max_altitude is not None else ", no ceiling")
         if self.uploaded:
-            zones = (f", {_count(self.zones, 'no-fly zone')} (exclusion polygons)"
+            zones = (f", {_count(self.zones, 'no-fly zone')} ({self._zone_kinds()})"
                      if self.zones else "")
             return (f"geofence uploaded to the autopilot: inclusion polygon of "
                     f"{self.vertices} vertices{zones}{ceiling}; {self.vehicle_fence}; "
                     f"{self.enabled}")
         return f"geofence upload failed ({self.handle.status.value}): {self.handle.reason}"
+
+    def _zone_kinds(self) -> str:
+        polygons = self.zones - self.circles
+        if not self.circles:
+            return "exclusion polygons"
+        if not polygons:
+            return "exclusion circles"
+        return (f"{_count(polygons, 'exclusion polygon')}, "
+                f"{_count(self.circles, 'exclusion circle')}")
 
     def describe_restore(self) -> str:
         """One line on how the vehicle's own geofence was put back (after the flight)."""
@@ -206,6 +226,7 @@ class FenceUpload:
         return {"status": self.handle.status.value, "reason": self.handle.reason,
                 "vertices": self.vertices, "max_altitude": self.max_altitude,
                 **({"no_fly_zones": self.zones} if self.zones else {}),
+                **({"no_fly_circles": self.circles} if self.circles else {}),
                 "polygon": [[frames.Degrees(lat), frames.Degrees(lon)]
                             for lat, lon in self.polygon],
                 "enabled": self.enabled, "vehicle_fence": self.vehicle_fence,

@@ -29,6 +29,7 @@ from autonomy.vehicle.transfers import (
     ParamRead,
     ParamSet,
 )
+from lsm.area import NoFlyZone
 
 FENCE = mavlink.MAV_MISSION_TYPE_FENCE
 _REAL32 = mavlink.MAV_PARAM_TYPE_REAL32
@@ -49,7 +50,7 @@ class Exchanges:
 
 def upload(link: Exchanges, record: FenceUpload, autopilot: str,
            home: tuple[float, float], polygon: list[tuple[float, float]],
-           exclusions: Sequence[Sequence[tuple[float, float]]],
+           exclusions: Sequence[NoFlyZone],
            max_altitude: float | None) -> StepGenerator:
     """The operating area ``polygon`` and no-fly ``exclusions`` (ENU m about ``home``, lat
     and lon degrees) and the ceiling made the autopilot's geofence; ``record`` keeps what

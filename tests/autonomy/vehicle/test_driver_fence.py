@@ -9,6 +9,7 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from autonomy.vehicle import frames
 from behaviors.ports import CommandStatus
+from lsm.area import NoFlyCircle
 
 FENCE = mavlink.MAV_MISSION_TYPE_FENCE
 HOME = (47.397742, 8.545594, 488.0)
@@ -273,6 +274,28 @@ def test_the_missions_no_fly_zones_go_after_the_area_and_before_the_vehicles(rig
     rig.tick()
     assert handle.status is CommandStatus.IN_PROGRESS  # on to FENCE_TYPE and the enable
     assert rig.vehicle.fence_upload.zones == 2
+
+
+def test_a_missions_no_fly_circle_goes_as_one_circle_item_after_the_polygons(rig):
+    exclusion = mavlink.MAV_CMD_NAV_FENCE_POLYGON_VERTEX_EXCLUSION
+    mast = NoFlyCircle(-20.0, 30.0, 12.5)
+    building = [(10.0, 10.0), (20.0, 10.0), (20.0, 20.0)]
+    _connect(rig)
+    rig.vehicle.upload_fence(SQUARE, None, [mast, building])
+    rig.tick()
+    _vehicle_fence(rig, [])
+    [count] = _sent(rig, "MISSION_COUNT")
+    assert count.count == 4 + 3 + 1
+    for seq in range(count.count):
+        _request(rig, seq)
+    items = _sent(rig, "MISSION_ITEM_INT")
+    assert [(i.command, i.param1) for i in items[4:]] == (
+        [(exclusion, 3)] * 3 + [(mavlink.MAV_CMD_NAV_FENCE_CIRCLE_EXCLUSION, 12.5)])
+    circle = items[-1]
+    assert circle.frame == mavlink.MAV_FRAME_GLOBAL
+    east, north = frames.geodetic_to_local(circle.x * 1e-7, circle.y * 1e-7, *HOME[:2])
+    assert (east, north) == pytest.approx((-20.0, 30.0), abs=0.02)
+    assert (rig.vehicle.fence_upload.zones, rig.vehicle.fence_upload.circles) == (2, 1)
 
 
 @pytest.mark.parametrize("answer", ["refused", "silent"])
