@@ -62,7 +62,7 @@ from behaviors.settings import (
 from lsd.depth_costmap.settings import DepthCostmapSettings
 from lsd.elevation.settings import DetectorSettings, ElevationMapSettings
 from lsd.lidar_pca.settings import LidarPcaSettings
-from lsm.area import OperatingArea, self_intersection
+from lsm.area import NoFlyCircle, OperatingArea, self_intersection
 from lsm.settings import LossWeights, LsmSettings
 from sitl import SitlSettings
 from sitl.copter import HomeSettings
@@ -263,8 +263,28 @@ MAX_FENCE_ZONES = 100
 """No-fly zones of a mission: each is a run of fence items on the autopilot, which stores a
 few hundred items at most."""
 
-NoFlyZone = Annotated[list[Vertex], Field(min_length=3, max_length=MAX_FENCE_VERTICES)]
-"""A no-fly polygon: 3 to 1000 vertices, as the operating area's."""
+class NoFlyCircleZone(BaseModel):
+    """A round no-fly zone (a mast, a tree, a person, a take-off spot): everything within
+    ``radius`` m of ``centre``."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+
+    centre: Vertex = Field(description="ENU [x, y] m or {lat, lon}, as polygon's vertices")
+    radius: float = Field(gt=0, le=MAX_RANGE, description="m, up to 50 km")
+
+
+def _zone_kind(value: Any) -> str:
+    return "circle" if isinstance(value, (Mapping, NoFlyCircleZone)) else "polygon"
+
+
+NoFlyZone = Annotated[
+    Annotated[list[Vertex], Field(min_length=3, max_length=MAX_FENCE_VERTICES),
+              Tag("polygon")]
+    | Annotated[NoFlyCircleZone, Tag("circle")],
+    Discriminator(_zone_kind),
+]
+"""A no-fly polygon (3 to 1000 vertices, as the operating area's) or a circle
+``{centre, radius}``."""
 
 
 CEILING_MARGIN = 2.0
@@ -292,9 +312,10 @@ class GeofenceConfig(BaseModel):
     )
     exclude: list[NoFlyZone] = Field(
         default_factory=list, max_length=MAX_FENCE_ZONES, description="up to 100 no-fly "
-        "zones (a building, a crowd, a road) inside the area, each a simple polygon of 3 to "
-        "1000 vertices given as polygon's; no site, waypoint, leg or search pattern comes "
-        "within margin of one, and upload sends them as exclusion zones"
+        "zones (a building, a crowd, a road, a mast) reaching into the area, each a simple "
+        "polygon of 3 to 1000 vertices given as polygon's, or a circle {centre: [x, y] or "
+        "{lat, lon}, radius: m}; no site, waypoint, leg or search pattern comes within "
+        "margin of one, and upload sends them as exclusion zones"
     )
     margin: float = Field(
         0.0, ge=0, le=MAX_RANGE, description="m kept inside the edge (and out of the no-fly "
@@ -500,7 +521,8 @@ class Mission(BaseModel):
         assert fence is not None
         _check_polygon("geofence.polygon", area.vertices)
         for k, zone in enumerate(area.exclusions):
-            _check_polygon(f"geofence.exclude.{k}", zone)
+            if not isinstance(zone, NoFlyCircle):
+                _check_polygon(f"geofence.exclude.{k}", zone)
             if not area.overlaps(zone):
                 raise ValueError(f"geofence.exclude.{k}: the no-fly zone lies outside "
                                  "geofence.polygon (no part of it is in the area)")
@@ -568,15 +590,19 @@ class Mission(BaseModel):
         lat0, lon0 = (self.home.lat, self.home.lon) if home is None else home
         project = project or geodetic_to_enu
 
-        def enu(polygon: list[Any]) -> tuple[tuple[float, float], ...]:
-            return tuple(
-                tuple(float(c) for c in project(v.lat, v.lon, lat0, lon0))
-                if isinstance(v, GeoVertex) else (float(v[0]), float(v[1]))
-                for v in polygon
-            )
+        def point(v: Any) -> tuple[float, float]:
+            if isinstance(v, GeoVertex):
+                x, y = project(v.lat, v.lon, lat0, lon0)
+                return float(x), float(y)
+            return float(v[0]), float(v[1])
 
-        return OperatingArea(enu(fence.polygon), fence.margin, fence.max_altitude,
-                             tuple(enu(zone) for zone in fence.exclude))
+        def zone(z: Any) -> tuple[tuple[float, float], ...] | NoFlyCircle:
+            if isinstance(z, NoFlyCircleZone):
+                return NoFlyCircle(*point(z.centre), float(z.radius))
+            return tuple(point(v) for v in z)
+
+        return OperatingArea(tuple(point(v) for v in fence.polygon), fence.margin,
+                             fence.max_altitude, tuple(zone(z) for z in fence.exclude))
 
     @property
     def has_home(self) -> bool:

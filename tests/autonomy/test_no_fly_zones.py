@@ -96,3 +96,43 @@ def test_lander_validate_counts_the_zones_and_lat_lon_zones_are_converted(tmp_pa
     (x0, y0), _, (x2, y2), _ = area.exclusions[0]
     assert x0 == pytest.approx(15, abs=0.5) and y0 == pytest.approx(48, abs=0.5)
     assert x2 == pytest.approx(35, abs=0.5) and y2 == pytest.approx(65, abs=0.5)
+
+
+# A circle of 10 m about (25, 55), where the demo lands without zones (see OVER_LANDING).
+CIRCLE_OVER_LANDING = {"centre": [25, 55], "radius": 10}
+
+
+@pytest.mark.parametrize(("exclude", "field", "reason"), [
+    ([OVER_LANDING, {"centre": [40, 38], "radius": 1}], "waypoints.1",
+     "(40.0, 40.0) is in the no-fly zone geofence.exclude.1 (or within its 2 m margin)"),
+    ([{"centre": [20, 44], "radius": 3}], "waypoints.2",
+     "the straight leg from waypoint 1 crosses the no-fly zone geofence.exclude.0 (or comes "
+     "within its 2 m margin); add a waypoint to go round it"),
+    ([{"centre": [3, 3], "radius": 3}], "geofence.exclude.0",
+     "home (0, 0) is in this no-fly zone (or within its 2 m margin)"),
+    ([{"centre": [200, 200], "radius": 50}], "geofence.exclude.0",
+     "the no-fly zone lies outside geofence.polygon"),
+    ([OVER_LANDING, {"centre": [25, 55], "radius": 0}], "geofence.exclude.1.radius",
+     "must be > 0"),
+    ([{"centre": [25, 55], "radius": 60_000}], "geofence.exclude.0.radius",
+     "must be <= 50000"),
+    ([{"centre": [25, 55]}], "geofence.exclude.0.radius", "required"),
+    ([{"centre": [25, 55], "radius": 5, "height": 3}], "geofence.exclude.0.height", ""),
+    ([{"centre": "x", "radius": 5}], "geofence.exclude.0.centre", "must be a list"),
+])
+def test_a_bad_no_fly_circle_is_one_line_naming_the_field_and_exit_2(
+        tmp_path, capsys, exclude, field, reason):
+    assert main(["validate", _demo_with(tmp_path, exclude)]) == 2
+    line = _error(capsys)
+    assert f": {field}: " in line and reason in line, line
+
+
+def test_a_lat_lon_circle_is_converted_and_counted(tmp_path, capsys):
+    # About 25 m east and 55 m north of the demo's home (47.397742, 8.545594).
+    circle = {"centre": {"lat": 47.398237, "lon": 8.545926}, "radius": 10}
+    assert main(["validate", _demo_with(tmp_path, [OVER_LANDING, circle])]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert out[-1].startswith("geofence: 4 vertices, 2 no-fly zones, margin 2 m")
+    zone = load_mission(_demo_with(tmp_path, [OVER_LANDING, circle])).operating_area(
+    ).exclusions[1]
+    assert (zone.x, zone.y, zone.radius) == pytest.approx((25, 55, 10), abs=0.5)
