@@ -7,6 +7,7 @@ from typing import Any
 
 import numpy as np
 
+from lsm.area import NoFlyCircle
 from lsm.records import LandingSite
 
 
@@ -111,6 +112,15 @@ class FlightData:
     collisions: int | None = None  # contacts with raised ground or moving obstacles (lockstep)
     first_collision: dict[str, Any] | None = None  # sitl.terrain.contact.Contact.as_dict()
     geofence: list[tuple[float, float]] | None = None  # the operating area's ENU vertices
-    geofence_exclude: list[list[tuple[float, float]]] = field(default_factory=list)  # no-fly
+    # The no-fly zones: polygons (ENU vertices) and lsm.area.NoFlyCircle, in the file's order.
+    geofence_exclude: list[Any] = field(default_factory=list)
     # autonomy.vehicle.fence.FenceUpload.as_dict(): the area sent to the autopilot, if it was
     geofence_upload: dict[str, Any] | None = None
+
+
+def zone_record(zone: Any) -> list[list[float]] | dict[str, Any]:
+    """A no-fly zone as summary.json and report.html list it (ENU m): a polygon as its
+    vertices, a circle as ``{"centre": [x, y], "radius": r}``."""
+    if isinstance(zone, NoFlyCircle):
+        return {"centre": [zone.x, zone.y], "radius": zone.radius}
+    return [list(v) for v in zone]

@@ -20,7 +20,7 @@ import cv2
 import numpy as np
 
 from autonomy.report import timeline
-from autonomy.report.data import FlightData
+from autonomy.report.data import FlightData, zone_record
 from autonomy.report.events import _clean
 from autonomy.report.plot import map_window, shaded_terrain
 from behaviors.btlog import read_btlog
@@ -194,5 +194,5 @@ def build_page(data: FlightData, summary: dict[str, Any], events: Sequence[dict[
         "moving": _moving(data, end),
     }
     if data.geofence_exclude:  # only then: pages of flights without no-fly zones unchanged
-        page["geofence_exclude"] = [[list(v) for v in zone] for zone in data.geofence_exclude]
+        page["geofence_exclude"] = [zone_record(zone) for zone in data.geofence_exclude]
     return _clean(page)

@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from autonomy.report.data import FlightData
+from lsm.area import NoFlyCircle
 
 # matplotlib is imported where a function draws: a flight or a campaign worker that writes
 # no report.png does not pay for pyplot at start-up.
@@ -43,7 +44,12 @@ def map_window(data: FlightData, xyz: np.ndarray) -> tuple[float, float, float, 
     pts.append(np.array([[x, y] for x, y, _ in data.ban_zones]).reshape(-1, 2))
     if data.geofence is not None:
         pts.append(np.asarray(data.geofence, dtype=np.float64).reshape(-1, 2))
-    pts.extend(np.asarray(zone, dtype=np.float64).reshape(-1, 2) for zone in data.geofence_exclude)
+    for zone in data.geofence_exclude:
+        if isinstance(zone, NoFlyCircle):  # its bounding box
+            pts.append(np.array([[zone.x - zone.radius, zone.y - zone.radius],
+                                 [zone.x + zone.radius, zone.y + zone.radius]]))
+        else:
+            pts.append(np.asarray(zone, dtype=np.float64).reshape(-1, 2))
     allp = np.concatenate(pts)
     lo, hi = allp.min(axis=0) - 20.0, allp.max(axis=0) + 20.0
     side = max(hi - lo)  # square window keeps the map readable
@@ -138,8 +144,10 @@ def write_report_png(data: FlightData, path: Path, *, outcome: str = "") -> None
     for i, zone in enumerate(data.geofence_exclude):
         from matplotlib.patches import Polygon
 
-        ax_map.add_patch(Polygon(zone, closed=True, fill=False, ec="tab:red", hatch="///",
-                                 lw=1.5, zorder=3, label="no-fly zone" if i == 0 else None))
+        style = {"fill": False, "ec": "tab:red", "hatch": "///", "lw": 1.5, "zorder": 3,
+                 "label": "no-fly zone" if i == 0 else None}
+        ax_map.add_patch(Circle((zone.x, zone.y), zone.radius, **style)
+                         if isinstance(zone, NoFlyCircle) else Polygon(zone, closed=True, **style))
     if data.sites:
         sites = np.array([(s.x, s.y, s.loss) for s in data.sites])
         sc = ax_map.scatter(

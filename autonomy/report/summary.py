@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-from autonomy.report.data import FlightData
+from autonomy.report.data import FlightData, zone_record
 from autonomy.report.events import _clean
 from behaviors.blackboard import FAILSAFE_KINDS
 
@@ -156,7 +156,7 @@ def build_summary(data: FlightData) -> dict[str, Any]:
     if data.geofence is not None:  # only then: summaries of flights without one unchanged
         summary["geofence"] = [list(v) for v in data.geofence]
     if data.geofence_exclude:  # the no-fly zones, ENU m, when the mission has any
-        summary["geofence_exclude"] = [[list(v) for v in zone] for zone in data.geofence_exclude]
+        summary["geofence_exclude"] = [zone_record(zone) for zone in data.geofence_exclude]
     if data.geofence_upload is not None:
         summary["geofence_upload"] = data.geofence_upload
     return _clean(summary)

@@ -137,9 +137,14 @@
                           "stroke-dasharray": "8 4 2 4" }, map), "geofence (operating area)");
   }
   (D.geofence_exclude || []).forEach(function (zone, i) {
-    title(el("polygon", { points: zone.map(function (v) { return mx(v[0]) + "," + my(v[1]); }).join(" "),
-                          fill: "#d50000", "fill-opacity": 0.18, stroke: "#d50000",
-                          "stroke-width": 2 }, map), "no-fly zone geofence.exclude." + i);
+    var shade = { fill: "#d50000", "fill-opacity": 0.18, stroke: "#d50000", "stroke-width": 2 };
+    // A circle is {centre: [x, y], radius}; a polygon its vertices.
+    if (zone.centre) {
+      shade.cx = mx(zone.centre[0]); shade.cy = my(zone.centre[1]); shade.r = ms(zone.radius);
+    } else {
+      shade.points = zone.map(function (v) { return mx(v[0]) + "," + my(v[1]); }).join(" ");
+    }
+    title(el(zone.centre ? "circle" : "polygon", shade, map), "no-fly zone geofence.exclude." + i);
   });
   // Banned sites: the ban zone and a cross.
   var banEls = D.bans.map(function (b) {

@@ -396,7 +396,7 @@ def _flight_data(mission: Mission, seed: int, flight: Flight, terrain: Any,
         collisions=None if flight.collisions is None else flight.collisions.count,
         first_collision=None if flight.collisions is None else flight.collisions.first,
         geofence=None if lsm.area is None else list(lsm.area.vertices),
-        geofence_exclude=[] if lsm.area is None else [list(z) for z in lsm.area.exclusions],
+        geofence_exclude=[] if lsm.area is None else list(lsm.area.exclusions),
         geofence_upload=flight.fence_noted,
     )
 

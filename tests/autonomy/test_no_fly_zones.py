@@ -5,6 +5,7 @@ the report."""
 from __future__ import annotations
 
 import json
+import math
 
 import pytest
 import yaml
@@ -100,6 +101,24 @@ def test_lander_validate_counts_the_zones_and_lat_lon_zones_are_converted(tmp_pa
 
 # A circle of 10 m about (25, 55), where the demo lands without zones (see OVER_LANDING).
 CIRCLE_OVER_LANDING = {"centre": [25, 55], "radius": 10}
+
+
+def test_a_demo_flight_lands_outside_a_no_fly_circle_over_its_usual_site(tmp_path):
+    out = tmp_path / "out"
+    assert main(["fly", _demo_with(tmp_path, [CIRCLE_OVER_LANDING]), "--quiet",
+                 "--out", str(out)]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["outcome"] == "landed"
+    touchdown = summary["touchdown"]
+    assert math.hypot(touchdown["x"] - 25, touchdown["y"] - 55) > 10 + 2
+    assert summary["lsm_counters"]["rejected_outside_geofence"] > 0
+    assert summary["geofence_exclude"] == [{"centre": [25.0, 55.0], "radius": 10.0}]
+    upload = summary["geofence_upload"]
+    assert upload["no_fly_circles"] == 1
+    assert "1 no-fly zone (exclusion circles)" in upload["text"]
+    assert (out / "report.png").stat().st_size > 0
+    page = (out / "report.html").read_text().replace(" ", "")
+    assert '"geofence_exclude":[{"centre":[25.0,55.0],"radius":10.0}]' in page
 
 
 @pytest.mark.parametrize(("exclude", "field", "reason"), [
