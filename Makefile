@@ -17,11 +17,11 @@ export NO_MKDOCS_2_WARNING := 1
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
 
-# --no-compile: Python compiles what is imported on first use; compiling every module of the
-# dependencies at install time cost about 35 s of CPU, mostly for modules never imported.
+# The dependencies are byte-compiled at install (pip's default): where PYTHONDONTWRITEBYTECODE
+# is set, nothing is compiled later, and every process would compile each module it imports.
 $(STAMP): pyproject.toml Makefile | $(BIN)/python
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet --no-compile -e '.[test,cluster,las,geotiff]'
+	$(BIN)/python -m pip install --quiet -e '.[test,cluster,las,geotiff]'
 	touch $(STAMP)
 
 demo: $(STAMP)
