@@ -370,6 +370,8 @@ def test_ctrl_c_while_a_campaign_starts_its_workers_is_one_line_not_a_traceback(
          "--workers", "2", "--no-pages", "--out", str(out)],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=tmp_path,
         env={**os.environ, "PYTHONPATH": str(REPO)}, start_new_session=True,
+        # A shell's background jobs ignore SIGINT (a suite run with &); a terminal's don't.
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
     )
     try:
         progress = ""

@@ -10,23 +10,14 @@ import csv
 import numpy as np
 import pytest
 
-import autonomy.cli as cli
 from lsd.io import write_las
 from lsd.lidar_pca.judge import Judge, JudgeRules
 from lsd.lidar_pca.settings import LidarPcaSettings
+from tests.lsd.detect_cli import lander, only_detect  # noqa: F401 - only_detect is autouse
 
 CLEARANCE = 1.0  # the default clearance ring (obstacle_margin), m
 CLEAR_X = (10.0, 16.0)  # the clear flat patch, x (m); y 8 .. 22
 HOLE_X = (16.0, 23.0)  # no returns here (or flat ground, filled)
-
-
-@pytest.fixture(autouse=True)
-def only_detect(monkeypatch):
-    monkeypatch.setattr(cli, "COMMAND_MODULES", ("autonomy.cli.detect",))
-
-
-def lander(*argv):
-    return cli.main(["detect", "--quiet", *map(str, argv)])
 
 
 def read_sites(out):

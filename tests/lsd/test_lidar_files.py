@@ -11,24 +11,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import autonomy.cli as cli
 from lsd.io import read_point_cloud, write_las
 from lsd.lidar_pca.scenes import scene
+from tests.lsd.detect_cli import lander, only_detect  # noqa: F401 - only_detect is autouse
 
 REAL = Path(__file__).resolve().parents[1] / "data" / "real"
 US_FOOT = 1200.0 / 3937.0  # metres
 # The same Lambert projection (North Carolina State Plane, NAD83) in metres and in US feet.
 NC_METRES, NC_FEET = "EPSG:32119", "EPSG:2264"
 NC_ORIGIN = np.array([600_000.0, 200_000.0, 100.0])  # metres, inside the state
-
-
-@pytest.fixture(autouse=True)
-def only_detect(monkeypatch):
-    monkeypatch.setattr(cli, "COMMAND_MODULES", ("autonomy.cli.detect",))
-
-
-def lander(*argv):
-    return cli.main(["detect", "--quiet", *map(str, argv)])
 
 
 def read_sites(out):
