@@ -307,7 +307,7 @@ def _run_lockstep(flight: Flight, sitl: Any, clock: SimClock, mission: Mission,
             tip = flight.tree.tip() if flight.tree is not None else None
             meter.show(clock.now(), flight.phase, None if tip is None else tip.name)
 
-    def fly() -> str:
+    def ticks() -> str:
         for _ in range(math.ceil(mission.time_limit * mission.tick_rate)):
             advance()
             flight.tick()
@@ -324,7 +324,7 @@ def _run_lockstep(flight: Flight, sitl: Any, clock: SimClock, mission: Mission,
 
     with ctrl_c_flag() as interrupted:
         try:
-            reason = fly()
+            reason = ticks()
             if mission.geofence is not None and mission.geofence.restore:
                 restore_fence(flight, advance)
             return reason

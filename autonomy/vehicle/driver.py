@@ -810,35 +810,30 @@ class MavlinkVehicle:
         return (msg.target_system == self.settings.source_system
                 and msg.target_component in (0, self.settings.source_component))
 
-    def _on_mission_request(self, msg: Any, now: float) -> None:
+    def _mission_transfers(self, msg: Any, kind: type | tuple[type, ...]) -> list[Any]:
+        """Our transfers of ``kind`` that a mission-protocol message ``msg`` may answer; none
+        when it is addressed to another ground station."""
         if not self._for_us(msg):
-            return  # another ground station's transfer
-        for transfer in self._transfers:
-            if isinstance(transfer, MissionUpload):
-                transfer.on_request(msg.seq, msg.mission_type, now)
+            return []
+        return [t for t in self._transfers if isinstance(t, kind)]
+
+    def _on_mission_request(self, msg: Any, now: float) -> None:
+        for upload in self._mission_transfers(msg, MissionUpload):
+            upload.on_request(msg.seq, msg.mission_type, now)
 
     def _on_mission_ack(self, msg: Any, now: float) -> None:
-        if not self._for_us(msg):
-            return
-        for transfer in self._transfers:
-            if isinstance(transfer, (MissionUpload, MissionDownload)):
-                transfer.on_ack(msg.type, msg.mission_type, now)
+        for transfer in self._mission_transfers(msg, (MissionUpload, MissionDownload)):
+            transfer.on_ack(msg.type, msg.mission_type, now)
 
     def _on_mission_count(self, msg: Any, now: float) -> None:
-        if not self._for_us(msg):
-            return
-        for transfer in self._transfers:
-            if isinstance(transfer, MissionDownload):
-                transfer.on_count(msg.count, msg.mission_type, now)
+        for download in self._mission_transfers(msg, MissionDownload):
+            download.on_count(msg.count, msg.mission_type, now)
 
     def _on_mission_item_int(self, msg: Any, now: float) -> None:
-        if not self._for_us(msg):
-            return
         fields = (msg.frame, msg.command, msg.current, msg.autocontinue, msg.param1,
                   msg.param2, msg.param3, msg.param4, msg.x, msg.y, msg.z)
-        for transfer in self._transfers:
-            if isinstance(transfer, MissionDownload):
-                transfer.on_item(msg.seq, fields, msg.mission_type, now)
+        for download in self._mission_transfers(msg, MissionDownload):
+            download.on_item(msg.seq, fields, msg.mission_type, now)
 
     def _on_param_value(self, msg: Any, now: float) -> None:
         # PARAM_VALUE is broadcast (no target): any answer shows the value now in force.
